@@ -1,0 +1,133 @@
+"""Compiled per-frame damped Gauss-Newton IK (journal "Inverse kinematics", thesis §3.2.2, §6.4.4).
+
+One solve minimises, over the six global parameters and the posture parameters ``p``,
+
+    E = Σ_observed ‖t_i − x_i(θ)‖²  +  ‖w ∘ S (θ_posture − μ)‖²
+
+with ``θ_posture = clip(c + B p)``: ``B = I₂₀, c = 0`` for full IK and ``B = P_l, c = μ`` for subspace
+IK (journal eq. 3–4). Each step solves ``(JᵀJ + D²) δ = Jᵀ r`` (D: 0 for the global parameters,
+``damping · (1 + |∂H/∂p|)`` for posture parameters moving towards a limit: Chan & Dubey), then halves
+``δ`` until the energy decreases. The wrist rotation is updated by left-composing ``exp(δ_rot)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from core.model.kinematics import (
+    points_and_jacobian_kernel,
+    rotation_from_vector,
+    skinned_points_kernel,
+    forward_kinematics_kernel,
+    vector_from_rotation,
+)
+
+
+@njit(cache=True)
+def limit_gradient(values, lower, upper):
+    """|∂H/∂p| of the Chan–Dubey joint-limit function H = (u−l)² / ((u−p)(p−l)), per parameter."""
+    result = np.zeros(values.shape[0])
+    for i in range(values.shape[0]):
+        low, high = lower[i], upper[i]
+        if not (np.isfinite(low) and np.isfinite(high)):
+            continue
+        to_high = max(high - values[i], 1e-6)
+        to_low = max(values[i] - low, 1e-6)
+        result[i] = abs((high - low) ** 2 * (2.0 * values[i] - high - low) / (4.0 * to_high ** 2 * to_low ** 2))
+    return result
+
+
+@njit(cache=True)
+def _posture(centre, basis, params, angle_lower, angle_upper):
+    posture = centre + basis @ params
+    return np.minimum(np.maximum(posture, angle_lower), angle_upper)
+
+
+@njit(cache=True)
+def _energy(points, targets, observed, posture, prior_matrix, prior_mean, prior_weights):
+    energy = 0.0
+    for i in range(points.shape[0]):
+        if observed[i]:
+            for c in range(3):
+                energy += (targets[i, c] - points[i, c]) ** 2
+    if prior_weights.max() > 0.0:
+        residual = prior_weights * (prior_matrix @ (posture - prior_mean))
+        energy += residual @ residual
+    return energy
+
+
+@njit(cache=True)
+def solve_frame_kernel(theta, targets, observed, relative_rest, offsets, abduction_sign, ancestor,
+                       influence_joints, influence_weights, local_points, basis, centre, param_lower,
+                       param_upper, previous_limit_gradient, damping, prior_matrix, prior_mean,
+                       prior_weights, angle_lower, angle_upper, max_iterations, tolerance):
+    """Solve one frame from the start ``theta (26,)``; returns (theta, energy, limit gradient (n,)).
+
+    ``targets (M,3)`` mm, ``observed (M,)`` bool, ``basis (20,n)``, ``centre (20,)``, parameter limits
+    ``(n,)``, ``prior_matrix (20,20)`` = S, ``prior_weights (20,)`` = per-row √ω₄ (0 = no prior).
+    """
+    n = basis.shape[1]
+    size = 6 + n
+    params = basis.T @ (theta[6:] - centre)
+    params = np.minimum(np.maximum(params, param_lower), param_upper)
+    current = theta.copy()
+    current[6:] = _posture(centre, basis, params, angle_lower, angle_upper)
+    prior_jacobian = (prior_weights.reshape(-1, 1) * prior_matrix) @ basis
+    use_prior = prior_weights.max() > 0.0
+    gradient = limit_gradient(params, param_lower, param_upper)
+    points, jacobian = points_and_jacobian_kernel(current, relative_rest, offsets, abduction_sign, ancestor,
+                                                  influence_joints, influence_weights, local_points)
+    energy = _energy(points, targets, observed, current[6:], prior_matrix, prior_mean, prior_weights)
+    count = points.shape[0]
+    for _ in range(max_iterations):
+        system = np.zeros((size, size))
+        rhs = np.zeros(size)
+        reduced = np.zeros((3, size))
+        for i in range(count):
+            if not observed[i]:
+                continue
+            reduced[:, :6] = jacobian[i, :, :6]
+            reduced[:, 6:] = np.ascontiguousarray(jacobian[i, :, 6:]) @ basis
+            system += reduced.T @ reduced
+            rhs += reduced.T @ (targets[i] - points[i])
+        if use_prior:
+            prior_residual = -prior_weights * (prior_matrix @ (current[6:] - prior_mean))
+            system[6:, 6:] += prior_jacobian.T @ prior_jacobian
+            rhs[6:] += prior_jacobian.T @ prior_residual
+        for k in range(n):
+            scale = 1.0 + gradient[k] if gradient[k] >= previous_limit_gradient[k] else 1.0
+            system[6 + k, 6 + k] += (damping * scale) ** 2
+        for k in range(6):
+            system[k, k] += 1e-9
+        step = np.linalg.solve(system, rhs)
+        accepted = False
+        fraction = 1.0
+        for _halving in range(10):
+            candidate = current.copy()
+            candidate[0:3] = current[0:3] + fraction * step[0:3]
+            rotation = rotation_from_vector(fraction * step[3:6]) @ rotation_from_vector(current[3:6])
+            candidate[3:6] = vector_from_rotation(rotation)
+            candidate_params = np.minimum(np.maximum(params + fraction * step[6:], param_lower), param_upper)
+            candidate[6:] = _posture(centre, basis, candidate_params, angle_lower, angle_upper)
+            rotations, positions, _, _ = forward_kinematics_kernel(candidate, relative_rest, offsets,
+                                                                   abduction_sign)
+            candidate_points = skinned_points_kernel(rotations, positions, influence_joints,
+                                                     influence_weights, local_points)
+            candidate_energy = _energy(candidate_points, targets, observed, candidate[6:], prior_matrix,
+                                       prior_mean, prior_weights)
+            if candidate_energy < energy:
+                accepted = True
+                break
+            fraction *= 0.5
+        if not accepted:
+            break
+        improvement = energy - candidate_energy
+        current, params, energy = candidate, candidate_params, candidate_energy
+        gradient = limit_gradient(params, param_lower, param_upper)
+        if improvement < tolerance * (1.0 + energy):
+            break
+        points, jacobian = points_and_jacobian_kernel(current, relative_rest, offsets, abduction_sign,
+                                                      ancestor, influence_joints, influence_weights,
+                                                      local_points)
+    return current, energy, gradient

@@ -1,0 +1,271 @@
+"""Marker-driven IK of a whole take: full, subspace and layered (subspace, then full with soft prior).
+
+Damping scale: residuals are in mm and posture parameters in rad, so ``posture_damping`` is in
+mm/rad: a value of 2 costs a 1 rad step as much as a 2 mm marker error. It slows steps, it does not
+bias the converged solution (the damping acts on the update δθ, not on θ).
+The soft PCA prior (thesis §6.4.4) weighs √ω₄ = ``prior_weight`` mm/rad per off-subspace radian;
+in layered IK it holds only the digits whose three segments are not all observed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from core.errors import CancelledError, InputError
+from core.ik.kernel import limit_gradient, solve_frame_kernel
+from core.model import HandModel, MarkerLayout, MarkerSet, marker_positions, resolve_layout
+from core.model.kinematics import ANCESTOR, vector_from_rotation
+from core.model.skeleton import N_PARAMS, PARAM_NAMES, default_joint_limits
+
+METHODS = ("layered", "subspace", "full")
+LOST_TRACK_MM = 30.0
+
+
+@dataclass(frozen=True)
+class IKSettings:
+    """Tuning of the per-frame solver (units in the module docstring)."""
+
+    method: str = "layered"
+    subspace_dims: int = 6
+    posture_damping: float = 2.0
+    prior_weight: float = 20.0
+    prior_mean_ratio: float = 0.01
+    max_iterations: int = 10
+    tolerance: float = 1e-12
+    predict: bool = True
+
+
+@dataclass
+class IKResult:
+    """Per-frame IK output. ``joint_angles (F,26)`` rad/mm, ``residuals_mm (F,M)`` (NaN unobserved),
+    ``effector_positions (F,M,3)`` mm, ``marker_names (M,)`` in layout order."""
+
+    joint_angles: np.ndarray
+    residuals_mm: np.ndarray
+    effector_positions: np.ndarray
+    marker_names: list[str]
+    method: str
+    frame_rate: float = 100.0
+    first_frame: int = 1
+
+    @property
+    def mean_residual_mm(self) -> float:
+        return float(np.nanmean(self.residuals_mm)) if np.isfinite(self.residuals_mm).any() else float("nan")
+
+    def save(self, path: str | Path) -> None:
+        """Write ``.npz`` (atomic)."""
+        path = Path(path)
+        temporary = path.with_name(path.name + ".tmp.npz")
+        np.savez_compressed(temporary, joint_angles=self.joint_angles, residuals_mm=self.residuals_mm,
+                            effector_positions=self.effector_positions,
+                            marker_names=np.array(self.marker_names), method=self.method,
+                            frame_rate=self.frame_rate, first_frame=self.first_frame,
+                            param_names=np.array(PARAM_NAMES))
+        temporary.replace(path)
+
+    def save_csv(self, path: str | Path) -> None:
+        """Joint angles as CSV: frame, time (s), 3 translations (mm), 23 angles (deg)."""
+        angles = self.joint_angles.copy()
+        angles[:, 3:] = np.degrees(angles[:, 3:])
+        frames = np.arange(len(angles)) + self.first_frame
+        table = np.column_stack([frames, (frames - self.first_frame) / self.frame_rate, angles])
+        header = ",".join(["frame", "time_s"] + [f"{name}_{'mm' if i < 3 else 'deg'}"
+                                                 for i, name in enumerate(PARAM_NAMES)])
+        path = Path(path)
+        temporary = path.with_name(path.name + ".tmp")
+        np.savetxt(temporary, table, delimiter=",", header=header, comments="", fmt="%.6g")
+        temporary.replace(path)
+
+
+def kabsch(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation (3,3) and translation (3,) that best map ``source (N,3)`` onto ``target (N,3)``."""
+    source_centre, target_centre = source.mean(axis=0), target.mean(axis=0)
+    covariance = (source - source_centre).T @ (target - target_centre)
+    u, _, vt = np.linalg.svd(covariance)
+    sign = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
+    rotation = vt.T @ np.diag([1.0, 1.0, sign]) @ u.T
+    return rotation, target_centre - rotation @ source_centre
+
+
+class IKSolver:
+    """Solves frames of one marker set on one model, warm-starting from the previous frames."""
+
+    def __init__(self, model: HandModel, markers: MarkerSet, prior=None, settings: IKSettings | None = None):
+        self.settings = settings or IKSettings()
+        if self.settings.method not in METHODS:
+            raise InputError(f"unknown IK method '{self.settings.method}' (use {', '.join(METHODS)})")
+        if self.settings.method != "full" and prior is None:
+            from core.prior import load_default_prior
+            prior = load_default_prior()
+        self.model, self.markers, self.prior = model, markers, prior
+        lower, upper = default_joint_limits()
+        if prior is not None:
+            lower = np.maximum(lower, np.concatenate([lower[:6], prior.angle_lower]))
+            upper = np.minimum(upper, np.concatenate([upper[:6], prior.angle_upper]))
+        self.angle_lower, self.angle_upper = lower[6:].copy(), upper[6:].copy()
+        self._marker_digit_segment = self._digit_segments(markers)
+        self._setup_spaces()
+        self.reset()
+
+    @staticmethod
+    def _digit_segments(markers: MarkerSet) -> np.ndarray:
+        """Joint (1..15) that carries each marker most, -1 for the palm/wrist, (M,)."""
+        dominant = markers.influence_joints[np.arange(len(markers.names)),
+                                            markers.influence_weights.argmax(axis=1)]
+        return np.where(dominant > 0, dominant, -1)
+
+    def _setup_spaces(self) -> None:
+        settings = self.settings
+        self._full_space = (np.eye(20), np.zeros(20), self.angle_lower, self.angle_upper)
+        no_prior = np.zeros(20)
+        self._zero_prior = (np.zeros((20, 20)), np.zeros(20), no_prior)
+        if self.prior is None:
+            return
+        dims = min(settings.subspace_dims, self.prior.components.shape[1])
+        basis = np.ascontiguousarray(self.prior.components[:, :dims])
+        margin = 0.25 * (self.prior.alpha_upper[:dims] - self.prior.alpha_lower[:dims])
+        self._subspace = (basis, self.prior.mean.copy(), self.prior.alpha_lower[:dims] - margin,
+                          self.prior.alpha_upper[:dims] + margin)
+        inverse_sigma_sq = 1.0 / np.maximum(self.prior.stddev[:dims], 1e-6) ** 2
+        shrink = 1.0 / (settings.prior_mean_ratio * inverse_sigma_sq + 1.0)
+        self._prior_matrix = np.ascontiguousarray(np.eye(20) - basis @ np.diag(shrink) @ basis.T)
+
+    def reset(self) -> None:
+        """Forget the previous frames (the next frame is initialised from scratch)."""
+        self._history: list[np.ndarray] = []
+        self._gradients: dict[str, np.ndarray] = {}
+
+    def _prior_weights(self, observed: np.ndarray) -> np.ndarray:
+        """√ω₄ on the four parameters of every digit whose three segments are not all observed."""
+        weights = np.zeros(20)
+        seen = set(self._marker_digit_segment[observed].tolist())
+        for digit in range(5):
+            if not all(1 + 3 * digit + segment in seen for segment in range(3)):
+                weights[4 * digit:4 * digit + 4] = self.settings.prior_weight
+        return weights
+
+    def initial_pose(self, targets: np.ndarray, observed: np.ndarray) -> np.ndarray:
+        """Global pose by rigid alignment of the markers at the mean posture to the observed targets."""
+        theta = np.zeros(N_PARAMS)
+        theta[6:] = np.clip(self.prior.mean if self.prior is not None else 0.0, self.angle_lower,
+                            self.angle_upper)
+        model_points = marker_positions(self.model, self.markers, theta)[observed]
+        observed_targets = targets[observed]
+        if len(observed_targets) >= 3:
+            rotation, translation = kabsch(model_points, observed_targets)
+            theta[3:6] = vector_from_rotation(rotation)
+            theta[0:3] = translation
+        else:
+            theta[0:3] = observed_targets.mean(axis=0) - model_points.mean(axis=0)
+        return theta
+
+    def _run(self, space_name: str, start: np.ndarray, targets: np.ndarray, observed: np.ndarray,
+             prior: tuple[np.ndarray, np.ndarray, np.ndarray]) -> tuple[np.ndarray, float]:
+        basis, centre, lower, upper = self._subspace if space_name == "subspace" else self._full_space
+        previous = self._gradients.get(space_name)
+        if previous is None:
+            previous = limit_gradient(basis.T @ (start[6:] - centre), lower, upper)
+        chain = self.model.chain
+        theta, energy, gradient = solve_frame_kernel(
+            start, targets, observed, chain.relative_rest, chain.offsets, chain.abduction_sign, ANCESTOR,
+            self.markers.influence_joints, self.markers.influence_weights, self.markers.local_points,
+            basis, centre, lower, upper, previous, self.settings.posture_damping, prior[0], prior[1],
+            prior[2], self.angle_lower, self.angle_upper, self.settings.max_iterations,
+            self.settings.tolerance)
+        self._gradients[space_name] = gradient
+        return theta, energy
+
+    def _solve_from(self, start: np.ndarray, targets: np.ndarray, observed: np.ndarray) -> np.ndarray:
+        method = self.settings.method
+        if method == "full":
+            return self._run("full", start, targets, observed, self._zero_prior)[0]
+        theta = self._run("subspace", start, targets, observed, self._zero_prior)[0]
+        if method == "subspace":
+            return theta
+        prior = (self._prior_matrix, self.prior.mean, self._prior_weights(observed))
+        return self._run("full", theta, targets, observed, prior)[0]
+
+    def solve_frame(self, targets: np.ndarray) -> np.ndarray:
+        """Joint angles (26,) for one frame of targets (M,3) mm (NaN = unobserved)."""
+        observed = np.isfinite(targets).all(axis=1)
+        if not observed.any():
+            if not self._history:
+                return np.full(N_PARAMS, np.nan)
+            return self._history[-1].copy()          # frozen while nothing is seen
+        clean_targets = np.where(observed[:, None], targets, 0.0)
+        if not self._history:
+            start = self.initial_pose(clean_targets, observed)
+        elif self.settings.predict and len(self._history) >= 2:
+            start = 2.0 * self._history[-1] - self._history[-2]
+        else:
+            start = self._history[-1].copy()
+        theta = self._solve_from(start, clean_targets, observed)
+        if self._mean_residual(theta, clean_targets, observed) > LOST_TRACK_MM:
+            restart = self._solve_from(self.initial_pose(clean_targets, observed), clean_targets, observed)
+            if self._mean_residual(restart, clean_targets, observed) < self._mean_residual(
+                    theta, clean_targets, observed):
+                theta = restart
+        self._history = [self._history[-1], theta] if self._history else [theta]
+        return theta
+
+    def _mean_residual(self, theta: np.ndarray, targets: np.ndarray, observed: np.ndarray) -> float:
+        points = marker_positions(self.model, self.markers, theta)
+        return float(np.linalg.norm(points[observed] - targets[observed], axis=1).mean())
+
+
+def match_layout(marker_names: list[str], layout: MarkerLayout) -> np.ndarray:
+    """Column of each layout marker in a take's marker list, -1 where the take lacks it, (M_layout,)."""
+    lookup = {name.strip().lower(): index for index, name in enumerate(marker_names)}
+    columns = np.array([lookup.get(name.lower(), -1) for name in layout.names], dtype=np.int64)
+    if (columns < 0).all():
+        raise InputError(f"no marker of layout '{layout.name}' is in the take "
+                         f"(layout: {', '.join(layout.names[:6])}…; take: {', '.join(marker_names[:6])}…)")
+    return columns
+
+
+def solve_positions(targets: np.ndarray, model: HandModel, markers: MarkerSet, prior=None,
+                    settings: IKSettings | None = None,
+                    progress: Callable[[float], None] | None = None,
+                    cancelled: Callable[[], bool] | None = None) -> IKResult:
+    """IK for targets (F,M,3) mm in the marker set's order; raises CancelledError when cancelled."""
+    solver = IKSolver(model, markers, prior, settings)
+    frames = len(targets)
+    angles = np.full((frames, N_PARAMS), np.nan)
+    effectors = np.full((frames, len(markers.names), 3), np.nan)
+    report_every = max(1, frames // 100)
+    for frame in range(frames):
+        angles[frame] = solver.solve_frame(targets[frame])
+        if np.isfinite(angles[frame]).all():
+            effectors[frame] = marker_positions(model, markers, angles[frame])
+        if frame % report_every == 0:
+            if cancelled is not None and cancelled():
+                raise CancelledError("IK cancelled; the take is unchanged")
+            if progress is not None:
+                progress(frame / max(frames, 1))
+    if progress is not None:
+        progress(1.0)
+    residuals = np.linalg.norm(effectors - targets, axis=2)
+    return IKResult(angles, residuals, effectors, list(markers.names), solver.settings.method)
+
+
+def solve_take(take, model: HandModel, layout: MarkerLayout, prior=None, method: str = "layered",
+               progress: Callable[[float], None] | None = None,
+               cancelled: Callable[[], bool] | None = None,
+               settings: IKSettings | None = None) -> IKResult:
+    """IK of a labelled take (``core.io.Take``) with ``layout``: markers are matched by name."""
+    if take.n_frames == 0:
+        raise InputError("the take has no frames")
+    columns = match_layout(take.marker_names, layout)
+    targets = np.full((take.n_frames, len(columns), 3), np.nan)
+    present = columns >= 0
+    targets[:, present] = take.marker_positions[:, columns[present]]
+    settings = settings or IKSettings(method=method)
+    if settings.method != method:
+        settings = IKSettings(**{**settings.__dict__, "method": method})
+    result = solve_positions(targets, model, resolve_layout(model, layout), prior, settings, progress, cancelled)
+    result.frame_rate, result.first_frame = take.frame_rate, take.first_frame
+    return result

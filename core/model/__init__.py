@@ -1,0 +1,42 @@
+"""The hand model: skeleton, skinned template mesh, marker layouts, kinematics."""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+from core.errors import InputError
+from core.model.hand_model import HandModel, skin_vertices
+from core.model.markers import (
+    MarkerLayout,
+    MarkerSet,
+    MarkerSpec,
+    layout_names,
+    load_layout,
+    marker_jacobian,
+    marker_positions,
+    marker_positions_batch,
+    resolve_layout,
+    save_layout,
+)
+from core.model.skeleton import N_PARAMS, PARAM_NAMES, default_joint_limits
+
+TEMPLATE_PATH = Path(__file__).resolve().parents[2] / "resources" / "template" / "right_hand.npz"
+
+
+@lru_cache(maxsize=4)
+def load_template(side: str = "right") -> HandModel:
+    """The shipped template hand (``resources/template/right_hand.npz``); the left hand mirrors it."""
+    if side not in ("right", "left"):
+        raise InputError(f"hand side must be 'right' or 'left', not '{side}'")
+    if not TEMPLATE_PATH.exists():
+        raise InputError(f"template missing: {TEMPLATE_PATH} (run 'handmocap template build')")
+    model = HandModel.load(TEMPLATE_PATH)
+    return model if side == "right" else model.mirrored()
+
+
+__all__ = [
+    "HandModel", "MarkerLayout", "MarkerSet", "MarkerSpec", "N_PARAMS", "PARAM_NAMES", "TEMPLATE_PATH",
+    "default_joint_limits", "layout_names", "load_layout", "load_template", "marker_jacobian",
+    "marker_positions", "marker_positions_batch", "resolve_layout", "save_layout", "skin_vertices",
+]

@@ -1,0 +1,136 @@
+"""A skinned hand: skeleton + closed triangle mesh + LBS weights + landmarks; posing and mirroring."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from core.errors import InputError
+from core.model.kinematics import KinematicChain
+from core.model.skeleton import N_JOINTS, Skeleton
+
+MAX_INFLUENCES = 4
+
+
+@dataclass(frozen=True, eq=False)
+class HandModel:
+    """A rigged hand in its rest pose (mm, world frame of :mod:`core.model.skeleton`).
+
+    ``vertices (V,3)``, ``faces (T,3)`` (counter-clockwise seen from outside), ``skin_joints (V,4)``
+    and ``skin_weights (V,4)`` (rows sum to 1; mid-segment vertices have a single weight 1),
+    ``landmarks``: the 20 named landmark vertex indices used by scan calibration,
+    ``back_direction (3,)``: unit normal of the back of the hand ``h``, ``hand_length``: ``L`` (mm).
+    """
+
+    skeleton: Skeleton
+    vertices: np.ndarray
+    faces: np.ndarray
+    skin_joints: np.ndarray
+    skin_weights: np.ndarray
+    landmarks: dict[str, int] = field(default_factory=dict)
+    back_direction: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+    hand_length: float = 190.0
+    name: str = "template"
+
+    @property
+    def side(self) -> str:
+        return self.skeleton.side
+
+    @cached_property
+    def chain(self) -> KinematicChain:
+        return KinematicChain.from_skeleton(self.skeleton)
+
+    @cached_property
+    def vertex_normals(self) -> np.ndarray:
+        """Unit outward normals (V,3) of the rest mesh (area-weighted face normals)."""
+        return mesh_vertex_normals(self.vertices, self.faces)
+
+    def mirrored(self) -> HandModel:
+        """The mirror-image hand (right ↔ left): X negated, face winding flipped."""
+        mirror = np.array([-1.0, 1.0, 1.0])
+        return replace(
+            self,
+            skeleton=self.skeleton.mirrored(),
+            vertices=self.vertices * mirror,
+            faces=self.faces[:, ::-1].copy(),
+            back_direction=self.back_direction * mirror,
+            name=f"{self.name} (mirrored)",
+        )
+
+    def save(self, path: str | Path) -> None:
+        """Store as ``.npz`` (atomic: temporary file, then rename)."""
+        path = Path(path)
+        temporary = path.with_name(path.name + ".tmp.npz")
+        np.savez_compressed(
+            temporary,
+            rest_positions=self.skeleton.rest_positions, rest_rotations=self.skeleton.rest_rotations,
+            tip_positions=self.skeleton.tip_positions, side=self.skeleton.side,
+            vertices=self.vertices, faces=self.faces, skin_joints=self.skin_joints,
+            skin_weights=self.skin_weights, landmark_names=np.array(list(self.landmarks)),
+            landmark_vertices=np.array(list(self.landmarks.values()), dtype=np.int64),
+            back_direction=self.back_direction, hand_length=self.hand_length, name=self.name,
+        )
+        temporary.replace(path)
+
+    @classmethod
+    def load(cls, path: str | Path) -> HandModel:
+        """Read a model written by :meth:`save`."""
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                skeleton = Skeleton(data["rest_positions"], data["rest_rotations"], data["tip_positions"],
+                                    str(data["side"]))
+                model = cls(
+                    skeleton=skeleton, vertices=data["vertices"], faces=data["faces"],
+                    skin_joints=data["skin_joints"], skin_weights=data["skin_weights"],
+                    landmarks={str(n): int(v) for n, v in zip(data["landmark_names"],
+                                                              data["landmark_vertices"], strict=True)},
+                    back_direction=data["back_direction"], hand_length=float(data["hand_length"]),
+                    name=str(data["name"]),
+                )
+        except (OSError, KeyError, ValueError) as error:
+            raise InputError(f"{Path(path).name}: not a hand model file ({error})") from error
+        model.validate()
+        return model
+
+    def validate(self) -> None:
+        """Raise :class:`InputError` when the arrays are inconsistent."""
+        count = len(self.vertices)
+        problems = []
+        if self.vertices.shape != (count, 3) or count == 0:
+            problems.append("vertices must be (V,3)")
+        if self.faces.ndim != 2 or self.faces.shape[1] != 3 or self.faces.max(initial=0) >= count:
+            problems.append("faces must be (T,3) indices into the vertices")
+        if self.skin_joints.shape != (count, MAX_INFLUENCES) or self.skin_weights.shape != (count, MAX_INFLUENCES):
+            problems.append("skin weights must be (V,4)")
+        elif self.skin_joints.max(initial=0) >= N_JOINTS:
+            problems.append("skin joints must index the 16 joints")
+        elif not np.allclose(self.skin_weights.sum(axis=1), 1.0, atol=1e-6):
+            problems.append("skin weights must sum to 1 per vertex")
+        if problems:
+            raise InputError(f"hand model '{self.name}': " + "; ".join(problems))
+
+
+def mesh_vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Area-weighted unit vertex normals (V,3) of a triangle mesh."""
+    corners = vertices[faces]
+    face_normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    normals = np.zeros_like(vertices)
+    for k in range(3):
+        np.add.at(normals, faces[:, k], face_normals)
+    length = np.linalg.norm(normals, axis=1, keepdims=True)
+    return normals / np.where(length > 0, length, 1.0)
+
+
+def skin_vertices(model: HandModel, theta: np.ndarray) -> np.ndarray:
+    """Posed mesh vertices (V,3) in mm by linear blend skinning at ``theta (26,)``."""
+    linear, translation = model.chain.skinning_matrices(theta)
+    posed = np.zeros_like(model.vertices)
+    for k in range(MAX_INFLUENCES):
+        joints = model.skin_joints[:, k]
+        weights = model.skin_weights[:, k:k + 1]
+        moved = np.einsum("vab,vb->va", linear[joints], model.vertices) + translation[joints]
+        posed += weights * moved
+    return posed

@@ -1,0 +1,226 @@
+"""Marker layouts (JSON) and markers resolved onto a hand model's skinned surface.
+
+A layout names where each marker sits in a way that carries over to any hand model (template,
+re-proportioned subject, calibrated scan, imported glTF) with the 16-joint skeleton:
+
+* ``{"name": "index_tip", "between": ["index_dip", "index_tip"], "along": 0.75, "side": "dorsal",
+  "offset_mm": 4.0}`` — the surface point reached from the bone axis point
+  ``lerp(rest(a), rest(b), along)`` in the ``side`` direction of the first joint's rest frame
+  (``dorsal``, ``palmar``, ``radial``, ``ulnar``, ``distal``, ``proximal``, or a vector in that frame);
+  joint names are :data:`core.model.skeleton.JOINT_NAMES` plus ``<digit>_tip``;
+* ``{"name": "m3", "vertex": 1234, "offset_mm": 4.0}`` — a mesh vertex (optimised layouts).
+
+``offset_mm`` lifts the marker centre off the skin along the surface normal (marker radius + base).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from core.errors import InputError
+from core.model.hand_model import HandModel
+from core.model.kinematics import ANCESTOR, points_and_jacobian_kernel, skinned_points_kernel
+from core.model.skeleton import DIGITS, JOINT_NAMES
+
+LAYOUT_DIR = Path(__file__).resolve().parents[2] / "resources" / "layouts"
+
+#: direction names in a joint's rest frame (x = radial-pointing flexion axis, y = bone, z = palmar)
+SIDE_DIRECTIONS = {
+    "dorsal": (0.0, 0.0, -1.0), "palmar": (0.0, 0.0, 1.0), "radial": (1.0, 0.0, 0.0),
+    "ulnar": (-1.0, 0.0, 0.0), "distal": (0.0, 1.0, 0.0), "proximal": (0.0, -1.0, 0.0),
+}
+
+
+@dataclass(frozen=True)
+class MarkerSpec:
+    """Where one marker sits; see the module docstring for the two forms."""
+
+    name: str
+    between: tuple[str, str] | None = None
+    along: float = 0.5
+    side: str | tuple[float, float, float] = "dorsal"
+    vertex: int | None = None
+    offset_mm: float = 4.0
+
+    def to_json(self) -> dict:
+        if self.vertex is not None:
+            return {"name": self.name, "vertex": int(self.vertex), "offset_mm": self.offset_mm}
+        return {"name": self.name, "between": list(self.between), "along": self.along,
+                "side": self.side if isinstance(self.side, str) else list(self.side),
+                "offset_mm": self.offset_mm}
+
+
+@dataclass(frozen=True)
+class MarkerLayout:
+    """A named set of markers."""
+
+    name: str
+    markers: tuple[MarkerSpec, ...]
+    description: str = ""
+
+    @property
+    def names(self) -> list[str]:
+        return [marker.name for marker in self.markers]
+
+    def to_json(self) -> dict:
+        return {"name": self.name, "description": self.description,
+                "markers": [marker.to_json() for marker in self.markers]}
+
+    @classmethod
+    def from_json(cls, data: dict, source: str = "layout") -> MarkerLayout:
+        """Parse and validate a layout dictionary; raises :class:`InputError` with one clear line."""
+        try:
+            markers = tuple(_spec_from_json(entry) for entry in data["markers"])
+            layout = cls(name=str(data.get("name", source)), markers=markers,
+                         description=str(data.get("description", "")))
+        except (KeyError, TypeError, ValueError) as error:
+            raise InputError(f"{source}: not a marker layout ({error})") from error
+        if not markers:
+            raise InputError(f"{source}: the layout has no markers")
+        if len(set(layout.names)) != len(markers):
+            raise InputError(f"{source}: marker names must be unique")
+        return layout
+
+
+def _spec_from_json(entry: dict) -> MarkerSpec:
+    if "vertex" in entry:
+        return MarkerSpec(name=str(entry["name"]), vertex=int(entry["vertex"]),
+                          offset_mm=float(entry.get("offset_mm", 4.0)))
+    between = tuple(entry["between"])
+    for joint in between:
+        if joint not in JOINT_NAMES and joint not in {f"{d}_tip" for d in DIGITS}:
+            raise ValueError(f"unknown joint '{joint}' in marker '{entry['name']}'")
+    side = entry.get("side", "dorsal")
+    if isinstance(side, str) and side not in SIDE_DIRECTIONS:
+        raise ValueError(f"unknown side '{side}' in marker '{entry['name']}'")
+    return MarkerSpec(name=str(entry["name"]), between=(between[0], between[1]),
+                      along=float(entry.get("along", 0.5)),
+                      side=side if isinstance(side, str) else tuple(float(v) for v in side),
+                      offset_mm=float(entry.get("offset_mm", 4.0)))
+
+
+def layout_names() -> list[str]:
+    """Names of the layouts shipped in ``resources/layouts``."""
+    return sorted(path.stem for path in LAYOUT_DIR.glob("*.json"))
+
+
+def load_layout(name_or_path: str | Path) -> MarkerLayout:
+    """A shipped layout by name (``dense``, ``glove-13``, ``grasp-4``) or a layout JSON file."""
+    path = Path(name_or_path)
+    if not path.suffix:
+        path = LAYOUT_DIR / f"{name_or_path}.json"
+        if not path.exists():
+            raise InputError(f"unknown layout '{name_or_path}' (available: {', '.join(layout_names())})")
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise InputError(f"{path.name}: cannot read the layout ({error})") from error
+    return MarkerLayout.from_json(data, source=path.name)
+
+
+def save_layout(layout: MarkerLayout, path: str | Path) -> None:
+    """Write a layout JSON file atomically."""
+    path = Path(path)
+    temporary = path.with_name(path.name + ".tmp")
+    temporary.write_text(json.dumps(layout.to_json(), indent=2), encoding="utf-8")
+    temporary.replace(path)
+
+
+@dataclass(frozen=True, eq=False)
+class MarkerSet:
+    """A layout resolved on one hand model: everything the IK needs per marker.
+
+    ``vertex (M,)`` anchor vertex, ``rest_positions (M,3)`` mm, ``influence_joints (M,4)``,
+    ``influence_weights (M,4)`` (the anchor vertex's skin weights), ``local_points (M,4,3)``: the rest
+    position in each influence joint's rest frame.
+    """
+
+    names: list[str]
+    vertex: np.ndarray
+    rest_positions: np.ndarray
+    influence_joints: np.ndarray
+    influence_weights: np.ndarray
+    local_points: np.ndarray
+    offsets_mm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def subset(self, indices: np.ndarray) -> MarkerSet:
+        """The markers at ``indices`` (e.g. the ones observed in a frame)."""
+        return MarkerSet([self.names[i] for i in indices], self.vertex[indices],
+                         self.rest_positions[indices], self.influence_joints[indices],
+                         self.influence_weights[indices], self.local_points[indices],
+                         self.offsets_mm[indices])
+
+
+def _joint_rest_point(model: HandModel, joint: str) -> np.ndarray:
+    if joint.endswith("_tip"):
+        return model.skeleton.tip_positions[DIGITS.index(joint[:-4])]
+    return model.skeleton.rest_positions[JOINT_NAMES.index(joint)]
+
+
+def _frame_joint(joint: str) -> int:
+    """Joint whose rest frame orients the ``side`` of a marker placed from ``joint``: the distal
+    joint for a tip, the middle finger's MCP for the wrist (the palm's frame), else the joint itself."""
+    if joint.endswith("_tip"):
+        return 3 + 3 * DIGITS.index(joint[:-4])
+    if joint == "wrist":
+        return JOINT_NAMES.index("middle_mcp")
+    return JOINT_NAMES.index(joint)
+
+
+def _surface_vertex(model: HandModel, spec: MarkerSpec) -> int:
+    """The vertex where the ray from the bone axis point in the ``side`` direction leaves the skin."""
+    frame = model.skeleton.rest_rotations[_frame_joint(spec.between[0])]
+    origin = ((1.0 - spec.along) * _joint_rest_point(model, spec.between[0])
+              + spec.along * _joint_rest_point(model, spec.between[1]))
+    local = np.array(SIDE_DIRECTIONS[spec.side] if isinstance(spec.side, str) else spec.side, float)
+    if model.side == "left":
+        local[0] = -local[0]  # mirrored frames keep x on the right hand's radial side: flip it back
+    direction = frame @ (local / np.linalg.norm(local))
+    relative = model.vertices - origin
+    depth = relative @ direction
+    lateral = np.linalg.norm(relative - depth[:, None] * direction, axis=1)
+    facing = model.vertex_normals @ direction > 0.3
+    # nearest to the ray, in front of the axis point, on the side facing the ray; the outermost wins
+    score = np.where((depth > 0) & facing, lateral - 0.05 * depth, np.inf)
+    if not np.isfinite(score).any():
+        raise InputError(f"marker '{spec.name}': no skin in that direction on model '{model.name}'")
+    return int(np.argmin(score))
+
+
+def resolve_layout(model: HandModel, layout: MarkerLayout) -> MarkerSet:
+    """Place the layout's markers on ``model``'s surface (rest pose)."""
+    vertices = np.array([spec.vertex if spec.vertex is not None else _surface_vertex(model, spec)
+                         for spec in layout.markers], dtype=np.int64)
+    if vertices.max() >= len(model.vertices) or vertices.min() < 0:
+        raise InputError(f"layout '{layout.name}': vertex index outside model '{model.name}'")
+    offsets = np.array([spec.offset_mm for spec in layout.markers])
+    rest = model.vertices[vertices] + model.vertex_normals[vertices] * offsets[:, None]
+    joints = np.ascontiguousarray(model.skin_joints[vertices])
+    weights = np.ascontiguousarray(model.skin_weights[vertices], dtype=np.float64)
+    return MarkerSet(layout.names, vertices, rest, joints, weights,
+                     model.chain.local_coordinates(rest, joints), offsets)
+
+
+def marker_positions(model: HandModel, markers: MarkerSet, theta: np.ndarray) -> np.ndarray:
+    """Marker centres (M,3) in mm at ``theta (26,)``."""
+    rotations, positions = model.chain.joint_transforms(theta)
+    return skinned_points_kernel(rotations, positions, markers.influence_joints,
+                                 markers.influence_weights, markers.local_points)
+
+
+def marker_positions_batch(model: HandModel, markers: MarkerSet, thetas: np.ndarray) -> np.ndarray:
+    """Marker centres (F,M,3) in mm for ``thetas (F,26)``."""
+    return np.stack([marker_positions(model, markers, theta) for theta in np.atleast_2d(thetas)])
+
+
+def marker_jacobian(model: HandModel, markers: MarkerSet, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Marker centres (M,3) and their Jacobian (M,3,26) at ``theta`` (convention: kinematics module)."""
+    chain = model.chain
+    return points_and_jacobian_kernel(np.ascontiguousarray(theta, dtype=np.float64), chain.relative_rest,
+                                      chain.offsets, chain.abduction_sign, ANCESTOR,
+                                      markers.influence_joints, markers.influence_weights,
+                                      markers.local_points)
