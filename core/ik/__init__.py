@@ -1,6 +1,15 @@
 """Inverse kinematics: damped Gauss-Newton, full / subspace / layered, joint limits, warm start."""
 
-from core.ik.solver import METHODS, IKResult, IKSettings, IKSolver, kabsch, match_layout, solve_positions, solve_take
+from core.ik.solver import (
+           METHODS,
+           IKResult,
+           IKSettings,
+           IKSolver,
+           kabsch,
+           match_layout,
+           solve_positions,
+           solve_take,
+)
 
 __all__ = ["METHODS", "IKResult", "IKSettings", "IKSolver", "kabsch", "match_layout", "solve_positions",
            "solve_take"]

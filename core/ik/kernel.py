@@ -6,7 +6,8 @@ One solve minimises, over the six global parameters and the posture parameters `
 
 with ``θ_posture = clip(c + B p)``: ``B = I₂₀, c = 0`` for full IK and ``B = P_l, c = μ`` for subspace
 IK (journal eq. 3–4). Each step solves ``(JᵀJ + D²) δ = Jᵀ r`` (D: 0 for the global parameters,
-``damping · (1 + |∂H/∂p|)`` for posture parameters moving towards a limit: Chan & Dubey), then halves
+``damping · (1 + |∂H/∂p|)`` for posture parameters whose step moves them towards their nearer limit:
+Chan & Dubey, with the direction read from the step instead of from the previous frame), then halves
 ``δ`` until the energy decreases. The wrist rotation is updated by left-composing ``exp(δ_rot)``.
 """
 
@@ -16,10 +17,11 @@ import numpy as np
 from numba import njit
 
 from core.model.kinematics import (
+    forward_kinematics_kernel,
+    matmul3,
     points_and_jacobian_kernel,
     rotation_from_vector,
     skinned_points_kernel,
-    forward_kinematics_kernel,
     vector_from_rotation,
 )
 
@@ -34,8 +36,41 @@ def limit_gradient(values, lower, upper):
             continue
         to_high = max(high - values[i], 1e-6)
         to_low = max(values[i] - low, 1e-6)
-        result[i] = abs((high - low) ** 2 * (2.0 * values[i] - high - low) / (4.0 * to_high ** 2 * to_low ** 2))
+        value = (high - low) ** 2 * (2.0 * values[i] - high - low) / (4.0 * to_high ** 2 * to_low ** 2)
+        result[i] = min(abs(value), 1e6)
     return result
+
+
+@njit(cache=True)
+def solve_spd(system, rhs):
+    """Solve ``system x = rhs`` for a small symmetric positive (semi-)definite system by Cholesky;
+    pivots below 1e-12 × the largest diagonal are floored (an unconstrained direction gets no step)."""
+    size = rhs.shape[0]
+    factor = system.copy()
+    floor = 1e-12 * max(np.abs(np.diag(system)).max(), 1e-30)
+    for j in range(size):
+        pivot = factor[j, j]
+        for k in range(j):
+            pivot -= factor[j, k] * factor[j, k]
+        pivot = np.sqrt(max(pivot, floor))
+        factor[j, j] = pivot
+        for i in range(j + 1, size):
+            value = factor[i, j]
+            for k in range(j):
+                value -= factor[i, k] * factor[j, k]
+            factor[i, j] = value / pivot
+    solution = rhs.copy()
+    for i in range(size):
+        value = solution[i]
+        for k in range(i):
+            value -= factor[i, k] * solution[k]
+        solution[i] = value / factor[i, i]
+    for i in range(size - 1, -1, -1):
+        value = solution[i]
+        for k in range(i + 1, size):
+            value -= factor[k, i] * solution[k]
+        solution[i] = value / factor[i, i]
+    return solution
 
 
 @njit(cache=True)
@@ -58,11 +93,20 @@ def _energy(points, targets, observed, posture, prior_matrix, prior_mean, prior_
 
 
 @njit(cache=True)
+def frame_energy_kernel(theta, targets, observed, relative_rest, offsets, abduction_sign, influence_joints,
+                        influence_weights, local_points, prior_matrix, prior_mean, prior_weights):
+    """The IK energy E (mm²) of ``theta (26,)`` for one frame (see module docstring)."""
+    rotations, positions, _, _ = forward_kinematics_kernel(theta, relative_rest, offsets, abduction_sign)
+    points = skinned_points_kernel(rotations, positions, influence_joints, influence_weights, local_points)
+    return _energy(points, targets, observed, theta[6:], prior_matrix, prior_mean, prior_weights)
+
+
+@njit(cache=True)
 def solve_frame_kernel(theta, targets, observed, relative_rest, offsets, abduction_sign, ancestor,
                        influence_joints, influence_weights, local_points, basis, centre, param_lower,
-                       param_upper, previous_limit_gradient, damping, prior_matrix, prior_mean,
+                       param_upper, damping, prior_matrix, prior_mean,
                        prior_weights, angle_lower, angle_upper, max_iterations, tolerance):
-    """Solve one frame from the start ``theta (26,)``; returns (theta, energy, limit gradient (n,)).
+    """Solve one frame from the start ``theta (26,)``; returns (theta, energy, marker positions (M,3)).
 
     ``targets (M,3)`` mm, ``observed (M,)`` bool, ``basis (20,n)``, ``centre (20,)``, parameter limits
     ``(n,)``, ``prior_matrix (20,20)`` = S, ``prior_weights (20,)`` = per-row √ω₄ (0 = no prior).
@@ -80,33 +124,44 @@ def solve_frame_kernel(theta, targets, observed, relative_rest, offsets, abducti
                                                   influence_joints, influence_weights, local_points)
     energy = _energy(points, targets, observed, current[6:], prior_matrix, prior_mean, prior_weights)
     count = points.shape[0]
+    mask = np.zeros((count, 3))
+    for i in range(count):
+        if observed[i]:
+            mask[i, :] = 1.0
+    identity_basis = n == 20 and np.all(basis == np.eye(20))
     for _ in range(max_iterations):
-        system = np.zeros((size, size))
-        rhs = np.zeros(size)
-        reduced = np.zeros((3, size))
-        for i in range(count):
-            if not observed[i]:
-                continue
-            reduced[:, :6] = jacobian[i, :, :6]
-            reduced[:, 6:] = np.ascontiguousarray(jacobian[i, :, 6:]) @ basis
-            system += reduced.T @ reduced
-            rhs += reduced.T @ (targets[i] - points[i])
+        residual = (targets - points) * mask
+        reduced = np.empty((3 * count, size))
+        flat = jacobian.reshape(3 * count, 26) * mask.reshape(3 * count, 1)
+        reduced[:, :6] = flat[:, :6]
+        reduced[:, 6:] = flat[:, 6:] if identity_basis else np.ascontiguousarray(flat[:, 6:]) @ basis
+        system = reduced.T @ reduced
+        rhs = reduced.T @ residual.reshape(3 * count)
         if use_prior:
             prior_residual = -prior_weights * (prior_matrix @ (current[6:] - prior_mean))
             system[6:, 6:] += prior_jacobian.T @ prior_jacobian
             rhs[6:] += prior_jacobian.T @ prior_residual
         for k in range(n):
-            scale = 1.0 + gradient[k] if gradient[k] >= previous_limit_gradient[k] else 1.0
-            system[6 + k, 6 + k] += (damping * scale) ** 2
+            system[6 + k, 6 + k] += damping ** 2
         for k in range(6):
             system[k, k] += 1e-9
-        step = np.linalg.solve(system, rhs)
+        step = solve_spd(system, rhs)
+        # Chan & Dubey: parameters whose step moves them towards their nearer limit are slowed by
+        # (1 + |∂H/∂p|); parameters moving away from a limit stay free.
+        slowed = False
+        for k in range(n):
+            middle = 0.5 * (param_lower[k] + param_upper[k])
+            if gradient[k] > 0.0 and step[6 + k] * (params[k] - middle) > 0.0:
+                system[6 + k, 6 + k] += (damping * (1.0 + gradient[k])) ** 2 - damping ** 2
+                slowed = True
+        if slowed:
+            step = solve_spd(system, rhs)
         accepted = False
         fraction = 1.0
         for _halving in range(10):
             candidate = current.copy()
             candidate[0:3] = current[0:3] + fraction * step[0:3]
-            rotation = rotation_from_vector(fraction * step[3:6]) @ rotation_from_vector(current[3:6])
+            rotation = matmul3(rotation_from_vector(fraction * step[3:6]), rotation_from_vector(current[3:6]))
             candidate[3:6] = vector_from_rotation(rotation)
             candidate_params = np.minimum(np.maximum(params + fraction * step[6:], param_lower), param_upper)
             candidate[6:] = _posture(centre, basis, candidate_params, angle_lower, angle_upper)
@@ -123,11 +178,11 @@ def solve_frame_kernel(theta, targets, observed, relative_rest, offsets, abducti
         if not accepted:
             break
         improvement = energy - candidate_energy
-        current, params, energy = candidate, candidate_params, candidate_energy
+        current, params, energy, points = candidate, candidate_params, candidate_energy, candidate_points
         gradient = limit_gradient(params, param_lower, param_upper)
         if improvement < tolerance * (1.0 + energy):
             break
         points, jacobian = points_and_jacobian_kernel(current, relative_rest, offsets, abduction_sign,
                                                       ancestor, influence_joints, influence_weights,
                                                       local_points)
-    return current, energy, gradient
+    return current, energy, points

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import CancelledError, InputError
-from core.ik.kernel import limit_gradient, solve_frame_kernel
+from core.ik.kernel import frame_energy_kernel, solve_frame_kernel
 from core.model import HandModel, MarkerLayout, MarkerSet, marker_positions, resolve_layout
 from core.model.kinematics import ANCESTOR, vector_from_rotation
 from core.model.skeleton import N_PARAMS, PARAM_NAMES, default_joint_limits
@@ -35,7 +35,7 @@ class IKSettings:
     prior_weight: float = 20.0
     prior_mean_ratio: float = 0.01
     max_iterations: int = 10
-    tolerance: float = 1e-12
+    tolerance: float = 1e-6
     predict: bool = True
 
 
@@ -107,6 +107,7 @@ class IKSolver:
             lower = np.maximum(lower, np.concatenate([lower[:6], prior.angle_lower]))
             upper = np.minimum(upper, np.concatenate([upper[:6], prior.angle_upper]))
         self.angle_lower, self.angle_upper = lower[6:].copy(), upper[6:].copy()
+        self._lower, self._upper = lower, upper
         self._marker_digit_segment = self._digit_segments(markers)
         self._setup_spaces()
         self.reset()
@@ -137,7 +138,6 @@ class IKSolver:
     def reset(self) -> None:
         """Forget the previous frames (the next frame is initialised from scratch)."""
         self._history: list[np.ndarray] = []
-        self._gradients: dict[str, np.ndarray] = {}
 
     def _prior_weights(self, observed: np.ndarray) -> np.ndarray:
         """√ω₄ on the four parameters of every digit whose three segments are not all observed."""
@@ -164,38 +164,49 @@ class IKSolver:
         return theta
 
     def _run(self, space_name: str, start: np.ndarray, targets: np.ndarray, observed: np.ndarray,
-             prior: tuple[np.ndarray, np.ndarray, np.ndarray]) -> tuple[np.ndarray, float]:
+             prior: tuple[np.ndarray, np.ndarray, np.ndarray]) -> tuple[np.ndarray, float, np.ndarray]:
         basis, centre, lower, upper = self._subspace if space_name == "subspace" else self._full_space
-        previous = self._gradients.get(space_name)
-        if previous is None:
-            previous = limit_gradient(basis.T @ (start[6:] - centre), lower, upper)
         chain = self.model.chain
-        theta, energy, gradient = solve_frame_kernel(
+        return solve_frame_kernel(
             start, targets, observed, chain.relative_rest, chain.offsets, chain.abduction_sign, ANCESTOR,
             self.markers.influence_joints, self.markers.influence_weights, self.markers.local_points,
-            basis, centre, lower, upper, previous, self.settings.posture_damping, prior[0], prior[1],
+            basis, centre, lower, upper, self.settings.posture_damping, prior[0], prior[1],
             prior[2], self.angle_lower, self.angle_upper, self.settings.max_iterations,
             self.settings.tolerance)
-        self._gradients[space_name] = gradient
-        return theta, energy
 
-    def _solve_from(self, start: np.ndarray, targets: np.ndarray, observed: np.ndarray) -> np.ndarray:
+    def _solve_from(self, start: np.ndarray, targets: np.ndarray,
+                    observed: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
         method = self.settings.method
         if method == "full":
-            return self._run("full", start, targets, observed, self._zero_prior)[0]
-        theta = self._run("subspace", start, targets, observed, self._zero_prior)[0]
+            return self._run("full", start, targets, observed, self._zero_prior)
+        solution = self._run("subspace", start, targets, observed, self._zero_prior)
         if method == "subspace":
-            return theta
+            return solution
         prior = (self._prior_matrix, self.prior.mean, self._prior_weights(observed))
-        return self._run("full", theta, targets, observed, prior)[0]
+        # refine from the subspace solution, or from the warm-start prediction when that is better
+        refine_start = solution[0]
+        if self._history and self._energy(start, targets, observed, prior) < self._energy(
+                refine_start, targets, observed, prior):
+            refine_start = start
+        return self._run("full", refine_start, targets, observed, prior)
 
-    def solve_frame(self, targets: np.ndarray) -> np.ndarray:
-        """Joint angles (26,) for one frame of targets (M,3) mm (NaN = unobserved)."""
+    def _energy(self, theta: np.ndarray, targets: np.ndarray, observed: np.ndarray,
+                prior: tuple[np.ndarray, np.ndarray, np.ndarray]) -> float:
+        chain = self.model.chain
+        return frame_energy_kernel(np.clip(theta, self._lower, self._upper), targets, observed,
+                                   chain.relative_rest, chain.offsets, chain.abduction_sign,
+                                   self.markers.influence_joints, self.markers.influence_weights,
+                                   self.markers.local_points, prior[0], prior[1], prior[2])
+
+    def solve_frame(self, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Joint angles (26,) and effector positions (M,3) mm for one frame of targets (M,3) mm
+        (NaN = unobserved). With nothing observed the previous posture is held (NaN before any)."""
         observed = np.isfinite(targets).all(axis=1)
         if not observed.any():
             if not self._history:
-                return np.full(N_PARAMS, np.nan)
-            return self._history[-1].copy()          # frozen while nothing is seen
+                return np.full(N_PARAMS, np.nan), np.full(targets.shape, np.nan)
+            held = self._history[-1].copy()
+            return held, marker_positions(self.model, self.markers, held)
         clean_targets = np.where(observed[:, None], targets, 0.0)
         if not self._history:
             start = self.initial_pose(clean_targets, observed)
@@ -203,18 +214,13 @@ class IKSolver:
             start = 2.0 * self._history[-1] - self._history[-2]
         else:
             start = self._history[-1].copy()
-        theta = self._solve_from(start, clean_targets, observed)
-        if self._mean_residual(theta, clean_targets, observed) > LOST_TRACK_MM:
+        theta, energy, points = self._solve_from(start, clean_targets, observed)
+        if energy > LOST_TRACK_MM ** 2 * observed.sum():
             restart = self._solve_from(self.initial_pose(clean_targets, observed), clean_targets, observed)
-            if self._mean_residual(restart, clean_targets, observed) < self._mean_residual(
-                    theta, clean_targets, observed):
-                theta = restart
+            if restart[1] < energy:
+                theta, energy, points = restart
         self._history = [self._history[-1], theta] if self._history else [theta]
-        return theta
-
-    def _mean_residual(self, theta: np.ndarray, targets: np.ndarray, observed: np.ndarray) -> float:
-        points = marker_positions(self.model, self.markers, theta)
-        return float(np.linalg.norm(points[observed] - targets[observed], axis=1).mean())
+        return theta, points
 
 
 def match_layout(marker_names: list[str], layout: MarkerLayout) -> np.ndarray:
@@ -238,9 +244,7 @@ def solve_positions(targets: np.ndarray, model: HandModel, markers: MarkerSet, p
     effectors = np.full((frames, len(markers.names), 3), np.nan)
     report_every = max(1, frames // 100)
     for frame in range(frames):
-        angles[frame] = solver.solve_frame(targets[frame])
-        if np.isfinite(angles[frame]).all():
-            effectors[frame] = marker_positions(model, markers, angles[frame])
+        angles[frame], effectors[frame] = solver.solve_frame(targets[frame])
         if frame % report_every == 0:
             if cancelled is not None and cancelled():
                 raise CancelledError("IK cancelled; the take is unchanged")

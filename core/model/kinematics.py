@@ -78,6 +78,42 @@ def _rotation_z(angle: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
+@njit(cache=True, inline="always")
+def _matmul3_into(a, b, out):
+    """out = a @ b for 3×3 arrays, without a BLAS call or an allocation (hot path)."""
+    for r in range(3):
+        for c in range(3):
+            out[r, c] = a[r, 0] * b[0, c] + a[r, 1] * b[1, c] + a[r, 2] * b[2, c]
+
+
+@njit(cache=True)
+def matmul3(a, b):
+    """a @ b for 3×3 arrays."""
+    out = np.empty((3, 3))
+    _matmul3_into(a, b, out)
+    return out
+
+
+@njit(cache=True, inline="always")
+def _rotate_z_into(a, angle, out):
+    """out = a @ Rz(angle)."""
+    c, s = np.cos(angle), np.sin(angle)
+    for r in range(3):
+        out[r, 0] = c * a[r, 0] + s * a[r, 1]
+        out[r, 1] = -s * a[r, 0] + c * a[r, 1]
+        out[r, 2] = a[r, 2]
+
+
+@njit(cache=True, inline="always")
+def _rotate_x_into(a, angle, out):
+    """out = a @ Rx(angle)."""
+    c, s = np.cos(angle), np.sin(angle)
+    for r in range(3):
+        out[r, 0] = a[r, 0]
+        out[r, 1] = c * a[r, 1] + s * a[r, 2]
+        out[r, 2] = -s * a[r, 1] + c * a[r, 2]
+
+
 @njit(cache=True)
 def forward_kinematics_kernel(theta, relative_rest, offsets, abduction_sign):
     """Joint world rotations (16,3,3), positions (16,3), DoF axes (26,3) and centres (26,3)."""
@@ -85,6 +121,8 @@ def forward_kinematics_kernel(theta, relative_rest, offsets, abduction_sign):
     positions = np.empty((N_JOINTS, 3))
     axes = np.zeros((N_PARAMS, 3))
     centres = np.zeros((N_PARAMS, 3))
+    pre = np.empty((3, 3))
+    abducted = np.empty((3, 3))
     rotations[0] = rotation_from_vector(theta[3:6])
     positions[0] = theta[0:3]
     for k in range(3):
@@ -95,20 +133,26 @@ def forward_kinematics_kernel(theta, relative_rest, offsets, abduction_sign):
         digit = (joint - 1) // 3
         segment = (joint - 1) % 3
         parent = 0 if segment == 0 else joint - 1
-        pre = rotations[parent] @ relative_rest[joint]
-        positions[joint] = positions[parent] + rotations[parent] @ offsets[joint]
+        parent_rotation = rotations[parent]
+        _matmul3_into(parent_rotation, relative_rest[joint], pre)
+        for r in range(3):
+            positions[joint, r] = positions[parent, r] + (parent_rotation[r, 0] * offsets[joint, 0]
+                                                          + parent_rotation[r, 1] * offsets[joint, 1]
+                                                          + parent_rotation[r, 2] * offsets[joint, 2])
         base = 6 + 4 * digit
         if segment == 0:
-            abducted = pre @ _rotation_z(abduction_sign * theta[base])
-            axes[base] = abduction_sign * pre[:, 2]
-            axes[base + 1] = abducted[:, 0]
-            centres[base] = positions[joint]
-            centres[base + 1] = positions[joint]
-            rotations[joint] = abducted @ _rotation_x(theta[base + 1])
+            _rotate_z_into(pre, abduction_sign * theta[base], abducted)
+            for r in range(3):
+                axes[base, r] = abduction_sign * pre[r, 2]
+                axes[base + 1, r] = abducted[r, 0]
+                centres[base, r] = positions[joint, r]
+                centres[base + 1, r] = positions[joint, r]
+            _rotate_x_into(abducted, theta[base + 1], rotations[joint])
         else:
-            axes[base + 1 + segment] = pre[:, 0]
-            centres[base + 1 + segment] = positions[joint]
-            rotations[joint] = pre @ _rotation_x(theta[base + 1 + segment])
+            for r in range(3):
+                axes[base + 1 + segment, r] = pre[r, 0]
+                centres[base + 1 + segment, r] = positions[joint, r]
+            _rotate_x_into(pre, theta[base + 1 + segment], rotations[joint])
     return rotations, positions, axes, centres
 
 
@@ -123,7 +167,10 @@ def skinned_points_kernel(rotations, positions, influence_joints, influence_weig
             if weight == 0.0:
                 continue
             joint = influence_joints[i, k]
-            result[i] += weight * (rotations[joint] @ local_points[i, k] + positions[joint])
+            rotation, local = rotations[joint], local_points[i, k]
+            for r in range(3):
+                result[i, r] += weight * (rotation[r, 0] * local[0] + rotation[r, 1] * local[1]
+                                          + rotation[r, 2] * local[2] + positions[joint, r])
     return result
 
 
@@ -145,14 +192,17 @@ def points_and_jacobian_kernel(theta, relative_rest, offsets, abduction_sign, an
             if weight == 0.0:
                 continue
             joint = influence_joints[i, k]
-            point = rotations[joint] @ local_points[i, k] + positions[joint]
-            points[i] += weight * point
+            rotation, local = rotations[joint], local_points[i, k]
+            px = rotation[0, 0] * local[0] + rotation[0, 1] * local[1] + rotation[0, 2] * local[2] + positions[joint, 0]
+            py = rotation[1, 0] * local[0] + rotation[1, 1] * local[1] + rotation[1, 2] * local[2] + positions[joint, 1]
+            pz = rotation[2, 0] * local[0] + rotation[2, 1] * local[1] + rotation[2, 2] * local[2] + positions[joint, 2]
+            points[i, 0] += weight * px
+            points[i, 1] += weight * py
+            points[i, 2] += weight * pz
             for d in range(3, N_PARAMS):
                 if ancestor[d, joint]:
                     ax, ay, az = axes[d, 0], axes[d, 1], axes[d, 2]
-                    rx = point[0] - centres[d, 0]
-                    ry = point[1] - centres[d, 1]
-                    rz = point[2] - centres[d, 2]
+                    rx, ry, rz = px - centres[d, 0], py - centres[d, 1], pz - centres[d, 2]
                     jacobian[i, 0, d] += weight * (ay * rz - az * ry)
                     jacobian[i, 1, d] += weight * (az * rx - ax * rz)
                     jacobian[i, 2, d] += weight * (ax * ry - ay * rx)

@@ -1,0 +1,31 @@
+"""Synthetic hand motion and takes with ground truth, for tests, benchmarks and the demo."""
+
+from core.simulate.motion import (
+    MOTIONS,
+    WORKSPACE_CENTRE,
+    global_motion,
+    grasp_motion,
+    heldout_grasp_motion,
+    minimum_jerk_trajectory,
+    mixed_motion,
+    prior_motion,
+    simulate_joint_angles,
+)
+from core.simulate.take import CAMERA_POSITIONS, SimulatedTake, load_truth, save_truth, simulate_take
+
+__all__ = [
+    "CAMERA_POSITIONS",
+    "MOTIONS",
+    "WORKSPACE_CENTRE",
+    "SimulatedTake",
+    "global_motion",
+    "grasp_motion",
+    "heldout_grasp_motion",
+    "load_truth",
+    "minimum_jerk_trajectory",
+    "mixed_motion",
+    "prior_motion",
+    "save_truth",
+    "simulate_joint_angles",
+    "simulate_take",
+]

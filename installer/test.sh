@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# Installs everything (system packages, .venv with the test tools), then runs the checks and tests:
+# ruff, the import contracts (core has no GUI dependencies), and pytest (GUI tests offscreen/Xvfb).
+# Usage: bash installer/test.sh [pytest arguments]
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$root"
+bash installer/setup.sh --test
+.venv/bin/ruff check app core widgets tests
+.venv/bin/lint-imports
+export QT_QPA_PLATFORM="${QT_QPA_PLATFORM:-offscreen}"
+if [ -z "${DISPLAY:-}" ] && command -v xvfb-run >/dev/null 2>&1; then
+  exec xvfb-run -a -s "-screen 0 1600x1000x24" .venv/bin/python -m pytest -q -p no:cacheprovider "$@"
+fi
+exec .venv/bin/python -m pytest -q -p no:cacheprovider "$@"

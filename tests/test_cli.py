@@ -1,0 +1,98 @@
+"""The handmocap command: help, version, errors as one line with exit code 2, end-to-end runs."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app.cli import build_parser, main
+
+SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+REAL_TSV = SHARED / "real" / "dfki_glove_right_hand_frames_0001_3000.tsv"
+
+
+def run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "app.cli", *args], capture_output=True, text=True,
+                          timeout=600, cwd=Path(__file__).resolve().parents[1])
+
+
+def test_version_and_help_of_every_subcommand(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--version"])
+    assert exit_info.value.code == 0 and "handmocap" in capsys.readouterr().out
+    subcommands = build_parser()._subparsers._group_actions[0].choices
+    for name in subcommands:
+        with pytest.raises(SystemExit) as exit_info:
+            main([name, "--help"])
+        assert exit_info.value.code == 0
+        assert "usage: handmocap" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("args", [
+    ["info", "does-not-exist.c3d"],
+    ["solve", "does-not-exist.c3d", "--layout", "dense", "--out", "x.npz"],
+    ["info", __file__],
+])
+def test_errors_are_one_line_with_exit_code_2(args):
+    completed = run(*args)
+    assert completed.returncode == 2
+    assert "Traceback" not in completed.stderr
+    assert len(completed.stderr.strip().splitlines()) == 1
+    assert completed.stderr.startswith("handmocap: error:")
+
+
+def test_bad_layout_is_a_clear_error(tmp_path, capsys):
+    take = tmp_path / "t.c3d"
+    assert main(["simulate", "--frames", "20", "--out", str(take), "--truth", str(tmp_path / "t.npz")]) == 0
+    assert main(["solve", str(take), "--layout", "no-such-layout", "--out", str(tmp_path / "r.npz")]) == 2
+    assert "unknown layout 'no-such-layout'" in capsys.readouterr().err
+
+
+def test_simulate_then_solve_round_trip(tmp_path, capsys):
+    take, truth = tmp_path / "take.c3d", tmp_path / "truth.npz"
+    assert main(["simulate", "--layout", "dense", "--frames", "120", "--seed", "4", "--out", str(take),
+                 "--truth", str(truth)]) == 0
+    with np.load(truth) as data:
+        assert data["joint_angles"].shape == (120, 26)
+        assert data["marker_positions"].shape == (120, 24, 3)
+    result, csv = tmp_path / "result.npz", tmp_path / "angles.csv"
+    assert main(["solve", str(take), "--layout", "dense", "--out", str(result), "--csv", str(csv),
+                 "--quiet"]) == 0
+    with np.load(result) as solved, np.load(truth) as data:
+        error = np.degrees(np.abs(solved["joint_angles"][:, 6:] - data["joint_angles"][:, 6:]))
+        assert error.mean() < 0.5
+        assert np.nanmean(solved["residuals_mm"]) < 0.05
+    assert len(csv.read_text().splitlines()) == 121
+    capsys.readouterr()
+    assert main(["info", str(take), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert info["frames"] == 120 and info["markers"] == 24 and info["frame_rate_hz"] == 100.0
+
+
+def test_unlabelled_simulation_writes_point_marker(tmp_path):
+    take, truth = tmp_path / "raw.c3d", tmp_path / "truth.npz"
+    assert main(["simulate", "--layout", "glove-13", "--frames", "60", "--seed", "1", "--noise", "0.3",
+                 "--ghosts", "0.1", "--occlusion", "--unlabelled", "--out", str(take), "--truth", str(truth)]) == 0
+    with np.load(truth) as data:
+        assert data["point_marker"].shape[0] == 60
+        assert (data["point_marker"] == -1).any()
+
+
+@pytest.mark.skipif(not REAL_TSV.exists(), reason="shared data absent")
+def test_info_on_the_real_recording(capsys):
+    assert main(["info", str(REAL_TSV), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert info["frames"] == 3000 and info["markers"] == 21 and info["vendor"] == "Qualisys"
+    assert "thumb_tip" in info["marker_names"]
+
+
+def test_bench_and_evaluate_print_json_last(capsys):
+    assert main(["bench", "ik", "--frames", "200", "--json"]) == 0
+    figures = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert figures["frames_per_s"] > 0 and figures["markers"] == 24
+    assert main(["bench", "load", "--frames", "2000", "--json"]) == 0
+    figures = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert figures["frames"] == 2000 and figures["markers"] == 40 and figures["seconds"] > 0
