@@ -53,7 +53,7 @@ def command_info(args: argparse.Namespace) -> int:
     print(f"{Path(args.file).name}: {info['vendor']}, {take.n_frames} frames at {take.frame_rate:g} Hz "
           f"({info['duration_s']} s, first frame {take.first_frame}), units {take.source_units}")
     print(f"{take.n_markers} markers, {100 * missing:.1f} % of samples missing")
-    per_marker = take.marker_missing_fraction
+    per_marker = take.missing_fraction_per_marker
     for name, share in zip(take.marker_names, per_marker, strict=True):
         print(f"  {name:<32} {100 * (1 - share):6.1f} % observed")
     return 0

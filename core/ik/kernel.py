@@ -105,11 +105,12 @@ def frame_energy_kernel(theta, targets, observed, relative_rest, offsets, abduct
 def solve_frame_kernel(theta, targets, observed, relative_rest, offsets, abduction_sign, ancestor,
                        influence_joints, influence_weights, local_points, basis, centre, param_lower,
                        param_upper, damping, prior_matrix, prior_mean,
-                       prior_weights, angle_lower, angle_upper, max_iterations, tolerance):
+                       prior_weights, angle_lower, angle_upper, max_iterations, tolerance, global_free):
     """Solve one frame from the start ``theta (26,)``; returns (theta, energy, marker positions (M,3)).
 
     ``targets (M,3)`` mm, ``observed (M,)`` bool, ``basis (20,n)``, ``centre (20,)``, parameter limits
-    ``(n,)``, ``prior_matrix (20,20)`` = S, ``prior_weights (20,)`` = per-row √ω₄ (0 = no prior).
+    ``(n,)``, ``prior_matrix (20,20)`` = S, ``prior_weights (20,)`` = per-row √ω₄ (0 = no prior);
+    ``global_free`` False holds the six global parameters at their start values.
     """
     n = basis.shape[1]
     size = 6 + n
@@ -144,7 +145,7 @@ def solve_frame_kernel(theta, targets, observed, relative_rest, offsets, abducti
         for k in range(n):
             system[6 + k, 6 + k] += damping ** 2
         for k in range(6):
-            system[k, k] += 1e-9
+            system[k, k] += 1e-9 if global_free else 1e12
         step = solve_spd(system, rhs)
         # Chan & Dubey: parameters whose step moves them towards their nearer limit are slowed by
         # (1 + |∂H/∂p|); parameters moving away from a limit stay free.

@@ -1,5 +1,6 @@
 """Marker-driven IK of a whole take: full, subspace and layered (subspace, then full with soft prior).
 
+The subspace size defaults to one principal component per finger marker (2 to 6).
 Damping scale: residuals are in mm and posture parameters in rad, so ``posture_damping`` is in
 mm/rad: a value of 2 costs a 1 rad step as much as a 2 mm marker error. It slows steps, it does not
 bias the converged solution (the damping acts on the update δθ, not on θ).
@@ -30,7 +31,7 @@ class IKSettings:
     """Tuning of the per-frame solver (units in the module docstring)."""
 
     method: str = "layered"
-    subspace_dims: int = 6
+    subspace_dims: int | None = None
     posture_damping: float = 2.0
     prior_weight: float = 20.0
     prior_mean_ratio: float = 0.01
@@ -126,7 +127,8 @@ class IKSolver:
         self._zero_prior = (np.zeros((20, 20)), np.zeros(20), no_prior)
         if self.prior is None:
             return
-        dims = min(settings.subspace_dims, self.prior.components.shape[1])
+        dims = min(settings.subspace_dims or self.automatic_subspace_dims(),
+                   self.prior.components.shape[1])
         basis = np.ascontiguousarray(self.prior.components[:, :dims])
         margin = 0.25 * (self.prior.alpha_upper[:dims] - self.prior.alpha_lower[:dims])
         self._subspace = (basis, self.prior.mean.copy(), self.prior.alpha_lower[:dims] - margin,
@@ -135,9 +137,15 @@ class IKSolver:
         shrink = 1.0 / (settings.prior_mean_ratio * inverse_sigma_sq + 1.0)
         self._prior_matrix = np.ascontiguousarray(np.eye(20) - basis @ np.diag(shrink) @ basis.T)
 
+    def automatic_subspace_dims(self) -> int:
+        """Subspace size matched to the layout: one PC per marker on a finger, 2 to 6 (journal: l is
+        the control variable for the number of markers k; 3–6 PCs cover 90 % of hand motion)."""
+        return int(np.clip((self._marker_digit_segment > 0).sum(), 2, 6))
+
     def reset(self) -> None:
         """Forget the previous frames (the next frame is initialised from scratch)."""
         self._history: list[np.ndarray] = []
+        self._global_free = True
 
     def _prior_weights(self, observed: np.ndarray) -> np.ndarray:
         """√ω₄ on the four parameters of every digit whose three segments are not all observed."""
@@ -172,7 +180,7 @@ class IKSolver:
             self.markers.influence_joints, self.markers.influence_weights, self.markers.local_points,
             basis, centre, lower, upper, self.settings.posture_damping, prior[0], prior[1],
             prior[2], self.angle_lower, self.angle_upper, self.settings.max_iterations,
-            self.settings.tolerance)
+            self.settings.tolerance, self._global_free)
 
     def _solve_from(self, start: np.ndarray, targets: np.ndarray,
                     observed: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
@@ -198,9 +206,11 @@ class IKSolver:
                                    self.markers.influence_joints, self.markers.influence_weights,
                                    self.markers.local_points, prior[0], prior[1], prior[2])
 
-    def solve_frame(self, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def solve_frame(self, targets: np.ndarray, global_pose: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Joint angles (26,) and effector positions (M,3) mm for one frame of targets (M,3) mm
-        (NaN = unobserved). With nothing observed the previous posture is held (NaN before any)."""
+        (NaN = unobserved). With nothing observed the previous posture is held (NaN before any).
+        ``global_pose (6,)``, when given (e.g. from a tracked wrist rigid body), is held fixed."""
+        self._global_free = global_pose is None
         observed = np.isfinite(targets).all(axis=1)
         if not observed.any():
             if not self._history:
@@ -214,9 +224,14 @@ class IKSolver:
             start = 2.0 * self._history[-1] - self._history[-2]
         else:
             start = self._history[-1].copy()
+        if global_pose is not None:
+            start[:6] = global_pose
         theta, energy, points = self._solve_from(start, clean_targets, observed)
         if energy > LOST_TRACK_MM ** 2 * observed.sum():
-            restart = self._solve_from(self.initial_pose(clean_targets, observed), clean_targets, observed)
+            restart = self.initial_pose(clean_targets, observed)
+            if global_pose is not None:
+                restart[:6] = global_pose
+            restart = self._solve_from(restart, clean_targets, observed)
             if restart[1] < energy:
                 theta, energy, points = restart
         self._history = [self._history[-1], theta] if self._history else [theta]
@@ -236,15 +251,18 @@ def match_layout(marker_names: list[str], layout: MarkerLayout) -> np.ndarray:
 def solve_positions(targets: np.ndarray, model: HandModel, markers: MarkerSet, prior=None,
                     settings: IKSettings | None = None,
                     progress: Callable[[float], None] | None = None,
-                    cancelled: Callable[[], bool] | None = None) -> IKResult:
-    """IK for targets (F,M,3) mm in the marker set's order; raises CancelledError when cancelled."""
+                    cancelled: Callable[[], bool] | None = None,
+                    global_poses: np.ndarray | None = None) -> IKResult:
+    """IK for targets (F,M,3) mm in the marker set's order; raises CancelledError when cancelled.
+    ``global_poses (F,6)``: wrist pose per frame when known from elsewhere (held fixed), else solved."""
     solver = IKSolver(model, markers, prior, settings)
     frames = len(targets)
     angles = np.full((frames, N_PARAMS), np.nan)
     effectors = np.full((frames, len(markers.names), 3), np.nan)
     report_every = max(1, frames // 100)
     for frame in range(frames):
-        angles[frame], effectors[frame] = solver.solve_frame(targets[frame])
+        angles[frame], effectors[frame] = solver.solve_frame(
+            targets[frame], None if global_poses is None else global_poses[frame])
         if frame % report_every == 0:
             if cancelled is not None and cancelled():
                 raise CancelledError("IK cancelled; the take is unchanged")

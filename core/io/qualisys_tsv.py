@@ -1,0 +1,103 @@
+"""Qualisys TSV (QTM 3D export) reading.
+
+Layout: header lines `KEY<TAB>value...` (NO_OF_FRAMES, NO_OF_MARKERS, FREQUENCY, MARKER_NAMES,
+DATA_INCLUDED, ...), then optionally a column row (`Frame<TAB>Time<TAB><name> X<TAB><name> Y<TAB>
+<name> Z...`), then one row per frame. Without a column row the data have 3 M columns, or 3 M + 2
+with frame and time first. Coordinates are millimetres; missing samples are empty cells, "nan" or
+(0, 0, 0), all read as NaN. The first frame number is the first Frame cell (1 when absent).
+"""
+
+import logging
+import math
+import re
+from os import PathLike
+from pathlib import Path
+
+from core.io.errors import TakeFormatError
+from core.io.take import Take, parse_number_rows, read_text, unique_marker_names, zeros_to_nan
+
+_log = logging.getLogger(__name__)
+
+_HEADER_KEY = re.compile(r"[A-Z][A-Z0-9_]*")
+
+
+def read_tsv(path: str | PathLike[str]) -> Take:
+    """Read a Qualisys TSV file into a Take (mm, NaN for missing); raises TakeFormatError."""
+    lines = read_text(path).splitlines()
+    header: dict[str, list[str]] = {}
+    row = 0
+    while row < len(lines):
+        cells = lines[row].split("\t")
+        if not _HEADER_KEY.fullmatch(cells[0].strip()):
+            break
+        header.setdefault(cells[0].strip(), [cell.strip() for cell in cells[1:]])
+        row += 1
+    if "MARKER_NAMES" not in header:
+        raise TakeFormatError.at(path, "not a Qualisys TSV file (no MARKER_NAMES header line)")
+    included = " ".join(header.get("DATA_INCLUDED", ["3D"])).strip()
+    if included.upper() != "3D":
+        raise TakeFormatError.at(path, f"contains '{included}' data; only 3D marker data can be read")
+    file_names = [name.strip() for name in _trim(header["MARKER_NAMES"])]
+    names = unique_marker_names(file_names)
+    frame_rate = _header_number(header, "FREQUENCY", path)
+
+    columns = [cell.strip() for cell in lines[row].split("\t")] if row < len(lines) else []
+    if "Frame" in columns or any(f"{name} X" in columns for name in names[:1]):
+        frame_column = columns.index("Frame") if "Frame" in columns else None
+        marker_columns: list[int] = []
+        for name in file_names:  # the n-th marker of a name takes the n-th column of that name
+            for axis in "XYZ":
+                label = f"{name} {axis}"
+                found = [i for i, column in enumerate(columns) if column == label and i not in marker_columns]
+                if not found:
+                    raise TakeFormatError.at(path, f"line {row + 1}: no column '{label}'")
+                marker_columns.append(found[0])
+        width = len(columns)
+        row += 1
+    else:
+        width = len(_trim(columns)) if columns else 3 * len(names)
+        if columns and width not in (3 * len(names), 3 * len(names) + 2):
+            raise TakeFormatError.at(path, f"line {row + 1}: {width} columns for {len(names)} markers")
+        offset = width - 3 * len(names)
+        frame_column = 0 if offset else None
+        marker_columns = list(range(offset, width))
+
+    rows = [
+        (number + 1, lines[number].split("\t")) for number in range(row, len(lines)) if lines[number].strip()
+    ]
+    table = parse_number_rows(rows, width, path)
+    positions = zeros_to_nan(table[:, marker_columns].reshape(len(rows), len(names), 3))
+    declared = header.get("NO_OF_FRAMES", [""])[0]
+    if declared.isdigit() and int(declared) != len(rows):
+        _log.warning("%s: NO_OF_FRAMES says %s, the file has %d frames", Path(path).name, declared, len(rows))
+    first_frame = 1
+    if frame_column is not None and len(rows) and math.isfinite(table[0, frame_column]):
+        first_frame = int(table[0, frame_column])
+    return Take(
+        marker_names=names,
+        marker_positions=positions,
+        frame_rate=frame_rate,
+        first_frame=first_frame,
+        vendor="Qualisys",
+        source_units="mm",
+        source_path=str(path),
+    )
+
+
+def _header_number(header: dict[str, list[str]], key: str, path: str | PathLike[str]) -> float:
+    """A positive number from header line `key`."""
+    text = (header.get(key) or [""])[0]
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise TakeFormatError.at(path, f"missing or invalid {key} header ('{text}')")
+    return value
+
+
+def _trim(cells: list[str]) -> list[str]:
+    """Cells without the empty ones a trailing tab leaves at the end."""
+    while cells and not cells[-1].strip():
+        cells = cells[:-1]
+    return cells

@@ -1,0 +1,122 @@
+"""TRC takes (PathFileType 4, Motion Analysis / OpenSim), tab separated:
+
+    PathFileType  4  (X/Y/Z)  <file name>
+    DataRate  CameraRate  NumFrames  NumMarkers  Units  OrigDataRate  OrigDataStartFrame  OrigNumFrames
+    100.0     100.0       3000       21          mm     100.0         1                   3000
+    Frame#  Time  <name 1>        <name 2> ...
+                  X1  Y1  Z1  X2  Y2  Z2 ...
+    <blank line>
+    1       0.000000  x  y  z  x  y  z ...
+
+Units are "mm", "cm" or "m" (converted to mm on reading; written as mm). Missing samples are
+empty cells (also "NaN" or (0, 0, 0) on reading). The first frame number is the first Frame# cell.
+"""
+
+import logging
+import math
+from os import PathLike
+from pathlib import Path
+
+from core.io.errors import TakeFormatError
+from core.io.take import (
+    Take,
+    atomic_target,
+    format_number_rows,
+    mm_per_unit,
+    parse_number_rows,
+    read_text,
+    unique_marker_names,
+    zeros_to_nan,
+)
+
+_log = logging.getLogger(__name__)
+
+_HEADER_KEYS = (
+    "DataRate",
+    "CameraRate",
+    "NumFrames",
+    "NumMarkers",
+    "Units",
+    "OrigDataRate",
+    "OrigDataStartFrame",
+    "OrigNumFrames",
+)
+
+
+def read_trc(path: str | PathLike[str]) -> Take:
+    """Read a TRC file into a Take (mm, NaN for missing); raises TakeFormatError."""
+    lines = read_text(path).splitlines()
+    if len(lines) < 5 or not lines[0].startswith("PathFileType"):
+        raise TakeFormatError.at(path, "not a TRC file (the first line must start with 'PathFileType')")
+    header = dict(
+        zip(
+            (key.strip() for key in lines[1].split("\t")),
+            (value.strip() for value in lines[2].split("\t")),
+            strict=False,
+        )
+    )
+    frame_rate = _positive_number(header, "DataRate") or _positive_number(header, "CameraRate")
+    if frame_rate is None:
+        raise TakeFormatError.at(path, f"line 3: invalid DataRate '{header.get('DataRate', '')}'")
+    units = header.get("Units") or "mm"
+    scale = mm_per_unit(units, path)
+    names = unique_marker_names([cell for cell in lines[3].split("\t")[2:] if cell.strip()])
+    declared = header.get("NumMarkers", "")
+    if declared.isdigit() and int(declared) != len(names):
+        _log.warning(
+            "%s: NumMarkers says %s, the file names %d markers", Path(path).name, declared, len(names)
+        )
+
+    width = 2 + 3 * len(names)
+    rows = [
+        (number + 1, lines[number].split("\t")) for number in range(5, len(lines)) if lines[number].strip()
+    ]
+    table = parse_number_rows(rows, width, path)
+    positions = zeros_to_nan(table[:, 2:].reshape(len(rows), len(names), 3)) * scale
+    first_frame = int(table[0, 0]) if len(rows) and math.isfinite(table[0, 0]) else 1
+    return Take(
+        marker_names=names,
+        marker_positions=positions,
+        frame_rate=frame_rate,
+        first_frame=first_frame,
+        source_units=units,
+        source_path=str(path),
+    )
+
+
+def write_trc(take: Take, path: str | PathLike[str]) -> None:
+    """Write `take` as a TRC file in mm (missing samples as empty cells), atomically."""
+    unusable = [name for name in take.marker_names if "\t" in name or "\n" in name or "\r" in name]
+    if unusable:
+        raise TakeFormatError.at(path, f"marker name {unusable[0]!r} contains a tab or line break")
+    rate = repr(take.frame_rate)
+    header = [
+        f"PathFileType\t4\t(X/Y/Z)\t{Path(path).name}",
+        "\t".join(_HEADER_KEYS),
+        "\t".join(
+            [
+                rate,
+                rate,
+                str(take.n_frames),
+                str(take.n_markers),
+                "mm",
+                rate,
+                str(take.first_frame),
+                str(take.n_frames),
+            ]
+        ),
+        "\t".join(["Frame#", "Time"] + [f"{name}\t\t" for name in take.marker_names]),
+        "\t".join(["", ""] + [f"X{i}\tY{i}\tZ{i}" for i in range(1, take.n_markers + 1)]),
+        "",
+    ]
+    body = format_number_rows(take.first_frame, take.frame_rate, take.marker_positions, "\t")
+    with atomic_target(path) as temporary:
+        temporary.write_text("\n".join(header) + "\n" + body, encoding="utf-8")
+
+
+def _positive_number(header: dict[str, str], key: str) -> float | None:
+    try:
+        value = float(header.get(key, ""))
+    except ValueError:
+        return None
+    return value if math.isfinite(value) and value > 0 else None
