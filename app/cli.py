@@ -158,6 +158,20 @@ def command_prior(args: argparse.Namespace) -> int:
     return 0
 
 
+def command_layout(args: argparse.Namespace) -> int:
+    from core.calibration.marker_placement import fit_marker_placement
+    from core.io import load_take
+    from core.model import load_layout, load_template, save_layout
+
+    take = load_take(args.take)
+    layout, residuals = fit_marker_placement(take.marker_positions, take.marker_names, load_template(args.side),
+                                             load_layout(args.layout), iterations=args.iterations)
+    save_layout(layout, args.out)
+    steps = " -> ".join(f"{value:.2f}" for value in residuals)
+    print(f"mean IK residual per iteration (mm): {steps}; wrote {args.out}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="handmocap", description="Hand Mocap Studio: optical hand motion "
                                      "capture review, labelling, gap filling and calibration.")
@@ -214,6 +228,16 @@ def build_parser() -> argparse.ArgumentParser:
     template.add_argument("action", choices=["build"])
     template.add_argument("--out", help="output .npz (default: resources/template/right_hand.npz)")
     template.set_defaults(handler=command_template)
+
+    layout = commands.add_parser("layout", help="marker layout tools")
+    layout_commands = layout.add_subparsers(dest="layout_command", metavar="ACTION", required=True)
+    fit = layout_commands.add_parser("fit", help="fit where a layout's markers sit from a labelled take")
+    fit.add_argument("take", help="labelled take (C3D, TSV, TRC, CSV)")
+    fit.add_argument("--layout", required=True, help="layout to refit (name or JSON file)")
+    fit.add_argument("--side", choices=["right", "left"], default="right")
+    fit.add_argument("--iterations", type=int, default=3)
+    fit.add_argument("--out", required=True, metavar="LAYOUT.json")
+    fit.set_defaults(handler=command_layout)
 
     prior = commands.add_parser("prior", help="build a posture prior")
     prior.add_argument("action", choices=["build"])

@@ -155,13 +155,13 @@ class MarkerSet:
                          self.offsets_mm[indices])
 
 
-def _joint_rest_point(model: HandModel, joint: str) -> np.ndarray:
+def joint_rest_point(model: HandModel, joint: str) -> np.ndarray:
     if joint.endswith("_tip"):
         return model.skeleton.tip_positions[DIGITS.index(joint[:-4])]
     return model.skeleton.rest_positions[JOINT_NAMES.index(joint)]
 
 
-def _frame_joint(joint: str) -> int:
+def frame_joint_of(joint: str) -> int:
     """Joint whose rest frame orients the ``side`` of a marker placed from ``joint``: the distal
     joint for a tip, the middle finger's MCP for the wrist (the palm's frame), else the joint itself."""
     if joint.endswith("_tip"):
@@ -173,9 +173,9 @@ def _frame_joint(joint: str) -> int:
 
 def _surface_vertex(model: HandModel, spec: MarkerSpec) -> int:
     """The vertex where the ray from the bone axis point in the ``side`` direction leaves the skin."""
-    frame = model.skeleton.rest_rotations[_frame_joint(spec.between[0])]
-    origin = ((1.0 - spec.along) * _joint_rest_point(model, spec.between[0])
-              + spec.along * _joint_rest_point(model, spec.between[1]))
+    frame = model.skeleton.rest_rotations[frame_joint_of(spec.between[0])]
+    origin = ((1.0 - spec.along) * joint_rest_point(model, spec.between[0])
+              + spec.along * joint_rest_point(model, spec.between[1]))
     local = np.array(SIDE_DIRECTIONS[spec.side] if isinstance(spec.side, str) else spec.side, float)
     if model.side == "left":
         local[0] = -local[0]  # mirrored frames keep x on the right hand's radial side: flip it back
