@@ -187,6 +187,9 @@ def _surface_vertex(model: HandModel, spec: MarkerSpec) -> int:
     # nearest to the ray, in front of the axis point, on the side facing the ray; the outermost wins
     score = np.where((depth > 0) & facing, lateral - 0.05 * depth, np.inf)
     if not np.isfinite(score).any():
+        # the axis point lies outside the skin (e.g. beyond a fingertip): nearest skin facing that way
+        score = np.where(facing, np.linalg.norm(relative, axis=1), np.inf)
+    if not np.isfinite(score).any():
         raise InputError(f"marker '{spec.name}': no skin in that direction on model '{model.name}'")
     return int(np.argmin(score))
 
