@@ -35,6 +35,10 @@ class HandModel:
     hand_length: float = 190.0
     name: str = "template"
 
+    def __post_init__(self) -> None:
+        for array in (self.vertices, self.faces, self.skin_joints, self.skin_weights):
+            array.setflags(write=False)   # shared by every user of the model: never edited in place
+
     @property
     def side(self) -> str:
         return self.skeleton.side

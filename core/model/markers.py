@@ -108,6 +108,15 @@ def layout_names() -> list[str]:
     return sorted(path.stem for path in LAYOUT_DIR.glob("*.json"))
 
 
+def best_layout_for(marker_names: list[str], minimum_matches: int = 3) -> str | None:
+    """The shipped layout sharing the most marker names with a take (case-insensitive), or None when
+    none shares at least ``minimum_matches``."""
+    names = {name.strip().lower() for name in marker_names}
+    matches = {layout: len(names & {n.lower() for n in load_layout(layout).names}) for layout in layout_names()}
+    best = max(matches, key=matches.get, default=None)
+    return best if best is not None and matches[best] >= minimum_matches else None
+
+
 def load_layout(name_or_path: str | Path) -> MarkerLayout:
     """A shipped layout by name (``dense``, ``glove-13``, ``grasp-4``) or a layout JSON file."""
     path = Path(name_or_path)

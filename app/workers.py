@@ -1,0 +1,120 @@
+"""Running long ``core`` work on a worker thread.
+
+A task is a plain function ``task(progress, cancelled) -> result``. :class:`TaskRunner` runs one at a
+time on a QThread; the worker never touches a widget: progress, results and errors come back by
+signal, tagged with the request id the caller got from :meth:`TaskRunner.start`, so the GUI applies
+a result only if it still belongs to the current document.
+"""
+
+from __future__ import annotations
+
+import threading
+import traceback
+from collections.abc import Callable
+from typing import Any
+
+from PySide6.QtCore import QObject, QThread, Signal, Slot
+
+from core.errors import CancelledError, HandMocapError
+
+Task = Callable[[Callable[[float], None], Callable[[], bool]], Any]
+
+
+class _Worker(QObject):
+    progressed = Signal(int, float)
+    succeeded = Signal(int, object)
+    failed = Signal(int, str)
+    was_cancelled = Signal(int)
+
+    def __init__(self, request_id: int, task: Task, cancel_event: threading.Event) -> None:
+        super().__init__()
+        self._request_id, self._task, self._cancel_event = request_id, task, cancel_event
+
+    def run(self) -> None:
+        request = self._request_id
+        try:
+            result = self._task(lambda fraction: self.progressed.emit(request, float(fraction)),
+                                self._cancel_event.is_set)
+        except CancelledError:
+            self.was_cancelled.emit(request)
+        except HandMocapError as error:
+            self.failed.emit(request, str(error))
+        except Exception as error:  # noqa: BLE001 - any failure becomes a message, never a crash
+            traceback.print_exc()
+            self.failed.emit(request, f"unexpected error: {type(error).__name__}: {error}")
+        else:
+            self.succeeded.emit(request, result)
+
+
+class TaskRunner(QObject):
+    """Runs one task at a time on a worker thread; re-emits its signals on the GUI thread."""
+
+    progressed = Signal(int, float)        # request id, fraction 0..1
+    succeeded = Signal(int, object)        # request id, result
+    failed = Signal(int, str)              # request id, one-line message
+    cancelled = Signal(int)                # request id
+    busy_changed = Signal(bool)
+
+    def __init__(self, parent: QObject | None = None) -> None:
+        super().__init__(parent)
+        self._next_id = 0
+        self._thread: QThread | None = None
+        self._worker: _Worker | None = None
+        self._cancel_event = threading.Event()
+
+    def is_busy(self) -> bool:
+        return self._thread is not None
+
+    def start(self, task: Task) -> int:
+        """Start ``task`` (cancelling and waiting for a running one first); returns its request id."""
+        self.stop()
+        self._next_id += 1
+        self._cancel_event = threading.Event()
+        thread = QThread()
+        worker = _Worker(self._next_id, task, self._cancel_event)
+        worker.moveToThread(thread)
+        thread.started.connect(worker.run)
+        worker.progressed.connect(self.progressed)
+        # bound slots of this GUI-thread object: Qt queues these calls onto the GUI thread
+        worker.succeeded.connect(self._on_succeeded)
+        worker.failed.connect(self._on_failed)
+        worker.was_cancelled.connect(self._on_cancelled)
+        self._thread, self._worker = thread, worker
+        thread.start()
+        self.busy_changed.emit(True)
+        return self._next_id
+
+    @Slot(int, object)
+    def _on_succeeded(self, request_id: int, result: object) -> None:
+        self._join(request_id)
+        self.succeeded.emit(request_id, result)
+
+    @Slot(int, str)
+    def _on_failed(self, request_id: int, message: str) -> None:
+        self._join(request_id)
+        self.failed.emit(request_id, message)
+
+    @Slot(int)
+    def _on_cancelled(self, request_id: int) -> None:
+        self._join(request_id)
+        self.cancelled.emit(request_id)
+
+    def cancel(self) -> None:
+        """Ask the running task to stop at its next check."""
+        self._cancel_event.set()
+
+    def stop(self) -> None:
+        """Cancel the running task and wait for its thread to end."""
+        if self._thread is None:
+            return
+        self.cancel()
+        self._join()
+
+    def _join(self, request_id: int | None = None) -> None:
+        """End the worker thread (only the current request's, when ``request_id`` is given)."""
+        if self._thread is None or (request_id is not None and request_id != self._next_id):
+            return
+        thread, self._thread, self._worker = self._thread, None, None
+        thread.quit()
+        thread.wait()
+        self.busy_changed.emit(False)
