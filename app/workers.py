@@ -30,6 +30,7 @@ class _Worker(QObject):
         super().__init__()
         self._request_id, self._task, self._cancel_event = request_id, task, cancel_event
 
+    @Slot()
     def run(self) -> None:
         request = self._request_id
         try:
@@ -114,7 +115,9 @@ class TaskRunner(QObject):
         """End the worker thread (only the current request's, when ``request_id`` is given)."""
         if self._thread is None or (request_id is not None and request_id != self._next_id):
             return
-        thread, self._thread, self._worker = self._thread, None, None
+        thread, worker = self._thread, self._worker   # both stay alive until the thread has ended
+        self._thread = self._worker = None
         thread.quit()
         thread.wait()
+        worker.deleteLater()
         self.busy_changed.emit(False)

@@ -1,0 +1,25 @@
+"""GUI tests run on a virtual screen (Xvfb via installer/test.sh) or Qt's offscreen platform."""
+
+import os
+
+import pytest
+
+if not os.environ.get("DISPLAY"):
+    os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+
+
+@pytest.fixture
+def window(qtbot, monkeypatch):
+    """A main window with message boxes captured instead of shown."""
+    from PySide6.QtWidgets import QMessageBox
+
+    from app.main_window import MainWindow
+
+    messages: list[str] = []
+    monkeypatch.setattr(QMessageBox, "warning", lambda parent, title, text: messages.append(text))
+    main_window = MainWindow()
+    main_window.messages = messages
+    qtbot.addWidget(main_window)
+    main_window.show()
+    yield main_window
+    main_window.close()
