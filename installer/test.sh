@@ -8,7 +8,6 @@ cd "$root"
 bash installer/setup.sh --test
 .venv/bin/ruff check app core widgets tests
 .venv/bin/lint-imports
-export QT_QPA_PLATFORM="${QT_QPA_PLATFORM:-offscreen}"
 if [ -z "${DISPLAY:-}" ] && command -v xvfb-run >/dev/null 2>&1; then
   exec xvfb-run -a -s "-screen 0 1600x1000x24" .venv/bin/python -m pytest -q -p no:cacheprovider "$@"
 fi
