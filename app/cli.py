@@ -32,7 +32,7 @@ def _print_json(figures: dict) -> None:
 def command_gui(args: argparse.Namespace) -> int:
     from app.gui import run_gui
 
-    return run_gui(args.files, screenshot=args.screenshot, frame=args.frame)
+    return run_gui(args.files, screenshot=args.screenshot, frame=args.frame, solve=args.solve)
 
 
 def command_info(args: argparse.Namespace) -> int:
@@ -182,6 +182,7 @@ def build_parser() -> argparse.ArgumentParser:
     gui.add_argument("files", nargs="*", help="takes to open (C3D, TSV, TRC, CSV)")
     gui.add_argument("--screenshot", metavar="PNG", help="wait for the solves, save a screenshot and exit")
     gui.add_argument("--frame", type=int, help="0-based frame to show in the screenshot")
+    gui.add_argument("--solve", action="store_true", help="solve the opened takes at once")
     gui.set_defaults(handler=command_gui)
 
     info = commands.add_parser("info", help="frames, rate, units, markers, vendor and missing share of a take")

@@ -8,9 +8,10 @@ from pathlib import Path
 SCREENSHOT_TIMEOUT_MS = 120_000
 
 
-def run_gui(files: list[str], screenshot: str | None = None, frame: int | None = None) -> int:
-    """Open the main window on ``files`` (the demo session when empty). With ``screenshot``, wait for
-    the solves to finish, go to ``frame`` (default: a third into the take), save a PNG and quit."""
+def run_gui(files: list[str], screenshot: str | None = None, frame: int | None = None, solve: bool = False) -> int:
+    """Open the main window on ``files`` (the demo session when empty; ``solve``: solve them at once).
+    With ``screenshot``, wait for the solves, go to ``frame`` (default: a third into the take), save
+    a PNG and quit."""
     from PySide6.QtCore import QElapsedTimer, QTimer
     from PySide6.QtWidgets import QApplication
 
@@ -25,7 +26,7 @@ def run_gui(files: list[str], screenshot: str | None = None, frame: int | None =
     app.processEvents()
     if files:
         for path in files:
-            window.open_file(path)
+            window.open_file(path, solve=solve)
     else:
         window.open_demo()
     if screenshot is None:
@@ -40,6 +41,7 @@ def run_gui(files: list[str], screenshot: str | None = None, frame: int | None =
         timer.stop()
         if window.document is not None:
             window.timeline.set_frame(frame if frame is not None else window.document.take.n_frames // 3)
+            window.frame_hand()
         app.processEvents()
         window.save_screenshot(Path(screenshot))
         window.close()

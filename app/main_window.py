@@ -32,6 +32,7 @@ from widgets.viewport import HandViewport
 
 HAND_MARKER_COLOR = (0.55, 0.80, 1.00)     # markers of the hand layout
 OTHER_MARKER_COLOR = (0.62, 0.62, 0.66)    # arm, body and object markers
+FRAMING_RADIUS_MM = 90.0                   # half-size of the box the camera frames around the hand
 TAKE_FILTER = "Motion capture takes (*.c3d *.tsv *.trc *.csv);;All files (*)"
 
 
@@ -101,7 +102,7 @@ class MainWindow(QMainWindow):
         self.mesh_action = self._action("Hand &mesh", self.viewport.set_mesh_visible, "M", True, True)
         self.effectors_action = self._action("&Effectors and residuals", self.viewport.set_effectors_visible, "E",
                                              True, True)
-        self.frame_action = self._action("&Frame the take", self._frame_camera, "F")
+        self.frame_action = self._action("&Frame the hand", self.frame_hand, "F")
         menus = self.menuBar()
         file_menu = menus.addMenu("&File")
         for action in (self.open_action, self.demo_action, None, self.export_action, self.screenshot_action,
@@ -159,14 +160,15 @@ class MainWindow(QMainWindow):
         if path:
             self.open_file(path)
 
-    def open_file(self, path: str | Path) -> bool:
-        """Open a take file; on failure show the one-line reason and keep what is open."""
+    def open_file(self, path: str | Path, solve: bool = False) -> bool:
+        """Open a take file (and solve it when ``solve``); on failure show the one-line reason and
+        keep what is open."""
         try:
             take = load_take(path)
         except HandMocapError as error:
             self.show_error("Cannot open the take", str(error))
             return False
-        self.add_document(TakeDocument(take, Path(path).name))
+        self.add_document(TakeDocument(take, Path(path).name, auto_solve=solve))
         return True
 
     def open_demo(self) -> None:
@@ -207,7 +209,7 @@ class MainWindow(QMainWindow):
         self.marker_panel.set_markers(take.marker_names, document.observed_fraction)
         self._show_result_geometry()
         self.timeline.set_take(take.n_frames, take.first_frame, take.frame_rate, document.markers_seen)
-        self._frame_camera()
+        self.frame_hand()
         self.info_label.setText(self._take_summary(take))
         self.show_frame(self.timeline.frame)
         self._update_enabled()
@@ -219,14 +221,22 @@ class MainWindow(QMainWindow):
         return (f"{take.n_frames} frames · {take.frame_rate:g} Hz · {take.n_markers} markers · {take.vendor}"
                 f" · {100 * take.missing_fraction:.1f} % missing")
 
-    def _frame_camera(self) -> None:
+    def frame_hand(self) -> None:
+        """Point the camera at the hand at the current frame; the ground grid spans the whole take."""
         if self.document is None:
             return
-        points = self.document.take.marker_positions[:, self.document.hand_columns()].reshape(-1, 3)
-        sample = points[:: max(1, len(points) // 20000)]
-        self.viewport.set_ground(sample, height=float(np.nanmin(sample[:, 2])) - 40.0
-                                 if np.isfinite(sample).any() else 0.0)
-        self.viewport.frame_bounds(sample)
+        hand = self.document.take.marker_positions[:, self.document.hand_columns()]
+        everything = hand.reshape(-1, 3)[:: max(1, hand.size // 60000)]
+        if not np.isfinite(everything).any():
+            return
+        self.viewport.set_ground(everything, height=float(np.nanmin(everything[:, 2])) - 40.0)
+        current = hand[self.timeline.frame]
+        current = current[np.isfinite(current).all(axis=1)]
+        if len(current) >= 3:
+            centre = current.mean(axis=0)
+            self.viewport.frame_bounds(np.vstack([current, centre - FRAMING_RADIUS_MM, centre + FRAMING_RADIUS_MM]))
+        else:
+            self.viewport.frame_bounds(everything)
         self.viewport.render()
 
     # --------------------------------------------------------------------------------------- frame

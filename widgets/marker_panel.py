@@ -8,7 +8,7 @@ from PySide6.QtCore import QAbstractTableModel, QModelIndex, QSortFilterProxyMod
 from PySide6.QtGui import QBrush, QColor
 from PySide6.QtWidgets import QAbstractItemView, QHeaderView, QLineEdit, QTableView, QVBoxLayout, QWidget
 
-COLUMNS = ("Marker", "Observed %", "X mm", "Y mm", "Z mm", "Residual mm")
+COLUMNS = ("Marker", "Seen %", "X mm", "Y mm", "Z mm", "Resid. mm")
 SORT_ROLE = Qt.ItemDataRole.UserRole + 1
 MISSING_TEXT = "—"
 
