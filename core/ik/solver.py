@@ -33,8 +33,8 @@ class IKSettings:
     method: str = "layered"
     subspace_dims: int | None = None
     posture_damping: float = 2.0
-    prior_weight: float = 20.0
-    prior_mean_ratio: float = 0.01
+    prior_weight: float = 10.0
+    prior_mean_ratio: float = 0.1
     max_iterations: int = 10
     tolerance: float = 1e-6
     predict: bool = True
