@@ -156,6 +156,14 @@ def forward_kinematics_kernel(theta, relative_rest, offsets, abduction_sign):
     return rotations, positions, axes, centres
 
 
+@njit(cache=True, inline="always")
+def _moved_point(rotation, position, local):
+    """``rotation @ local + position`` as three scalars (no allocation)."""
+    return (rotation[0, 0] * local[0] + rotation[0, 1] * local[1] + rotation[0, 2] * local[2] + position[0],
+            rotation[1, 0] * local[0] + rotation[1, 1] * local[1] + rotation[1, 2] * local[2] + position[1],
+            rotation[2, 0] * local[0] + rotation[2, 1] * local[1] + rotation[2, 2] * local[2] + position[2])
+
+
 @njit(cache=True)
 def skinned_points_kernel(rotations, positions, influence_joints, influence_weights, local_points):
     """Positions (P,3) of skinned points from their per-influence local coordinates (P,4,3)."""
@@ -164,13 +172,12 @@ def skinned_points_kernel(rotations, positions, influence_joints, influence_weig
     for i in range(count):
         for k in range(influence_joints.shape[1]):
             weight = influence_weights[i, k]
-            if weight == 0.0:
-                continue
-            joint = influence_joints[i, k]
-            rotation, local = rotations[joint], local_points[i, k]
-            for r in range(3):
-                result[i, r] += weight * (rotation[r, 0] * local[0] + rotation[r, 1] * local[1]
-                                          + rotation[r, 2] * local[2] + positions[joint, r])
+            if weight != 0.0:
+                joint = influence_joints[i, k]
+                px, py, pz = _moved_point(rotations[joint], positions[joint], local_points[i, k])
+                result[i, 0] += weight * px
+                result[i, 1] += weight * py
+                result[i, 2] += weight * pz
     return result
 
 
@@ -192,10 +199,7 @@ def points_and_jacobian_kernel(theta, relative_rest, offsets, abduction_sign, an
             if weight == 0.0:
                 continue
             joint = influence_joints[i, k]
-            rotation, local = rotations[joint], local_points[i, k]
-            px = rotation[0, 0] * local[0] + rotation[0, 1] * local[1] + rotation[0, 2] * local[2] + positions[joint, 0]
-            py = rotation[1, 0] * local[0] + rotation[1, 1] * local[1] + rotation[1, 2] * local[2] + positions[joint, 1]
-            pz = rotation[2, 0] * local[0] + rotation[2, 1] * local[1] + rotation[2, 2] * local[2] + positions[joint, 2]
+            px, py, pz = _moved_point(rotations[joint], positions[joint], local_points[i, k])
             points[i, 0] += weight * px
             points[i, 1] += weight * py
             points[i, 2] += weight * pz
