@@ -1,20 +1,25 @@
-"""An open take in the application: the take, its layout choice and its IK result."""
+"""An open take in the application: the take, its layout choice, its IK result and its solve request."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
-from core.ik import IKResult, match_layout
+from core.ik import IKResult
 from core.io import Take
 from core.model import best_layout_for, load_layout
 
 
 @dataclass(eq=False)
 class TakeDocument:
-    """One take shown in the main window. ``solve_request`` is the id of the solve whose result
-    may still be applied (0: none pending)."""
+    """One take shown in the main window.
+
+    ``solve_request`` is the id of the solve whose result may still be applied (0: none pending); a
+    result arriving with another id is stale and dropped. ``auto_solve``: solve it as soon as the
+    solver is free (demo takes, ``--solve``). ``current_frame``: where the operator left it (0-based).
+    """
 
     take: Take
     title: str
@@ -22,34 +27,39 @@ class TakeDocument:
     result: IKResult | None = None
     solve_request: int = 0
     auto_solve: bool = False
+    current_frame: int = 0
     _columns: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if self.layout_name is None:
             self.layout_name = best_layout_for(self.take.marker_names)
 
-    @property
+    @cached_property
     def markers_seen(self) -> np.ndarray:
         """Observed markers per frame ``(F,)``."""
         return (~self.take.missing_mask).sum(axis=1)
 
-    @property
+    @cached_property
     def observed_fraction(self) -> np.ndarray:
         """Share of frames each marker is observed in ``(M,)``."""
         return 1.0 - self.take.missing_fraction_per_marker
 
     def hand_columns(self) -> np.ndarray:
-        """Take columns of the layout's markers (all columns when no layout matches)."""
+        """Take columns of the chosen layout's markers (all columns when no layout matches)."""
         if self.layout_name is None:
             return np.arange(self.take.n_markers)
-        columns = match_layout(self.take.marker_names, load_layout(self.layout_name))
-        return columns[columns >= 0]
+        columns = self.columns_of(load_layout(self.layout_name).names)
+        return columns[columns >= 0] if (columns >= 0).any() else np.arange(self.take.n_markers)
+
+    def columns_of(self, names: list[str]) -> np.ndarray:
+        """Take column of each marker name (case-insensitive), -1 where the take lacks it ``(len(names),)``."""
+        lookup = {name.strip().lower(): index for index, name in enumerate(self.take.marker_names)}
+        return np.array([lookup.get(name.strip().lower(), -1) for name in names], dtype=np.int64)
 
     def set_result(self, result: IKResult) -> None:
         """Attach an IK result; its markers are matched to the take's columns by name."""
+        self._columns = self.columns_of(result.marker_names)
         self.result = result
-        layout_columns = match_layout(self.take.marker_names, load_layout(self.layout_name))
-        self._columns = layout_columns
 
     def residuals_per_take_marker(self, frame: int) -> np.ndarray | None:
         """IK residual (mm) of each take marker at ``frame`` ``(M_take,)`` (NaN: none), or None."""
@@ -59,6 +69,16 @@ class TakeDocument:
         present = self._columns >= 0
         residuals[self._columns[present]] = self.result.residuals_mm[frame, present]
         return residuals
+
+    def mean_residual_per_frame(self) -> np.ndarray | None:
+        """Mean IK residual over the observed markers of each frame ``(F,)`` mm (NaN: none), or None."""
+        if self.result is None:
+            return None
+        residuals = self.result.residuals_mm
+        observed = np.isfinite(residuals)
+        counts = observed.sum(axis=1)
+        sums = np.where(observed, residuals, 0.0).sum(axis=1)
+        return np.where(counts > 0, sums / np.maximum(counts, 1), np.nan)
 
     def effector_targets(self, frame: int) -> tuple[np.ndarray, np.ndarray] | None:
         """Effector positions ``(K,3)`` and the measured positions of their markers ``(K,3)`` mm."""

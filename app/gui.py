@@ -5,68 +5,74 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from PySide6.QtCore import QElapsedTimer, QTimer
+from PySide6.QtGui import QColor, QPalette
+from PySide6.QtWidgets import QApplication
+
 SCREENSHOT_TIMEOUT_MS = 120_000
 
 
-def run_gui(files: list[str], screenshot: str | None = None, frame: int | None = None, solve: bool = False) -> int:
-    """Open the main window on ``files`` (the demo session when empty; ``solve``: solve them at once).
-    With ``screenshot``, wait for the solves, go to ``frame`` (default: a third into the take), save
-    a PNG and quit."""
-    from PySide6.QtCore import QElapsedTimer, QTimer
-    from PySide6.QtWidgets import QApplication
-
-    from app.main_window import MainWindow
+def run_gui(files: list[str], screenshot: str | None = None, frame: int | None = None, solve: bool = False,
+            demo: bool = False) -> int:
+    """Open the main window on ``files`` (and the demo session when ``demo`` or when no file is given;
+    ``solve``: solve the files at once). With ``screenshot``, wait until everything is opened and
+    solved, go to ``frame`` (0-based; default a third into the take), save a PNG and quit.
+    Returns the process exit code."""
+    from app.main_window import APP_NAME, MainWindow
 
     app = QApplication.instance() or QApplication(sys.argv[:1])
-    app.setApplicationName("Hand Mocap Studio")
+    app.setApplicationName(APP_NAME)
     app.setStyle("Fusion")
-    _apply_dark_palette(app)
+    apply_dark_palette(app)
     window = MainWindow()
     window.show()
     app.processEvents()
-    if files:
-        for path in files:
-            window.open_file(path, solve=solve)
-    else:
+    if demo or not files:
         window.open_demo()
+    if files:
+        window.open_files(files, solve=solve)
     if screenshot is None:
         return app.exec()
 
     clock = QElapsedTimer()
     clock.start()
+    outcome = {"code": 1}
 
     def take_screenshot_when_ready() -> None:
-        if window.runner.is_busy() and clock.elapsed() < SCREENSHOT_TIMEOUT_MS:
+        if window.is_busy() and clock.elapsed() < SCREENSHOT_TIMEOUT_MS:
             return
         timer.stop()
         if window.document is not None:
             window.timeline.set_frame(frame if frame is not None else window.document.take.n_frames // 3)
             window.frame_hand()
         app.processEvents()
-        window.save_screenshot(Path(screenshot))
+        outcome["code"] = 0 if window.save_screenshot(Path(screenshot)) else 1
         window.close()
         app.quit()
 
     timer = QTimer()
     timer.timeout.connect(take_screenshot_when_ready)
     timer.start(200)
-    return app.exec()
+    app.exec()
+    return outcome["code"]
 
 
-def _apply_dark_palette(app) -> None:
-    """A dark theme like the mocap tools operators know."""
-    from PySide6.QtGui import QColor, QPalette
-
+def apply_dark_palette(app: QApplication) -> None:
+    """A dark theme like the mocap tools operators know (disabled controls greyed out)."""
     palette = QPalette()
+    role = QPalette.ColorRole
     colors = {
-        QPalette.ColorRole.Window: QColor(45, 47, 52), QPalette.ColorRole.WindowText: QColor(225, 225, 225),
-        QPalette.ColorRole.Base: QColor(32, 34, 38), QPalette.ColorRole.AlternateBase: QColor(40, 42, 47),
-        QPalette.ColorRole.Text: QColor(225, 225, 225), QPalette.ColorRole.Button: QColor(55, 58, 64),
-        QPalette.ColorRole.ButtonText: QColor(225, 225, 225), QPalette.ColorRole.Highlight: QColor(60, 120, 200),
-        QPalette.ColorRole.HighlightedText: QColor(255, 255, 255), QPalette.ColorRole.ToolTipBase: QColor(55, 58, 64),
-        QPalette.ColorRole.ToolTipText: QColor(225, 225, 225),
-        QPalette.ColorRole.PlaceholderText: QColor(140, 140, 140),
+        role.Window: QColor(45, 47, 52), role.WindowText: QColor(225, 225, 225),
+        role.Base: QColor(32, 34, 38), role.AlternateBase: QColor(40, 42, 47),
+        role.Text: QColor(225, 225, 225), role.Button: QColor(55, 58, 64),
+        role.ButtonText: QColor(225, 225, 225), role.Highlight: QColor(60, 120, 200),
+        role.HighlightedText: QColor(255, 255, 255), role.ToolTipBase: QColor(55, 58, 64),
+        role.ToolTipText: QColor(225, 225, 225), role.PlaceholderText: QColor(140, 140, 140),
+        role.Link: QColor(110, 170, 240), role.Mid: QColor(70, 73, 80), role.Dark: QColor(25, 26, 29),
     }
-    for role, color in colors.items():
-        palette.setColor(role, color)
+    for color_role, color in colors.items():
+        palette.setColor(color_role, color)
+    for color_role in (role.WindowText, role.Text, role.ButtonText):
+        palette.setColor(QPalette.ColorGroup.Disabled, color_role, QColor(115, 118, 125))
+    palette.setColor(QPalette.ColorGroup.Disabled, role.Highlight, QColor(70, 73, 80))
     app.setPalette(palette)

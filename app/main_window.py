@@ -1,12 +1,14 @@
-"""The main window: 3D viewport, timeline, marker table, take list, and IK solving on a worker."""
+"""The main window: 3D viewport, timeline, marker table, take list; opening and IK solving on workers."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from PySide6.QtCore import Qt
-from PySide6.QtGui import QAction, QCloseEvent, QKeySequence
+from PySide6.QtCore import Qt, QTimer
+from PySide6.QtGui import QAction, QCloseEvent, QDragEnterEvent, QDropEvent, QImage, QKeySequence, QPainter
 from PySide6.QtWidgets import (
     QComboBox,
     QDockWidget,
@@ -15,25 +17,66 @@ from PySide6.QtWidgets import (
     QMainWindow,
     QMessageBox,
     QProgressBar,
-    QPushButton,
+    QStyle,
     QToolBar,
+    QToolButton,
     QWidget,
 )
 
 from app.document import TakeDocument
-from app.workers import TaskRunner
-from core.errors import HandMocapError
-from core.ik import METHODS, solve_take
+from app.workers import TaskRunner, one_line
+from core.errors import CancelledError, HandMocapError
+from core.ik import METHODS, IKResult, solve_take
 from core.io import Take, load_take
-from core.model import layout_names, load_layout, load_template, skin_vertices
+from core.model import HandModel, layout_names, load_layout, load_template, skin_vertices
 from widgets.marker_panel import MarkerPanel
 from widgets.timeline import TimelineWidget
 from widgets.viewport import HandViewport
 
+APP_NAME = "Hand Mocap Studio"
 HAND_MARKER_COLOR = (0.55, 0.80, 1.00)     # markers of the hand layout
 OTHER_MARKER_COLOR = (0.62, 0.62, 0.66)    # arm, body and object markers
 FRAMING_RADIUS_MM = 90.0                   # half-size of the box the camera frames around the hand
+TAKE_SUFFIXES = (".c3d", ".tsv", ".trc", ".csv")
 TAKE_FILTER = "Motion capture takes (*.c3d *.tsv *.trc *.csv);;All files (*)"
+
+
+@dataclass
+class OpenedTakes:
+    """What an opening task produced: the new documents and one line per file that failed."""
+
+    documents: list[TakeDocument] = field(default_factory=list)
+    errors: list[str] = field(default_factory=list)
+
+
+def _open_files_task(paths: list[Path], solve: bool) -> Callable:
+    """Worker task loading ``paths`` one after the other; a bad file is reported, not fatal."""
+
+    def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> OpenedTakes:
+        opened = OpenedTakes()
+        for index, path in enumerate(paths):
+            if cancelled():
+                raise CancelledError("opening cancelled")
+            try:
+                take = load_take(path)
+                opened.documents.append(TakeDocument(take, path.name, auto_solve=solve))
+            except HandMocapError as error:
+                opened.errors.append(one_line(str(error)))
+            except Exception as error:  # noqa: BLE001 - a file must never crash the application
+                opened.errors.append(one_line(f"{path.name}: cannot read it ({type(error).__name__}: {error})"))
+            progress((index + 1) / len(paths))
+        return opened
+
+    return task
+
+
+def _open_demo_task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> OpenedTakes:
+    """Worker task building the demo session (simulated take, and the real glove take when present)."""
+    from app.demo import demo_takes
+
+    documents = [TakeDocument(take, title, auto_solve=True) for title, take in demo_takes()]
+    progress(1.0)
+    return OpenedTakes(documents)
 
 
 class MainWindow(QMainWindow):
@@ -41,45 +84,61 @@ class MainWindow(QMainWindow):
 
     def __init__(self, off_screen: bool | None = None) -> None:
         super().__init__()
-        self.setWindowTitle("Hand Mocap Studio")
+        self.setWindowTitle(APP_NAME)
         self.resize(1500, 950)
+        self.setAcceptDrops(True)
         self.documents: list[TakeDocument] = []
         self.document: TakeDocument | None = None
-        self.model = load_template("right")
-        self.runner = TaskRunner(self)
+        self.model: HandModel = load_template("right")
+        self._pending_opens: list[tuple[str, Callable]] = []
+        self._render_timer = QTimer(self)
+        self._render_timer.setSingleShot(True)
+        self._render_timer.setInterval(0)
+        self._render_timer.timeout.connect(self._render)
+
+        self.runner = TaskRunner(self)        # IK solves
         self.runner.progressed.connect(self._solve_progressed)
         self.runner.succeeded.connect(self._solve_succeeded)
         self.runner.failed.connect(self._solve_failed)
         self.runner.cancelled.connect(self._solve_cancelled)
-        self.runner.busy_changed.connect(self._busy_changed)
+        self.runner.busy_changed.connect(self._solver_busy_changed)
+        self.loader = TaskRunner(self)        # opening files and the demo session
+        self.loader.succeeded.connect(self._opened)
+        self.loader.failed.connect(lambda _request, message: self.show_error("Cannot open", message))
+        self.loader.busy_changed.connect(self._loader_busy_changed)
 
         self.viewport = HandViewport(self, off_screen=off_screen)
+        self.viewport.marker_clicked.connect(self._marker_clicked)
         self.setCentralWidget(self.viewport)
         self.timeline = TimelineWidget(self)
         self.timeline.frame_changed.connect(self.show_frame)
         self.marker_panel = MarkerPanel(self)
         self.marker_panel.marker_selected.connect(self._marker_selected)
-        self._add_dock("Timeline", self.timeline, Qt.DockWidgetArea.BottomDockWidgetArea)
-        self._add_dock("Markers", self.marker_panel, Qt.DockWidgetArea.RightDockWidgetArea)
+        self.timeline_dock = self._add_dock("Timeline", self.timeline, Qt.DockWidgetArea.BottomDockWidgetArea)
+        self.markers_dock = self._add_dock("Markers", self.marker_panel, Qt.DockWidgetArea.RightDockWidgetArea)
+        self.resizeDocks([self.markers_dock], [470], Qt.Orientation.Horizontal)
         self._build_actions()
         self._build_toolbar()
         self._build_status_bar()
         self._update_enabled()
 
     # ------------------------------------------------------------------------------------ building
-    def _add_dock(self, title: str, widget: QWidget, area: Qt.DockWidgetArea) -> None:
+    def _add_dock(self, title: str, widget: QWidget, area: Qt.DockWidgetArea) -> QDockWidget:
         dock = QDockWidget(title, self)
         dock.setObjectName(title)
         dock.setWidget(widget)
         dock.setFeatures(QDockWidget.DockWidgetFeature.DockWidgetMovable
-                         | QDockWidget.DockWidgetFeature.DockWidgetFloatable)
+                         | QDockWidget.DockWidgetFeature.DockWidgetFloatable
+                         | QDockWidget.DockWidgetFeature.DockWidgetClosable)
         self.addDockWidget(area, dock)
-        if area == Qt.DockWidgetArea.RightDockWidgetArea:
-            self.resizeDocks([dock], [470], Qt.Orientation.Horizontal)
+        return dock
 
-    def _action(self, text: str, slot, shortcut: QKeySequence | str | None = None, checkable: bool = False,
-                checked: bool = False) -> QAction:
+    def _action(self, text: str, slot: Callable, shortcut: QKeySequence | str | None = None,
+                checkable: bool = False, checked: bool = False,
+                icon: QStyle.StandardPixmap | None = None) -> QAction:
         action = QAction(text, self)
+        if icon is not None:
+            action.setIcon(self.style().standardIcon(icon))
         if shortcut is not None:
             action.setShortcut(QKeySequence(shortcut))
         action.setCheckable(checkable)
@@ -91,26 +150,49 @@ class MainWindow(QMainWindow):
         return action
 
     def _build_actions(self) -> None:
-        self.open_action = self._action("&Open…", self.choose_file, QKeySequence.StandardKey.Open)
-        self.demo_action = self._action("Open &demo session", self.open_demo)
+        pixmap = QStyle.StandardPixmap
+        self.open_action = self._action("&Open…", self.choose_files, QKeySequence.StandardKey.Open,
+                                        icon=pixmap.SP_DialogOpenButton)
+        self.demo_action = self._action("Open &demo session", self.open_demo, "Ctrl+D")
         self.screenshot_action = self._action("Save &screenshot…", self.choose_screenshot, "Ctrl+Shift+S")
-        self.export_action = self._action("Export joint angles (CSV)…", self.choose_export)
+        self.export_action = self._action("&Export joint angles (CSV)…", self.choose_export, "Ctrl+E")
         quit_action = self._action("&Quit", self.close, QKeySequence.StandardKey.Quit)
-        self.solve_action = self._action("&Solve", self.solve, "Ctrl+R")
-        self.cancel_action = self._action("&Cancel", self.runner.cancel, "Esc")
+        self.solve_action = self._action("&Solve", lambda: self.solve(), "Ctrl+R", icon=pixmap.SP_BrowserReload)
+        self.solve_action.setToolTip("Solve the take with inverse kinematics (Ctrl+R)")
+        self.cancel_action = self._action("&Cancel", self.cancel_solve, "Esc", icon=pixmap.SP_BrowserStop)
         self.labels_action = self._action("Marker &names", self.viewport.set_labels_visible, "N", True, False)
         self.mesh_action = self._action("Hand &mesh", self.viewport.set_mesh_visible, "M", True, True)
-        self.effectors_action = self._action("&Effectors and residuals", self.viewport.set_effectors_visible, "E",
-                                             True, True)
+        self.effectors_action = self._action("&Effectors and residuals", self.viewport.set_effectors_visible,
+                                             "E", True, True)
+        self.grid_action = self._action("Ground &grid", self.viewport.set_grid_visible, "G", True, True)
         self.frame_action = self._action("&Frame the hand", self.frame_hand, "F")
+
         menus = self.menuBar()
         file_menu = menus.addMenu("&File")
         for action in (self.open_action, self.demo_action, None, self.export_action, self.screenshot_action,
                        None, quit_action):
-            file_menu.addSeparator() if action is None else file_menu.addAction(action)
+            if action is None:
+                file_menu.addSeparator()
+            else:
+                file_menu.addAction(action)
         view_menu = menus.addMenu("&View")
-        for action in (self.labels_action, self.mesh_action, self.effectors_action, self.frame_action):
+        for action in (self.labels_action, self.mesh_action, self.effectors_action, self.grid_action):
             view_menu.addAction(action)
+        view_menu.addSeparator()
+        view_menu.addAction(self.frame_action)
+        view_menu.addSeparator()
+        view_menu.addAction(self.timeline_dock.toggleViewAction())
+        view_menu.addAction(self.markers_dock.toggleViewAction())
+        playback_menu = menus.addMenu("&Playback")
+        for action in self.timeline.transport_actions:
+            playback_menu.addAction(action)
+        loop_action = QAction("&Loop", self)
+        loop_action.setCheckable(True)
+        loop_action.setChecked(self.timeline.loop_box.isChecked())
+        loop_action.toggled.connect(self.timeline.loop_box.setChecked)
+        self.timeline.loop_box.toggled.connect(loop_action.setChecked)
+        playback_menu.addSeparator()
+        playback_menu.addAction(loop_action)
         solve_menu = menus.addMenu("&Solve")
         solve_menu.addAction(self.solve_action)
         solve_menu.addAction(self.cancel_action)
@@ -119,74 +201,101 @@ class MainWindow(QMainWindow):
         toolbar = QToolBar("Main", self)
         toolbar.setObjectName("main-toolbar")
         toolbar.setMovable(False)
+        toolbar.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextBesideIcon)
         self.addToolBar(toolbar)
         toolbar.addAction(self.open_action)
         toolbar.addSeparator()
         toolbar.addWidget(QLabel(" Take "))
         self.take_box = QComboBox(self)
-        self.take_box.setMinimumWidth(300)
+        self.take_box.setMinimumWidth(320)
+        self.take_box.setToolTip("Open takes: switch between them; each keeps its solve and frame")
         self.take_box.currentIndexChanged.connect(self._take_chosen)
         toolbar.addWidget(self.take_box)
         toolbar.addSeparator()
         toolbar.addWidget(QLabel(" Layout "))
         self.layout_box = QComboBox(self)
         self.layout_box.addItems(layout_names())
+        self.layout_box.setToolTip("Marker layout of the hand model; markers are matched to it by name")
         self.layout_box.currentTextChanged.connect(self._layout_chosen)
         toolbar.addWidget(self.layout_box)
-        toolbar.addWidget(QLabel(" IK "))
+        toolbar.addWidget(QLabel(" Method "))
         self.method_box = QComboBox(self)
         self.method_box.addItems(list(METHODS))
+        self.method_box.setToolTip("layered: PCA subspace, then all 26 parameters with the soft prior;\n"
+                                   "subspace: PCA subspace only; full: all 26 parameters")
         toolbar.addWidget(self.method_box)
         toolbar.addAction(self.solve_action)
+        toolbar.addAction(self.cancel_action)
 
     def _build_status_bar(self) -> None:
         status = self.statusBar()
-        self.info_label = QLabel("No take open — File ▸ Open… or File ▸ Open demo session")
-        status.addWidget(self.info_label, 1)
+        self.info_label = QLabel("No take open — File ▸ Open… or File ▸ Open demo session", self)
+        self.info_label.setContentsMargins(6, 0, 6, 0)
+        status.addPermanentWidget(self.info_label)
+        self.opening_label = QLabel("Opening…", self)
+        status.addPermanentWidget(self.opening_label)
         self.progress_bar = QProgressBar(self)
         self.progress_bar.setRange(0, 100)
-        self.progress_bar.setMaximumWidth(240)
+        self.progress_bar.setFixedWidth(220)
         self.progress_bar.setFormat("Solving… %p %")
-        self.cancel_button = QPushButton("Cancel", self)
-        self.cancel_button.clicked.connect(self.runner.cancel)
         status.addPermanentWidget(self.progress_bar)
+        self.cancel_button = QToolButton(self)
+        self.cancel_button.setDefaultAction(self.cancel_action)
+        self.cancel_button.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextBesideIcon)
         status.addPermanentWidget(self.cancel_button)
-        self.progress_bar.hide()
-        self.cancel_button.hide()
+        for widget in (self.opening_label, self.progress_bar, self.cancel_button):
+            widget.hide()
 
     # ---------------------------------------------------------------------------------- documents
-    def choose_file(self) -> None:
-        path, _ = QFileDialog.getOpenFileName(self, "Open take", "", TAKE_FILTER)
-        if path:
-            self.open_file(path)
+    def choose_files(self) -> None:
+        """Ask for take files and open them."""
+        paths, _ = QFileDialog.getOpenFileNames(self, "Open takes", "", TAKE_FILTER)
+        if paths:
+            self.open_files(paths)
 
-    def open_file(self, path: str | Path, solve: bool = False) -> bool:
-        """Open a take file (and solve it when ``solve``); on failure show the one-line reason and
-        keep what is open."""
-        try:
-            take = load_take(path)
-        except HandMocapError as error:
-            self.show_error("Cannot open the take", str(error))
-            return False
-        self.add_document(TakeDocument(take, Path(path).name, auto_solve=solve))
-        return True
+    def open_file(self, path: str | Path, solve: bool = False) -> None:
+        """Open one take file on the worker (see :meth:`open_files`)."""
+        self.open_files([path], solve=solve)
+
+    def open_files(self, paths: list[str | Path], solve: bool = False) -> None:
+        """Open take files on the loader thread; each good one becomes a take in the take list (solved
+        at once when ``solve``), each bad one a one-line message; what is open stays open."""
+        files = [Path(path) for path in paths]
+        title = files[0].name if len(files) == 1 else f"{len(files)} takes"
+        self._queue_open(f"Opening {title}…", _open_files_task(files, solve))
 
     def open_demo(self) -> None:
-        """Open the demo takes and solve them one after the other."""
-        from app.demo import demo_takes
+        """Open the demo session on the loader thread; its takes are solved one after the other."""
+        self._queue_open("Opening the demo session…", _open_demo_task)
 
-        try:
-            takes = demo_takes()
-        except HandMocapError as error:
-            self.show_error("Cannot open the demo session", str(error))
+    def _queue_open(self, text: str, task: Callable) -> None:
+        self._pending_opens.append((text, task))
+        self._start_next_open()
+
+    def _start_next_open(self) -> None:
+        if self.loader.is_busy() or not self._pending_opens:
             return
-        for title, take in takes:
-            self.add_document(TakeDocument(take, title, auto_solve=True), make_current=False)
-        self.take_box.setCurrentIndex(len(self.documents) - len(takes))
+        text, task = self._pending_opens.pop(0)
+        self.opening_label.setText(text)
+        self.loader.start(task)
+
+    def _opened(self, _request: int, opened: OpenedTakes) -> None:
+        if opened.documents:
+            first = len(self.documents)
+            for document in opened.documents:
+                self.add_document(document, make_current=False)
+            self.take_box.setCurrentIndex(first)
+        self._solve_next_pending()
+        if opened.errors:
+            self.show_error("Cannot open", "\n".join(opened.errors))
+        QTimer.singleShot(0, self._start_next_open)
 
     def add_document(self, document: TakeDocument, make_current: bool = True) -> None:
+        """Add an open take to the take list (and show it)."""
         self.documents.append(document)
         self.take_box.addItem(document.title)
+        self.take_box.setItemData(self.take_box.count() - 1, str(document.take.source_path or document.title),
+                                  Qt.ItemDataRole.ToolTipRole)
         if make_current:
             self.take_box.setCurrentIndex(len(self.documents) - 1)
 
@@ -195,26 +304,37 @@ class MainWindow(QMainWindow):
             self.set_document(self.documents[index])
 
     def set_document(self, document: TakeDocument) -> None:
-        """Show ``document``: markers, table, timeline; the hand if it is solved."""
-        self.runner.stop()
+        """Show ``document``: markers, table, timeline at the frame it was left at; the hand if solved.
+        A solve running for another take goes on."""
+        if self.document is not None:
+            self.document.current_frame = self.timeline.frame
         self.document = document
         take = document.take
         if document.layout_name:
             self.layout_box.blockSignals(True)
             self.layout_box.setCurrentText(document.layout_name)
             self.layout_box.blockSignals(False)
-        colors = np.tile(OTHER_MARKER_COLOR, (take.n_markers, 1))
-        colors[document.hand_columns()] = HAND_MARKER_COLOR
+        colors = self._marker_colors(document)
         self.viewport.set_markers(take.marker_names, take.marker_positions[0], colors)
-        self.marker_panel.set_markers(take.marker_names, document.observed_fraction)
+        self.marker_panel.set_markers(take.marker_names, document.observed_fraction, colors)
         self._show_result_geometry()
+        self.timeline.blockSignals(True)
         self.timeline.set_take(take.n_frames, take.first_frame, take.frame_rate, document.markers_seen)
-        self.frame_hand()
+        self.timeline.set_frame(document.current_frame)
+        self.timeline.blockSignals(False)
+        self.timeline.set_residuals(document.mean_residual_per_frame())
         self.info_label.setText(self._take_summary(take))
+        self.setWindowTitle(f"{document.title} — {APP_NAME}")
         self.show_frame(self.timeline.frame)
+        self.frame_hand()
         self._update_enabled()
-        if document.auto_solve and document.result is None and document.layout_name:
-            self.solve()
+        if document.auto_solve and document.result is None:
+            self._solve_next_pending()
+
+    def _marker_colors(self, document: TakeDocument) -> np.ndarray:
+        colors = np.tile(OTHER_MARKER_COLOR, (document.take.n_markers, 1))
+        colors[document.hand_columns()] = HAND_MARKER_COLOR
+        return colors
 
     @staticmethod
     def _take_summary(take: Take) -> str:
@@ -233,15 +353,15 @@ class MainWindow(QMainWindow):
         current = hand[self.timeline.frame]
         current = current[np.isfinite(current).all(axis=1)]
         if len(current) >= 3:
-            centre = current.mean(axis=0)
-            self.viewport.frame_bounds(np.vstack([current, centre - FRAMING_RADIUS_MM, centre + FRAMING_RADIUS_MM]))
+            self.viewport.frame_bounds(current, min_radius=FRAMING_RADIUS_MM * 1.3)
         else:
             self.viewport.frame_bounds(everything)
-        self.viewport.render()
+        self._schedule_render()
 
     # --------------------------------------------------------------------------------------- frame
     def show_frame(self, frame: int) -> None:
-        """Draw ``frame`` (0-based): markers, table values, and the solved hand when there is one."""
+        """Show ``frame`` (0-based): markers, table values, and the solved hand when there is one. The
+        3D view redraws once the events waiting now are handled, so fast scrubbing skips frames."""
         document = self.document
         if document is None or not 0 <= frame < document.take.n_frames:
             return
@@ -252,8 +372,14 @@ class MainWindow(QMainWindow):
             theta = document.result.joint_angles[frame]
             if np.isfinite(theta).all():
                 self.viewport.update_hand_vertices(skin_vertices(self.model, theta))
-            effectors, targets = document.effector_targets(frame)
-            self.viewport.set_effectors(effectors, targets)
+            self.viewport.set_effectors(*document.effector_targets(frame))
+        self._schedule_render()
+
+    def _schedule_render(self) -> None:
+        if not self._render_timer.isActive():
+            self._render_timer.start()
+
+    def _render(self) -> None:
         self.viewport.render()
 
     def _show_result_geometry(self) -> None:
@@ -266,105 +392,162 @@ class MainWindow(QMainWindow):
 
     def _marker_selected(self, row: int) -> None:
         self.viewport.set_selected_marker(None if row < 0 else row)
-        self.viewport.render()
+        self._schedule_render()
+
+    def _marker_clicked(self, index: int) -> None:
+        self.marker_panel.select_marker(index)
 
     def _layout_chosen(self, name: str) -> None:
         if self.document is not None and name:
             self.document.layout_name = name
+            colors = self._marker_colors(self.document)
+            self.viewport.set_marker_colors(colors)
+            self.marker_panel.set_markers(self.document.take.marker_names, self.document.observed_fraction,
+                                          colors)
+            self.show_frame(self.timeline.frame)
 
     # --------------------------------------------------------------------------------------- solve
-    def solve(self) -> None:
-        """Run IK of the current take on the worker thread."""
-        document = self.document
+    def solve(self, document: TakeDocument | None = None) -> None:
+        """Run IK of ``document`` (default: the current take) on the worker thread with the chosen
+        layout and method; a solve running for another take is cancelled (it is retried later when
+        it was an automatic one)."""
+        document = document or self.document
         if document is None:
             return
+        layout_name = (self.layout_box.currentText() if document is self.document
+                       else document.layout_name or self.layout_box.currentText())
         try:
-            layout = load_layout(self.layout_box.currentText())
+            layout = load_layout(layout_name)
         except HandMocapError as error:
             self.show_error("Cannot solve", str(error))
             return
         document.layout_name = layout.name
         take, model, method = document.take, self.model, self.method_box.currentText()
 
-        def task(progress, cancelled):
-            return solve_take(take, model, layout, method=method, progress=progress, cancelled=cancelled)
+        def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> IKResult:
+            result = solve_take(take, model, layout, method=method, progress=progress, cancelled=cancelled)
+            skin_vertices(model, result.joint_angles[0])     # compiles the skinning kernel off the GUI thread
+            return result
 
         document.solve_request = self.runner.start(task)
         self.statusBar().showMessage(f"Solving {document.title} with {method} IK ({layout.name})…")
+        self._update_enabled()
+
+    def cancel_solve(self) -> None:
+        """Stop the running solve; its take stays as it was and is not solved automatically again."""
+        owner = self._owner(self.runner.current_request)
+        if owner is not None:
+            owner.auto_solve = False
+        self.runner.cancel()
 
     def _owner(self, request_id: int) -> TakeDocument | None:
+        if request_id == 0:
+            return None
         return next((d for d in self.documents if d.solve_request == request_id), None)
 
     def _solve_progressed(self, request_id: int, fraction: float) -> None:
-        if self.document is not None and self.document.solve_request == request_id:
-            self.progress_bar.setValue(int(100 * fraction))
+        owner = self._owner(request_id)
+        if owner is None:
+            return
+        self.progress_bar.setValue(int(round(100 * fraction)))
+        self.progress_bar.setToolTip(f"Solving {owner.title}")
 
-    def _solve_succeeded(self, request_id: int, result) -> None:
+    def _solve_succeeded(self, request_id: int, result: IKResult) -> None:
         document = self._owner(request_id)
         if document is None:
             return
         document.solve_request = 0
-        try:
-            document.set_result(result)
-        except HandMocapError as error:
-            self.show_error("Cannot show the result", str(error))
-            return
+        document.set_result(result)
         self.statusBar().showMessage(f"{document.title}: {result.method} IK done, mean residual "
                                      f"{result.mean_residual_mm:.2f} mm", 15000)
         if document is self.document:
             self._show_result_geometry()
+            self.timeline.set_residuals(document.mean_residual_per_frame())
             self.show_frame(self.timeline.frame)
-            self._update_enabled()
-        else:
-            self._solve_next_pending()
+        self._update_enabled()
+        self._solve_next_pending()
 
     def _solve_failed(self, request_id: int, message: str) -> None:
         document = self._owner(request_id)
         if document is not None:
             document.solve_request = 0
-            self.show_error("Solve failed", message)
+            document.auto_solve = False
+            self._update_enabled()
+            self._solve_next_pending()
+            self.show_error("Solve failed", f"{document.title}: {message}")
 
     def _solve_cancelled(self, request_id: int) -> None:
         document = self._owner(request_id)
         if document is not None:
             document.solve_request = 0
-            self.statusBar().showMessage("Solve cancelled; the take is unchanged", 8000)
+            self.statusBar().showMessage(f"{document.title}: solve cancelled; the take is unchanged", 8000)
+            self._update_enabled()
 
     def _solve_next_pending(self) -> None:
-        """Auto-solve a demo take that has no result yet (one at a time)."""
-        if self.runner.is_busy() or self.document is None:
+        """Start the next automatic solve (the current take first), one at a time."""
+        if self.runner.is_busy():
             return
-        if self.document.auto_solve and self.document.result is None:
-            self.solve()
+        waiting = [d for d in self.documents if d.auto_solve and d.result is None and d.solve_request == 0]
+        if self.document in waiting:
+            self.solve(self.document)
+        elif waiting:
+            self.solve(waiting[0])
 
-    def _busy_changed(self, busy: bool) -> None:
+    def _solver_busy_changed(self, busy: bool) -> None:
+        self.progress_bar.setValue(0)
         self.progress_bar.setVisible(busy)
         self.cancel_button.setVisible(busy)
-        self.progress_bar.setValue(0)
+        self._update_enabled()
+
+    def _loader_busy_changed(self, busy: bool) -> None:
+        self.opening_label.setVisible(busy)
         self._update_enabled()
 
     def _update_enabled(self) -> None:
-        has_take = self.document is not None
-        busy = self.runner.is_busy()
-        self.solve_action.setEnabled(has_take and not busy)
-        self.cancel_action.setEnabled(busy)
-        self.export_action.setEnabled(has_take and self.document.result is not None)
+        document = self.document
+        self.solve_action.setEnabled(document is not None and document.solve_request == 0)
+        self.cancel_action.setEnabled(self.runner.is_busy())
+        self.export_action.setEnabled(document is not None and document.result is not None)
+        self.frame_action.setEnabled(document is not None)
+
+    def is_busy(self) -> bool:
+        """Whether takes are being opened or solved."""
+        return self.loader.is_busy() or bool(self._pending_opens) or self.runner.is_busy()
 
     # -------------------------------------------------------------------------------------- output
     def choose_screenshot(self) -> None:
+        """Ask for a PNG path and save the window there."""
         path, _ = QFileDialog.getSaveFileName(self, "Save screenshot", "handmocap.png", "PNG images (*.png)")
         if path:
             self.save_screenshot(path)
 
-    def save_screenshot(self, path: str | Path) -> None:
-        """Save the whole window (with the 3D view) as a PNG."""
+    def window_image(self) -> QImage:
+        """The whole window as an image, with the 3D view drawn in (it renders through OpenGL)."""
         self.viewport.render()
-        screen = self.screen()
-        image = screen.grabWindow(self.winId()) if screen is not None else self.grab()
-        if image.isNull() or not image.save(str(path)):
+        image = self.grab().toImage()
+        try:
+            view = self.viewport.plotter.screenshot(return_img=True)
+        except (RuntimeError, ValueError):        # no OpenGL context (e.g. the offscreen platform)
+            return image
+        height, width = view.shape[:2]
+        rendered = QImage(np.ascontiguousarray(view[:, :, :3]).data, width, height, 3 * width,
+                          QImage.Format.Format_RGB888).copy()
+        target = self.viewport.rect().translated(self.viewport.mapTo(self, self.viewport.rect().topLeft()))
+        ratio = image.devicePixelRatio()
+        painter = QPainter(image)
+        painter.drawImage(target, rendered.scaled(int(target.width() * ratio), int(target.height() * ratio)))
+        painter.end()
+        return image
+
+    def save_screenshot(self, path: str | Path) -> bool:
+        """Save the whole window as a PNG; shows the reason and returns False when it cannot."""
+        if not self.window_image().save(str(path)):
             self.show_error("Cannot save the screenshot", f"{path}: could not write the image")
+            return False
+        return True
 
     def choose_export(self) -> None:
+        """Ask for a CSV path and write the current take's joint angles there."""
         if self.document is None or self.document.result is None:
             return
         default = Path(self.document.title).with_suffix("").name + "_angles.csv"
@@ -376,12 +559,30 @@ class MainWindow(QMainWindow):
                 self.show_error("Cannot export", f"{path}: {error.strerror or error}")
 
     def show_error(self, title: str, message: str) -> None:
-        self.statusBar().showMessage(message, 15000)
+        """Tell the operator what went wrong (message box and status bar)."""
+        self.statusBar().showMessage(message.splitlines()[0] if message else title, 15000)
         QMessageBox.warning(self, title, message)
 
+    # -------------------------------------------------------------------------------------- events
+    def dragEnterEvent(self, event: QDragEnterEvent) -> None:
+        """Accept take files dragged onto the window."""
+        if any(url.toLocalFile().lower().endswith(TAKE_SUFFIXES) for url in event.mimeData().urls()):
+            event.acceptProposedAction()
+
+    def dropEvent(self, event: QDropEvent) -> None:
+        """Open the take files dropped onto the window."""
+        paths = [url.toLocalFile() for url in event.mimeData().urls()
+                 if url.toLocalFile().lower().endswith(TAKE_SUFFIXES)]
+        if paths:
+            self.open_files(paths)
+            event.acceptProposedAction()
+
     def closeEvent(self, event: QCloseEvent) -> None:
-        """Cancel and wait for the worker, release the render window."""
+        """Cancel and wait for the workers, release the render window."""
         self.timeline.pause()
+        self._pending_opens.clear()
         self.runner.stop()
+        self.loader.stop()
+        self._render_timer.stop()
         self.viewport.close_viewport()
         super().closeEvent(event)

@@ -8,8 +8,9 @@ a result only if it still belongs to the current document.
 
 from __future__ import annotations
 
+import logging
 import threading
-import traceback
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -18,6 +19,14 @@ from PySide6.QtCore import QObject, QThread, Signal, Slot
 from core.errors import CancelledError, HandMocapError
 
 Task = Callable[[Callable[[float], None], Callable[[], bool]], Any]
+
+LOG = logging.getLogger(__name__)
+PROGRESS_INTERVAL_S = 0.05   # a task may report every frame; the GUI hears at most 20 updates a second
+
+
+def one_line(message: str) -> str:
+    """The first non-empty line of ``message`` (messages shown to the operator are one line)."""
+    return next((line.strip() for line in message.splitlines() if line.strip()), message.strip())
 
 
 class _Worker(QObject):
@@ -29,20 +38,27 @@ class _Worker(QObject):
     def __init__(self, request_id: int, task: Task, cancel_event: threading.Event) -> None:
         super().__init__()
         self._request_id, self._task, self._cancel_event = request_id, task, cancel_event
+        self._last_report = 0.0
+
+    def _report(self, fraction: float) -> None:
+        """Forward progress, throttled to :data:`PROGRESS_INTERVAL_S` (the end is always reported)."""
+        now = time.monotonic()
+        if fraction >= 1.0 or now - self._last_report >= PROGRESS_INTERVAL_S:
+            self._last_report = now
+            self.progressed.emit(self._request_id, float(fraction))
 
     @Slot()
     def run(self) -> None:
         request = self._request_id
         try:
-            result = self._task(lambda fraction: self.progressed.emit(request, float(fraction)),
-                                self._cancel_event.is_set)
+            result = self._task(self._report, self._cancel_event.is_set)
         except CancelledError:
             self.was_cancelled.emit(request)
         except HandMocapError as error:
-            self.failed.emit(request, str(error))
+            self.failed.emit(request, one_line(str(error)))
         except Exception as error:  # noqa: BLE001 - any failure becomes a message, never a crash
-            traceback.print_exc()
-            self.failed.emit(request, f"unexpected error: {type(error).__name__}: {error}")
+            LOG.exception("task %d failed", request)
+            self.failed.emit(request, one_line(f"unexpected error: {type(error).__name__}: {error}"))
         else:
             self.succeeded.emit(request, result)
 
@@ -64,7 +80,13 @@ class TaskRunner(QObject):
         self._cancel_event = threading.Event()
 
     def is_busy(self) -> bool:
+        """Whether a task is running."""
         return self._thread is not None
+
+    @property
+    def current_request(self) -> int:
+        """Request id of the running task (0 when idle)."""
+        return self._next_id if self._thread is not None else 0
 
     def start(self, task: Task) -> int:
         """Start ``task`` (cancelling and waiting for a running one first); returns its request id."""

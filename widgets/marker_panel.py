@@ -4,30 +4,56 @@ residual). Selecting a row emits :attr:`MarkerPanel.marker_selected` with the ma
 from __future__ import annotations
 
 import numpy as np
-from PySide6.QtCore import QAbstractTableModel, QModelIndex, QSortFilterProxyModel, Qt, Signal
-from PySide6.QtGui import QBrush, QColor
+from PySide6.QtCore import QAbstractTableModel, QModelIndex, QObject, QSortFilterProxyModel, Qt, Signal
+from PySide6.QtGui import QBrush, QColor, QIcon, QPainter, QPixmap
 from PySide6.QtWidgets import QAbstractItemView, QHeaderView, QLineEdit, QTableView, QVBoxLayout, QWidget
 
-COLUMNS = ("Marker", "Seen %", "X mm", "Y mm", "Z mm", "Resid. mm")
+COLUMNS = ("Marker", "Seen %", "X", "Y", "Z", "Resid.")
+COLUMN_TIPS = (
+    "Marker name (chip: colour in the 3D view, hollow when missing in this frame)",
+    "Share of the take's frames in which the marker is observed",
+    "X position in this frame (mm)", "Y position in this frame (mm)", "Z position in this frame (mm)",
+    "IK residual in this frame: distance between the model's effector and the marker (mm)",
+)
 SORT_ROLE = Qt.ItemDataRole.UserRole + 1
 MISSING_TEXT = "—"
+SWATCH_PX = 10
+
+
+def _swatch(color: np.ndarray, filled: bool) -> QIcon:
+    """A small round colour chip: filled when the marker is observed in the current frame."""
+    pixmap = QPixmap(SWATCH_PX + 2, SWATCH_PX + 2)
+    pixmap.fill(QColor(0, 0, 0, 0))
+    painter = QPainter(pixmap)
+    painter.setRenderHint(QPainter.RenderHint.Antialiasing)
+    qcolor = QColor.fromRgbF(*(float(c) for c in color))
+    painter.setPen(qcolor)
+    painter.setBrush(qcolor if filled else QColor(0, 0, 0, 0))
+    painter.drawEllipse(1, 1, SWATCH_PX - 1, SWATCH_PX - 1)
+    painter.end()
+    return QIcon(pixmap)
 
 
 class MarkerTableModel(QAbstractTableModel):
     """Rows = markers; the per-frame columns are replaced with :meth:`set_frame_values`."""
 
-    def __init__(self, parent=None) -> None:
+    def __init__(self, parent: QObject | None = None) -> None:
         super().__init__(parent)
         self._names: list[str] = []
         self._observed = np.zeros(0)
         self._positions = np.zeros((0, 3))
         self._residuals = np.zeros(0)
+        self._icons: list[tuple[QIcon, QIcon]] = []
 
-    def set_markers(self, names: list[str], observed_fraction: np.ndarray) -> None:
-        """New marker list: ``names (M,)`` and the share of frames each is observed in ``(M,)``."""
+    def set_markers(self, names: list[str], observed_fraction: np.ndarray,
+                    colors: np.ndarray | None = None) -> None:
+        """New marker list: ``names (M,)``, the share of frames each is observed in ``(M,)`` and the
+        colour ``(M,3)`` in [0, 1] it has in the 3D view (shown as a chip, hollow when missing)."""
         self.beginResetModel()
         self._names = list(names)
         self._observed = np.asarray(observed_fraction, dtype=float)
+        colors = np.full((len(names), 3), 0.7) if colors is None else np.asarray(colors, dtype=float)
+        self._icons = [(_swatch(color, True), _swatch(color, False)) for color in colors]
         self._positions = np.full((len(names), 3), np.nan)
         self._residuals = np.full(len(names), np.nan)
         self.endResetModel()
@@ -38,7 +64,9 @@ class MarkerTableModel(QAbstractTableModel):
         self._residuals = (np.full(len(self._names), np.nan) if residuals is None
                            else np.asarray(residuals, dtype=float))
         if self._names:
-            self.dataChanged.emit(self.index(0, 2), self.index(len(self._names) - 1, len(COLUMNS) - 1))
+            last = len(self._names) - 1
+            self.dataChanged.emit(self.index(0, 0), self.index(last, 0), [Qt.ItemDataRole.DecorationRole])
+            self.dataChanged.emit(self.index(0, 2), self.index(last, len(COLUMNS) - 1))
 
     def rowCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008 - Qt signature
         return 0 if parent.isValid() else len(self._names)
@@ -46,9 +74,12 @@ class MarkerTableModel(QAbstractTableModel):
     def columnCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008 - Qt signature
         return 0 if parent.isValid() else len(COLUMNS)
 
-    def headerData(self, section: int, orientation: Qt.Orientation, role: int = Qt.ItemDataRole.DisplayRole):
-        if role == Qt.ItemDataRole.DisplayRole and orientation == Qt.Orientation.Horizontal:
+    def headerData(self, section: int, orientation: Qt.Orientation,
+                   role: int = Qt.ItemDataRole.DisplayRole) -> str | None:
+        if orientation == Qt.Orientation.Horizontal and role == Qt.ItemDataRole.DisplayRole:
             return COLUMNS[section]
+        if orientation == Qt.Orientation.Horizontal and role == Qt.ItemDataRole.ToolTipRole:
+            return COLUMN_TIPS[section]
         return None
 
     def _value(self, row: int, column: int) -> float | str:
@@ -60,7 +91,7 @@ class MarkerTableModel(QAbstractTableModel):
             return float(self._positions[row, column - 2])
         return float(self._residuals[row])
 
-    def data(self, index: QModelIndex, role: int = Qt.ItemDataRole.DisplayRole):
+    def data(self, index: QModelIndex, role: int = Qt.ItemDataRole.DisplayRole) -> object:
         if not index.isValid():
             return None
         row, column = index.row(), index.column()
@@ -73,6 +104,9 @@ class MarkerTableModel(QAbstractTableModel):
             if np.isnan(value):
                 return MISSING_TEXT
             return f"{value:.1f}" if column == 1 else f"{value:.2f}" if column == 5 else f"{value:.1f}"
+        if role == Qt.ItemDataRole.DecorationRole and column == 0 and self._icons:
+            observed = bool(np.isfinite(self._positions[row]).all())
+            return self._icons[row][0 if observed else 1]
         if role == Qt.ItemDataRole.TextAlignmentRole and column > 0:
             return int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
         if role == Qt.ItemDataRole.ForegroundRole:
@@ -122,10 +156,14 @@ class MarkerPanel(QWidget):
         layout.addWidget(self.filter_edit)
         layout.addWidget(self.table)
 
-    def set_markers(self, names: list[str], observed_fraction: np.ndarray) -> None:
-        self.model.set_markers(names, observed_fraction)
+    def set_markers(self, names: list[str], observed_fraction: np.ndarray,
+                    colors: np.ndarray | None = None) -> None:
+        """Show a new marker list (see :meth:`MarkerTableModel.set_markers`); clears the selection."""
+        self.table.clearSelection()
+        self.model.set_markers(names, observed_fraction, colors)
 
     def set_frame_values(self, positions: np.ndarray, residuals: np.ndarray | None) -> None:
+        """Current frame's positions ``(M,3)`` mm and residuals ``(M,)`` mm (or None)."""
         self.model.set_frame_values(positions, residuals)
 
     def select_marker(self, row: int) -> None:
@@ -139,6 +177,7 @@ class MarkerPanel(QWidget):
             self.table.scrollTo(index)
 
     def selected_marker(self) -> int:
+        """Source row of the selected marker, -1 when none."""
         rows = self.table.selectionModel().selectedRows()
         return self.proxy.mapToSource(rows[0]).row() if rows else -1
 

@@ -1,13 +1,16 @@
 """Timeline: transport controls (play/pause, step, speed, loop), frame box and a scrubbable plot of how
-many markers are observed per frame (pyqtgraph). Emits :attr:`TimelineWidget.frame_changed` with the
-0-based frame index; shows the file's own frame numbers."""
+many markers are observed per frame and, after a solve, the mean IK residual (pyqtgraph). Emits
+:attr:`TimelineWidget.frame_changed` with the 0-based frame index; shows the file's own frame numbers.
+The transport is also offered as :class:`QAction` objects (with the usual keys) for a Playback menu."""
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import QElapsedTimer, Qt, QTimer, Signal
-from PySide6.QtGui import QKeySequence, QShortcut
+from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -22,6 +25,8 @@ from PySide6.QtWidgets import (
 
 SPEEDS = (0.1, 0.25, 0.5, 1.0, 2.0, 4.0)
 TICK_MS = 15
+OBSERVED_PEN = (120, 190, 255)
+RESIDUAL_PEN = (255, 150, 60)
 
 
 class TimelineWidget(QWidget):
@@ -46,34 +51,44 @@ class TimelineWidget(QWidget):
         self.set_take(0, 1, 100.0, np.zeros(0))
 
     # ------------------------------------------------------------------------------------ building
-    def _button(self, icon: QStyle.StandardPixmap, tip: str, slot) -> QToolButton:
+    def _action(self, text: str, icon: QStyle.StandardPixmap, key: Qt.Key, slot: Callable[[], None]) -> QAction:
+        action = QAction(self.style().standardIcon(icon), text, self)
+        action.setShortcut(QKeySequence(key))
+        action.setToolTip(f"{text} ({QKeySequence(key).toString(QKeySequence.SequenceFormat.NativeText)})")
+        action.triggered.connect(slot)
+        self.addAction(action)
+        return action
+
+    def _button(self, action: QAction) -> QToolButton:
         button = QToolButton(self)
-        button.setIcon(self.style().standardIcon(icon))
-        button.setToolTip(tip)
+        button.setDefaultAction(action)
         button.setAutoRaise(True)
-        button.clicked.connect(slot)
         return button
 
     def _build(self) -> None:
+        pixmap = QStyle.StandardPixmap
+        self.first_action = self._action("First frame", pixmap.SP_MediaSkipBackward, Qt.Key.Key_Home,
+                                         lambda: self.set_frame(0))
+        self.step_back_action = self._action("Previous frame", pixmap.SP_MediaSeekBackward, Qt.Key.Key_Left,
+                                             lambda: self.step(-1))
+        self.play_action = self._action("Play", pixmap.SP_MediaPlay, Qt.Key.Key_Space, self.toggle_playing)
+        self.play_action.setToolTip("Play / pause (Space)")
+        self.step_forward_action = self._action("Next frame", pixmap.SP_MediaSeekForward, Qt.Key.Key_Right,
+                                                lambda: self.step(1))
+        self.last_action = self._action("Last frame", pixmap.SP_MediaSkipForward, Qt.Key.Key_End,
+                                        lambda: self.set_frame(self._n_frames - 1))
+        self.transport_actions = (self.first_action, self.step_back_action, self.play_action,
+                                  self.step_forward_action, self.last_action)
         controls = QHBoxLayout()
         controls.setContentsMargins(4, 2, 4, 0)
-        self.first_button = self._button(QStyle.StandardPixmap.SP_MediaSkipBackward, "First frame (Home)",
-                                         lambda: self.set_frame(0))
-        self.back_button = self._button(QStyle.StandardPixmap.SP_MediaSeekBackward, "Previous frame (←)",
-                                        lambda: self.step(-1))
-        self.play_button = self._button(QStyle.StandardPixmap.SP_MediaPlay, "Play / pause (Space)",
-                                        self.toggle_playing)
-        self.forward_button = self._button(QStyle.StandardPixmap.SP_MediaSeekForward, "Next frame (→)",
-                                           lambda: self.step(1))
-        self.last_button = self._button(QStyle.StandardPixmap.SP_MediaSkipForward, "Last frame (End)",
-                                        lambda: self.set_frame(self._n_frames - 1))
-        for button in (self.first_button, self.back_button, self.play_button, self.forward_button,
-                       self.last_button):
-            controls.addWidget(button)
+        for action in self.transport_actions:
+            controls.addWidget(self._button(action))
         controls.addSpacing(8)
         controls.addWidget(QLabel("Frame"))
         self.frame_box = QSpinBox(self)
         self.frame_box.setKeyboardTracking(False)
+        self.frame_box.setMinimumWidth(90)
+        self.frame_box.setAlignment(Qt.AlignmentFlag.AlignRight)
         self.frame_box.valueChanged.connect(lambda value: self.set_frame(value - self._first_frame))
         controls.addWidget(self.frame_box)
         self.time_label = QLabel(self)
@@ -90,17 +105,35 @@ class TimelineWidget(QWidget):
         self.loop_box = QCheckBox("Loop", self)
         self.loop_box.setChecked(True)
         controls.addWidget(self.loop_box)
+        controls.addSpacing(10)
+        self.legend_label = QLabel(self)
+        controls.addWidget(self.legend_label)
 
         self.plot = pg.PlotWidget(self)
         self.plot.setBackground((30, 32, 36))
         self.plot.setMouseEnabled(x=True, y=False)
         self.plot.setMenuEnabled(False)
         self.plot.hideButtons()
-        self.plot.setLabel("left", "markers seen")
-        self.plot.showGrid(x=True, y=False, alpha=0.25)
-        self.plot.setMaximumHeight(120)
-        self._observed_curve = self.plot.plot(pen=pg.mkPen((120, 190, 255), width=1.5),
+        item = self.plot.getPlotItem()
+        item.getAxis("left").setWidth(44)
+        item.getAxis("left").setLabel("markers", color=_css(OBSERVED_PEN))
+        item.showGrid(x=True, y=False, alpha=0.25)
+        self.plot.setMinimumHeight(90)
+        self.plot.setMaximumHeight(150)
+        self._observed_curve = self.plot.plot(pen=pg.mkPen(OBSERVED_PEN, width=1.5),
                                               fillLevel=0, brush=(70, 120, 180, 70))
+        # the residual curve lives in its own view box on the right axis, sharing the frame axis
+        self._residual_box = pg.ViewBox(enableMouse=False, enableMenu=False)
+        item.showAxis("right")
+        item.getAxis("right").setWidth(44)
+        item.getAxis("right").setLabel("mm", color=_css(RESIDUAL_PEN))
+        item.getAxis("right").enableAutoSIPrefix(False)
+        item.scene().addItem(self._residual_box)
+        item.getAxis("right").linkToView(self._residual_box)
+        self._residual_box.setXLink(item.vb)
+        item.vb.sigResized.connect(lambda: self._residual_box.setGeometry(item.vb.sceneBoundingRect()))
+        self._residual_curve = pg.PlotDataItem(pen=pg.mkPen(RESIDUAL_PEN, width=1.2))
+        self._residual_box.addItem(self._residual_curve)
         self._cursor = pg.InfiniteLine(angle=90, movable=True, pen=pg.mkPen((255, 200, 60), width=2),
                                        hoverPen=pg.mkPen((255, 230, 120), width=3))
         self._cursor.sigPositionChanged.connect(self._cursor_moved)
@@ -113,13 +146,6 @@ class TimelineWidget(QWidget):
         layout.addLayout(controls)
         layout.addWidget(self.plot)
 
-        for key, slot in ((Qt.Key.Key_Left, lambda: self.step(-1)), (Qt.Key.Key_Right, lambda: self.step(1)),
-                          (Qt.Key.Key_Space, self.toggle_playing), (Qt.Key.Key_Home, lambda: self.set_frame(0)),
-                          (Qt.Key.Key_End, lambda: self.set_frame(self._n_frames - 1))):
-            shortcut = QShortcut(QKeySequence(key), self.window() or self)
-            shortcut.setContext(Qt.ShortcutContext.ApplicationShortcut)
-            shortcut.activated.connect(slot)
-
     # ------------------------------------------------------------------------------------- public
     @property
     def frame(self) -> int:
@@ -128,14 +154,51 @@ class TimelineWidget(QWidget):
 
     @property
     def n_frames(self) -> int:
+        """Number of frames of the shown take."""
         return self._n_frames
 
     @property
+    def first_frame(self) -> int:
+        """The file's number of frame 0."""
+        return self._first_frame
+
+    @property
     def speed(self) -> float:
+        """Playback speed factor (1 = real time)."""
         return float(self.speed_box.currentData())
 
+    def set_speed(self, speed: float) -> None:
+        """Choose the preset playback speed closest to ``speed``."""
+        index = int(np.argmin(np.abs(np.log(np.asarray(SPEEDS) / max(speed, 1e-6)))))
+        self.speed_box.setCurrentIndex(index)
+
     def is_playing(self) -> bool:
+        """Whether playback is running."""
         return self._timer.isActive()
+
+    def set_residuals(self, residuals: np.ndarray | None) -> None:
+        """Per-frame mean IK residual ``(F,)`` mm (NaN: none) drawn on the right axis; None hides it."""
+        item = self.plot.getPlotItem()
+        if residuals is None or not np.isfinite(residuals).any():
+            self._residual_curve.setData([], [])
+            self._residual_box.setYRange(0, 1, padding=0)
+            item.getAxis("right").setStyle(showValues=False)
+            item.getAxis("right").setLabel("")
+            self._update_legend(False)
+            return
+        item.getAxis("right").setStyle(showValues=True)
+        item.getAxis("right").setLabel("mm", color=_css(RESIDUAL_PEN))
+        residuals = np.asarray(residuals, dtype=float)
+        self._residual_curve.setData(self._first_frame + np.arange(len(residuals)), residuals, connect="finite")
+        top = float(np.nanpercentile(residuals, 99.5))
+        self._residual_box.setYRange(0, max(top, 0.5) * 1.15, padding=0)
+        self._update_legend(True)
+
+    def _update_legend(self, with_residuals: bool) -> None:
+        text = f'<span style="color:{_css(OBSERVED_PEN)}">■</span> markers seen'
+        if with_residuals:
+            text += f'&nbsp;&nbsp;<span style="color:{_css(RESIDUAL_PEN)}">■</span> mean residual (mm)'
+        self.legend_label.setText(text)
 
     def set_take(self, n_frames: int, first_frame: int, frame_rate: float, markers_seen: np.ndarray) -> None:
         """Show a take of ``n_frames`` at ``frame_rate`` Hz whose first frame is numbered ``first_frame``;
@@ -145,14 +208,17 @@ class TimelineWidget(QWidget):
         self.frame_box.blockSignals(True)
         self.frame_box.setRange(first_frame, first_frame + max(n_frames - 1, 0))
         self.frame_box.blockSignals(False)
-        frames = np.arange(len(markers_seen))
+        # the plot's x axis shows the file's frame numbers, like the frame box
+        frames = first_frame + np.arange(len(markers_seen))
         self._observed_curve.setData(frames, np.asarray(markers_seen, dtype=float))
-        self.plot.setLimits(xMin=-1, xMax=max(n_frames, 2))
-        self.plot.setXRange(0, max(n_frames - 1, 1), padding=0.01)
+        self.plot.setLimits(xMin=first_frame - 1, xMax=first_frame + max(n_frames, 2))
+        self.plot.setXRange(first_frame, first_frame + max(n_frames - 1, 1), padding=0.01)
         self.plot.setYRange(0, max(float(np.max(markers_seen, initial=0)), 1.0) * 1.1, padding=0)
-        for widget in (self.first_button, self.back_button, self.play_button, self.forward_button,
-                       self.last_button, self.frame_box, self._cursor):
-            widget.setEnabled(n_frames > 0)
+        for action in self.transport_actions:
+            action.setEnabled(n_frames > 0)
+        self.frame_box.setEnabled(n_frames > 0)
+        self._cursor.setMovable(n_frames > 0)
+        self.set_residuals(None)
         self._frame = -1
         self.set_frame(0)
 
@@ -174,7 +240,7 @@ class TimelineWidget(QWidget):
         self.frame_box.setValue(frame + self._first_frame)
         self.frame_box.blockSignals(False)
         self._cursor.blockSignals(True)
-        self._cursor.setValue(frame)
+        self._cursor.setValue(frame + self._first_frame)
         self._cursor.blockSignals(False)
         self.time_label.setText(f"{frame / self._frame_rate:8.3f} s  / {self._n_frames / self._frame_rate:.2f} s")
         self.frame_changed.emit(frame)
@@ -185,24 +251,32 @@ class TimelineWidget(QWidget):
         self.set_frame(self._frame + frames)
 
     def play(self) -> None:
+        """Start playback from the current frame (from the start when at the end)."""
         if self._n_frames < 2 or self.is_playing():
             return
         if self._frame >= self._n_frames - 1:
             self.set_frame(0)
         self._restart_clock()
         self._timer.start()
-        self.play_button.setIcon(self.style().standardIcon(QStyle.StandardPixmap.SP_MediaPause))
+        self.play_action.setIcon(self.style().standardIcon(QStyle.StandardPixmap.SP_MediaPause))
+        self.play_action.setText("Pause")
         self.playing_changed.emit(True)
 
     def pause(self) -> None:
+        """Stop playback at the current frame."""
         if not self.is_playing():
             return
         self._timer.stop()
-        self.play_button.setIcon(self.style().standardIcon(QStyle.StandardPixmap.SP_MediaPlay))
+        self.play_action.setIcon(self.style().standardIcon(QStyle.StandardPixmap.SP_MediaPlay))
+        self.play_action.setText("Play")
         self.playing_changed.emit(False)
 
     def toggle_playing(self) -> None:
-        self.pause() if self.is_playing() else self.play()
+        """Play when paused, pause when playing."""
+        if self.is_playing():
+            self.pause()
+        else:
+            self.play()
 
     # ------------------------------------------------------------------------------------ private
     def _restart_clock(self) -> None:
@@ -224,9 +298,16 @@ class TimelineWidget(QWidget):
 
     def _cursor_moved(self) -> None:
         self.pause()
-        self.set_frame(int(round(self._cursor.value())))
+        self.set_frame(int(round(self._cursor.value())) - self._first_frame)
 
-    def _plot_clicked(self, event) -> None:
+    def _plot_clicked(self, event: object) -> None:
+        if self._n_frames == 0:
+            return
         position = self.plot.getPlotItem().vb.mapSceneToView(event.scenePos())
         self.pause()
-        self.set_frame(int(round(position.x())))
+        self.set_frame(int(round(position.x())) - self._first_frame)
+
+
+def _css(color: tuple[int, int, int]) -> str:
+    """``#rrggbb`` of an RGB byte triple."""
+    return "#{:02x}{:02x}{:02x}".format(*color)

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 import pyvista as pv
+from PySide6.QtCore import QEvent, QObject, QPointF, Qt, Signal
+from PySide6.QtGui import QMouseEvent
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 from pyvistaqt import QtInteractor
 from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
@@ -31,6 +33,8 @@ GRID_COLOR = (0.42, 0.45, 0.50)
 MARKER_RADIUS_MM = 3.2
 EFFECTOR_RADIUS_MM = 2.2
 SELECTED_SCALE = 1.7
+PICK_RADIUS_PX = 12.0      # a click this close to a marker's centre selects it
+CLICK_SLOP_PX = 4.0        # a press and release further apart than this is a camera drag, not a click
 
 
 def _as_rgb_bytes(colors: np.ndarray) -> np.ndarray:
@@ -68,13 +72,23 @@ def _nice_spacing(extent: float) -> float:
 
 
 class HandViewport(QWidget):
-    """Interactive Z-up 3D view of one hand: mesh, markers, effectors and residual lines."""
+    """Interactive Z-up 3D view of one hand: mesh, markers, effectors and residual lines.
+
+    Mouse: left drag orbits about Z, middle drag pans, wheel zooms; a left click on a marker emits
+    :attr:`marker_clicked` with its index (-1 for a click on empty space). Keys are left to the
+    application (VTK's one-letter commands, such as ``w`` for wireframe, are switched off).
+    """
+
+    marker_clicked = Signal(int)
 
     def __init__(self, parent: QWidget | None = None, off_screen: bool | None = None) -> None:
         super().__init__(parent)
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
         self._plotter = QtInteractor(self, off_screen=off_screen, auto_update=False, multi_samples=4)
+        self._plotter.setAcceptDrops(False)       # files dropped on the view go to the window
+        self._plotter.installEventFilter(self)
+        self._press_position: QPointF | None = None
         layout.addWidget(self._plotter)
         self.setMinimumSize(320, 240)
 
@@ -212,6 +226,46 @@ class HandViewport(QWidget):
         self._label_actor.SetMapper(self._label_mapper)
         self._label_actor.SetVisibility(False)
         self._plotter.renderer.AddViewProp(self._label_actor)
+
+    # ------------------------------------------------------------------------------------- events
+    def eventFilter(self, watched: QObject, event: QEvent) -> bool:
+        """Keep key presses from VTK; turn a left click (press and release in place) into a pick."""
+        if watched is not self._plotter:
+            return False
+        kind = event.type()
+        if kind in (QEvent.Type.KeyPress, QEvent.Type.KeyRelease):
+            event.ignore()
+            return True
+        if isinstance(event, QMouseEvent) and event.button() == Qt.MouseButton.LeftButton:
+            if kind == QEvent.Type.MouseButtonPress:
+                self._press_position = event.position()
+            elif kind == QEvent.Type.MouseButtonRelease and self._press_position is not None:
+                moved = event.position() - self._press_position
+                self._press_position = None
+                if abs(moved.x()) + abs(moved.y()) <= CLICK_SLOP_PX:
+                    self.marker_clicked.emit(self.marker_at(event.position().x(), event.position().y()))
+        return False
+
+    def marker_at(self, x: float, y: float) -> int:
+        """Index of the shown marker nearest to widget position ``(x, y)`` (logical pixels) within
+        :data:`PICK_RADIUS_PX`, or -1."""
+        visible = np.flatnonzero(np.isfinite(self._marker_positions).all(axis=1))
+        if not len(visible):
+            return -1
+        renderer = self._plotter.renderer
+        ratio = self._plotter.devicePixelRatioF()
+        height = self._plotter.height() * ratio
+        best, best_distance = -1, PICK_RADIUS_PX * ratio
+        for index in visible:
+            renderer.SetWorldPoint(*self._marker_positions[index], 1.0)
+            renderer.WorldToDisplay()
+            display_x, display_y, depth = renderer.GetDisplayPoint()
+            if not 0.0 <= depth <= 1.0:
+                continue
+            distance = float(np.hypot(display_x - x * ratio, (height - display_y) - y * ratio))
+            if distance < best_distance:
+                best, best_distance = int(index), distance
+        return best
 
     # --------------------------------------------------------------------------------------- access
     @property
@@ -391,22 +445,31 @@ class HandViewport(QWidget):
         self._grid.ShallowCopy(grid)
         self._grid.Modified()
 
-    def frame_bounds(self, points: np.ndarray) -> None:
-        """Point the Z-up camera at ``points (N,3)`` mm from a three-quarter view that frames them."""
+    def frame_bounds(self, points: np.ndarray, min_radius: float = 60.0) -> None:
+        """Point the Z-up camera at ``points (N,3)`` mm so that a sphere of at least ``min_radius`` mm
+        around them fills the view. The camera looks across the points' longest horizontal extent
+        (a hand is seen side-on along its length), from the -Y side and 35° above."""
         finite = np.asarray(points, dtype=float).reshape(-1, 3)
         finite = finite[np.isfinite(finite).all(axis=1)]
         if not len(finite):
             return
         low, high = np.percentile(finite, 1, axis=0), np.percentile(finite, 99, axis=0)
         center = (low + high) / 2.0
-        radius = max(float(np.linalg.norm(high - low)) / 2.0, 60.0)
-        direction = np.array([-0.55, -0.95, 0.62])
-        direction /= np.linalg.norm(direction)
+        radius = max(float(np.linalg.norm(high - low)) / 2.0, min_radius)
+        horizontal = np.array([-0.5, -0.866])
+        if len(finite) >= 3:
+            spread = finite[:, :2] - finite[:, :2].mean(axis=0)
+            eigenvalues, eigenvectors = np.linalg.eigh(spread.T @ spread)
+            if eigenvalues[1] > 2.0 * max(eigenvalues[0], 1e-9):       # clearly elongated in XY
+                long_axis = eigenvectors[:, 1]
+                across = np.array([-long_axis[1], long_axis[0]])
+                horizontal = across if across @ horizontal >= 0 else -across
+        elevation = np.radians(35.0)
+        direction = np.array([*(np.cos(elevation) * horizontal), np.sin(elevation)])
         camera = self._plotter.camera
         camera.focal_point = tuple(center)
         camera.up = (0.0, 0.0, 1.0)
-        view_angle = float(camera.view_angle)
-        distance = radius / np.sin(np.radians(view_angle) / 2.0) * 1.05
+        distance = radius / np.sin(np.radians(float(camera.view_angle)) / 2.0) * 1.05
         camera.position = tuple(center + direction * distance)
         self._plotter.renderer.ResetCameraClippingRange()
 

@@ -1,4 +1,5 @@
-"""GUI tests run on a virtual screen (Xvfb via installer/test.sh) or Qt's offscreen platform."""
+"""GUI tests run on a virtual screen (Xvfb via installer/test.sh) or, without a display, on Qt's
+offscreen platform with pyvista off screen (the 3D view then keeps its data but draws nothing)."""
 
 import os
 
@@ -6,6 +7,10 @@ import pytest
 
 if not os.environ.get("DISPLAY"):
     os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+if os.environ.get("QT_QPA_PLATFORM") == "offscreen":
+    import pyvista
+
+    pyvista.OFF_SCREEN = True
 
 
 @pytest.fixture
