@@ -32,7 +32,7 @@ def _print_json(figures: dict) -> None:
 def command_gui(args: argparse.Namespace) -> int:
     from app.gui import run_gui
 
-    return run_gui(args.files, screenshot=args.screenshot, frame=args.frame, solve=args.solve)
+    return run_gui(args.files, screenshot=args.screenshot, frame=args.frame, solve=args.solve, demo=args.demo)
 
 
 def command_info(args: argparse.Namespace) -> int:
@@ -183,6 +183,7 @@ def build_parser() -> argparse.ArgumentParser:
     gui.add_argument("--screenshot", metavar="PNG", help="wait for the solves, save a screenshot and exit")
     gui.add_argument("--frame", type=int, help="0-based frame to show in the screenshot")
     gui.add_argument("--solve", action="store_true", help="solve the opened takes at once")
+    gui.add_argument("--demo", action="store_true", help="also open the demo session")
     gui.set_defaults(handler=command_gui)
 
     info = commands.add_parser("info", help="frames, rate, units, markers, vendor and missing share of a take")
