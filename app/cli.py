@@ -113,6 +113,12 @@ def command_bench(args: argparse.Namespace) -> int:
 
         figures = bench_ik(frames=args.frames or 3000)
         print(f"layered IK, {figures['markers']} markers: {figures['frames_per_s']:.0f} frames/s")
+    elif args.what == "pso":
+        from core.layout.workflow import bench_pso
+
+        figures = bench_pso()
+        print(f"PSO {figures['pso_seconds']:.2f} s (E {figures['pso_energy']}), "
+              f"greedy {figures['greedy_seconds']:.2f} s (E {figures['greedy_energy']})")
     else:
         from core.io.generate import bench_load
 
@@ -155,6 +161,42 @@ def command_prior(args: argparse.Namespace) -> int:
     prior.save(path)
     print(describe_prior(prior))
     print(f"wrote prior {path}")
+    return 0
+
+
+def _motions(values: list[str]) -> str | list[str]:
+    """A motion-set name (grasps, gestures, all) or a list of solved-take result files."""
+    return values[0] if len(values) == 1 and not values[0].endswith(".npz") else values
+
+
+def command_layout_optimize(args: argparse.Namespace) -> int:
+    from core.layout.workflow import optimise_layout
+    from core.model import load_template, save_layout
+
+    layout, result = optimise_layout(load_template(), _motions(args.motions), args.markers, method=args.method,
+                                     base_layout=args.base, subspace_dims=args.dims, seed=args.seed)
+    save_layout(layout, args.out)
+    print(f"{args.method}: {len(layout.markers)} markers, energy {result.energy:.4f} -> {args.out}")
+    return 0
+
+
+def command_layout_evaluate(args: argparse.Namespace) -> int:
+    from core.layout import default_subspace_dims, evaluate_layout, motion_set
+    from core.model import load_layout, load_template
+
+    layout = load_layout(args.layout)
+    dims = args.dims or default_subspace_dims(len(layout.markers))
+    metrics = evaluate_layout(load_template(), layout, motion_set(_motions(args.motions)), dims)
+    figures = {"layout": layout.name, "markers": len(layout.markers), "subspace_dims": dims,
+               "mean_mm": round(metrics.reconstruction_mean_mm, 3), "max_mm": round(metrics.reconstruction_max_mm, 3),
+               "mean_condition": round(metrics.mean_condition, 3),
+               "worst_occluded_condition": round(metrics.worst_occluded_condition, 3),
+               "worst_occluded_marker": metrics.worst_occluded_marker,
+               "min_distance_mm": round(metrics.min_distance_mm, 2), "closest_pair": list(metrics.closest_pair)}
+    for key, value in figures.items():
+        print(f"  {key:<26} {value}")
+    if args.json:
+        _print_json(figures)
     return 0
 
 
@@ -216,7 +258,7 @@ def build_parser() -> argparse.ArgumentParser:
     solve.set_defaults(handler=command_solve)
 
     bench = commands.add_parser("bench", help="speed benchmarks")
-    bench.add_argument("what", choices=["ik", "load"])
+    bench.add_argument("what", choices=["ik", "load", "pso"])
     bench.add_argument("--frames", type=int, help="frames to use (default: ik 3000, load 100000)")
     bench.add_argument("--json", action="store_true", help="print one JSON object as the last line")
     bench.set_defaults(handler=command_bench)
@@ -241,6 +283,24 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument("--iterations", type=int, default=3)
     fit.add_argument("--out", required=True, metavar="LAYOUT.json")
     fit.set_defaults(handler=command_layout)
+
+    optimize = layout_commands.add_parser("optimize", help="optimise a reduced marker layout for a motion set")
+    optimize.add_argument("--markers", type=int, required=True, help="number of markers")
+    optimize.add_argument("--motions", nargs="+", default=["grasps"],
+                          help="motion set: grasps, gestures, all, or solved-take result .npz files")
+    optimize.add_argument("--method", choices=["pso", "greedy", "subset"], default="pso")
+    optimize.add_argument("--base", default="dense", help="base layout for --method subset (default dense)")
+    optimize.add_argument("--dims", type=int, help="subspace dimensions (default: one per marker, 2 to 6)")
+    optimize.add_argument("--seed", type=int, default=0)
+    optimize.add_argument("--out", required=True, metavar="LAYOUT.json")
+    optimize.set_defaults(handler=command_layout_optimize)
+    evaluate_layout = layout_commands.add_parser("evaluate", help="metrics and held-out reconstruction error")
+    evaluate_layout.add_argument("layout", help="layout JSON file or shipped layout name")
+    evaluate_layout.add_argument("--motions", nargs="+", default=["grasps"],
+                                 help="motion set: grasps, gestures, all, or result .npz files")
+    evaluate_layout.add_argument("--dims", type=int, help="subspace dimensions (default: one per marker, 2 to 6)")
+    evaluate_layout.add_argument("--json", action="store_true", help="print one JSON object as the last line")
+    evaluate_layout.set_defaults(handler=command_layout_evaluate)
 
     prior = commands.add_parser("prior", help="build a posture prior")
     prior.add_argument("action", choices=["build"])

@@ -96,3 +96,15 @@ def test_bench_and_evaluate_print_json_last(capsys):
     assert main(["bench", "load", "--frames", "2000", "--json"]) == 0
     figures = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert figures["frames"] == 2000 and figures["markers"] == 40 and figures["seconds"] > 0
+
+
+def test_layout_optimize_and_evaluate(tmp_path, capsys):
+    out = tmp_path / "layout.json"
+    assert main(["layout", "optimize", "--markers", "4", "--method", "greedy", "--out", str(out)]) == 0
+    assert json.loads(out.read_text())["markers"][0]["vertex"] >= 0
+    capsys.readouterr()
+    assert main(["layout", "evaluate", str(out), "--json"]) == 0
+    figures = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert figures["markers"] == 4 and 0 < figures["mean_mm"] <= figures["max_mm"]
+    assert main(["layout", "optimize", "--markers", "100000", "--out", str(out)]) == 2
+    assert "cannot place 100000 markers" in capsys.readouterr().err
