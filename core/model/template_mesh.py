@@ -4,20 +4,21 @@ Pipeline of :func:`build_template`:
 
 1. A signed distance field (mm, negative inside) built from the rest skeleton: one tapered tube per
    digit (elliptical cross-section, flattened dorsal-palmar, knuckle bumps, fleshy fingertip pad,
-   flattened nail side, rounded tip), a rounded palm slab spanning knuckles and wrist, thenar and
-   hypothenar pads, inter-digital webs and a capped forearm stub, joined with a polynomial smooth
-   minimum. Adjacent fingers are joined with a hard minimum and their lateral radii are reduced where
-   needed, so that they stay separated at rest.
+   flattened nail side, rounded tip), a rounded slab for the palm that continues into a capped
+   forearm stub, thenar and hypothenar pads, knuckle bumps and inter-digital webs, joined with a
+   polynomial smooth minimum. Adjacent fingers are joined with a hard minimum and their lateral radii
+   are reduced where needed, so that they stay separated at rest.
 2. ``skimage.measure.marching_cubes`` on a grid whose voxel size is tuned to give about
    ``target_vertices`` vertices, the largest connected component, outward orientation, Taubin
-   smoothing; the result is checked to be a closed 2-manifold.
+   smoothing, then tangential relaxation with re-projection onto the implicit surface (even
+   triangles, no voxel steps); the result is checked to be a closed genus-0 2-manifold.
 3. Linear blend skinning weights: each vertex is owned by its nearest bone segment (rigid core,
    weight exactly 1) and blends with a smooth step between a joint's parent and the joint inside
    ±0.25 segment length around it; ownership seams (thenar / palm, between finger bases) are relaxed
    by a short harmonic diffusion.
 4. 20 landmarks, the back-of-hand direction and the hand length.
 
-Regenerate the stored template with ``python -m core.model.template_mesh``.
+Regenerate the stored template with ``handmocap template build`` (:func:`write_default_template`).
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 from skimage.measure import marching_cubes
 
-from core.model.hand_model import MAX_INFLUENCES, HandModel
+from core.model.hand_model import MAX_INFLUENCES, HandModel, mesh_vertex_normals
 from core.model.skeleton import JOINT_PARENTS, N_JOINTS, HandProportions, Skeleton, build_skeleton
 
 DEFAULT_TEMPLATE_PATH = Path(__file__).resolve().parents[2] / "resources" / "template" / "right_hand.npz"
@@ -55,19 +56,29 @@ LANDMARK_DESCRIPTIONS: dict[str, str] = {
 }
 
 FOREARM_LENGTH = 56.0          # mm of forearm stub proximal of the wrist joint
-_FOREARM_TAPER = 0.94          # radius at the cut end / radius at the wrist
-_FINGER_GAP = 3.6              # mm, minimum lateral gap between adjacent fingers at rest
+_FOREARM_TAPER = 0.96          # radius at the cut end / radius at the wrist
+_FOREARM_DOME = 0.008         # 1/mm, curvature of the dorsal and palmar forearm surfaces
+_WRIST_HALF_THICKNESS = 0.45   # half-thickness of the wrist skin at the joint / wrist_thickness
+_FINGER_GAP = 3.0              # mm, minimum lateral gap between adjacent fingers at rest
 _FLATTEN_DORSAL = 0.86         # dorsal radius / lateral radius of a finger shaft
 _FLATTEN_PALMAR = 0.90         # palmar radius / lateral radius of a finger shaft
 _SMIN_FINGER_PALM = 7.0        # mm, blend radius fingers <-> palm
-_SMIN_PALM = 12.0              # mm, blend radius palm <-> thenar, hypothenar, forearm
+_PALM_OVERHANG = 6.0          # mm the palm slab reaches beyond the finger MCP joints (webs)
+_SMIN_PALM = 15.0              # mm, blend radius palm <-> thenar, hypothenar
 _SMOOTH_ITERATIONS = 8         # Taubin iterations
+_RELAX_ITERATIONS = 6          # tangential relaxation + projection iterations
 _BLEND_FRACTION = 0.25         # joint blend zone half-width / segment length
-_SEAM_RINGS = 3                # rings around an ownership seam relaxed by diffusion
-_SEAM_ITERATIONS = 40
+_SEAM_RINGS = 8                # rings around an ownership seam relaxed by diffusion
+_SEAM_ITERATIONS = 150
 
 
 # --------------------------------------------------------------------------- implicit primitives
+
+
+def _smoothstep(x: np.ndarray) -> np.ndarray:
+    """Cubic smooth step, 0 below 0 and 1 above 1."""
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
 
 
 def _smin(a: np.ndarray, b: np.ndarray, k: float) -> np.ndarray:
@@ -132,49 +143,46 @@ def _digit_tube(skeleton: Skeleton, proportions: HandProportions, digit: int) ->
     r0, r1, r2 = proportions.finger_radii[digit]
     joints = np.concatenate([[0.0], np.cumsum(lengths)])      # base, middle, distal joint, tip
     cap = 0.85 * r2
-    start = -0.6 * r0 if digit else 0.0
     stations = np.array([
-        start, joints[0], joints[0] + 0.5 * lengths[0], joints[1], joints[1] + 0.5 * lengths[1],
+        joints[0], joints[0] + 0.5 * lengths[0], joints[1], joints[1] + 0.5 * lengths[1],
         joints[2], joints[2] + 0.55 * lengths[2], joints[3] - cap,
     ])
     # lateral radius: joints at the nominal radius, shafts slightly waisted, a tapering fingertip
-    lateral = np.array([r0, r0, 0.94 * (r0 + r1) / 2, r1, 0.93 * (r1 + r2) / 2, r2, 0.98 * r2, 0.86 * r2])
+    lateral = np.array([r0, 0.94 * (r0 + r1) / 2, r1, 0.93 * (r1 + r2) / 2, r2, 0.98 * r2, 0.86 * r2])
     # dorsal: knuckle bumps over the joints, a flat nail over the distal phalanx
-    dorsal = lateral * np.array([1.0, 1.02, _FLATTEN_DORSAL, 0.96, _FLATTEN_DORSAL, 0.90, 0.66, 0.62])
+    dorsal = lateral * np.array([0.9, _FLATTEN_DORSAL, 0.96, _FLATTEN_DORSAL, 0.90, 0.66, 0.62])
     # palmar: flatter shafts, a fleshy fingertip pad
-    palmar = lateral * np.array([1.0, 0.95, _FLATTEN_PALMAR, 0.86, _FLATTEN_PALMAR, 0.88, 1.0, 0.95])
+    palmar = lateral * np.array([0.95, _FLATTEN_PALMAR, 0.86, _FLATTEN_PALMAR, 0.88, 1.0, 0.95])
     return _Tube(skeleton.rest_positions[base], skeleton.rest_rotations[base], stations, lateral, dorsal,
-                 palmar, cap_start=0.8 * r0, cap_end=cap)
+                 palmar, cap_start=(1.0 if digit else 0.8) * r0, cap_end=cap)
 
 
 def _separate_fingers(tubes: list[_Tube]) -> list[_Tube]:
-    """Shrink the lateral radii of adjacent fingers (index..little) so they keep ``_FINGER_GAP`` apart.
-
-    Only beyond the web (first quarter of the proximal phalanx); returns new tubes.
-    """
-    samples = 64
-    scales = [np.ones(samples) for _ in tubes]
-    grids = [np.linspace(tube.stations[1], tube.stations[-1], samples) for tube in tubes]
+    """Shrink the lateral radii of adjacent fingers (index..little) so they keep ``_FINGER_GAP`` apart
+    beyond the web (from 30 % of the proximal phalanx on); returns tubes resampled at 1 mm stations."""
+    grids = [np.append(np.arange(tube.stations[0], tube.stations[-1], 1.0), tube.stations[-1]) for tube in tubes]
+    scales = [np.ones(len(grid)) for grid in grids]
     for a in range(1, 5):
         for b in (a - 1, a + 1):
             if not 1 <= b <= 4:
                 continue
             tube_a, tube_b = tubes[a], tubes[b]
             axis_a = tube_a.origin + grids[a][:, None] * tube_a.frame[:, 1]
-            along_b = np.clip((axis_a - tube_b.origin) @ tube_b.frame[:, 1], tube_b.stations[1],
+            along_b = np.clip((axis_a - tube_b.origin) @ tube_b.frame[:, 1], tube_b.stations[0],
                               tube_b.stations[-1])
             axis_b = tube_b.origin + along_b[:, None] * tube_b.frame[:, 1]
             spacing = np.linalg.norm(axis_a - axis_b, axis=1)
             need = (spacing - _FINGER_GAP) / (tube_a.lateral_at(grids[a]) + tube_b.lateral_at(along_b))
-            beyond_web = grids[a] > 0.25 * (tube_a.stations[3] - tube_a.stations[1])
-            scales[a] = np.minimum(scales[a], np.where(beyond_web, np.minimum(need, 1.0), 1.0))
+            # fade the constraint in over the web, from 15 % to 30 % of the proximal phalanx
+            web = tube_a.stations[2] - tube_a.stations[0]                      # proximal phalanx
+            fade = _smoothstep((grids[a] - 0.15 * web) / (0.15 * web))
+            scales[a] = np.minimum(scales[a], 1.0 - fade * (1.0 - np.minimum(need, 1.0)))
     result = []
     for tube, grid, scale in zip(tubes, grids, scales, strict=True):
-        # monotone envelope towards the tip keeps the profile smooth after the first narrowing
-        factor = np.interp(tube.stations, grid, np.minimum.accumulate(scale))
-        result.append(_Tube(tube.origin, tube.frame, tube.stations, tube.lateral * factor,
-                            tube.dorsal * np.sqrt(factor), tube.palmar * np.sqrt(factor),
-                            tube.cap_start, tube.cap_end))
+        lateral, dorsal, palmar = (np.interp(grid, tube.stations, values)
+                                   for values in (tube.lateral, tube.dorsal, tube.palmar))
+        result.append(_Tube(tube.origin, tube.frame, grid, lateral * scale, dorsal, palmar, tube.cap_start,
+                            tube.cap_end))
     return result
 
 
@@ -197,8 +205,12 @@ def _polygon_distance(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class _Palm:
-    """Rounded slab in the rest frame: outline polygon (M,2) in XY inflated by ``corner`` mm, dorsal and
-    palmar surfaces interpolated in Y from the wrist (``y = 0``) to the knuckle line ``knuckle_y``."""
+    """Rounded slab in the rest frame spanning the forearm stub, the wrist and the knuckles.
+
+    ``outline (M,2)``: polygon in XY, inflated by ``corner`` mm. Dorsal and palmar surfaces ``top`` /
+    ``bottom`` (mm, at the wrist ``y = 0`` and at the knuckle line ``knuckle_y``) follow a smooth step
+    in between; proximal of the wrist the forearm section scales linearly to ``taper`` at ``y = -length``.
+    """
 
     outline: np.ndarray
     corner: float
@@ -206,13 +218,21 @@ class _Palm:
     top: tuple[float, float]
     bottom: tuple[float, float]
     dome: float
+    length: float
+    taper: float
 
     def distance(self, points: np.ndarray) -> np.ndarray:
         """Approximate signed distance (N,) of points (N,3)."""
         planar = _polygon_distance(points[:, :2], self.outline) - self.corner
-        v = np.clip(points[:, 1] / self.knuckle_y, 0.0, 1.0)
-        top = self.top[0] + (self.top[1] - self.top[0]) * v - self.dome * points[:, 0] ** 2
-        bottom = self.bottom[0] + (self.bottom[1] - self.bottom[0]) * v
+        v = _smoothstep(points[:, 1] / self.knuckle_y)
+        proximal = np.clip(-points[:, 1] / self.length, 0.0, 1.0)
+        scale = 1.0 + (self.taper - 1.0) * proximal
+        # the dorsal dome of the palm becomes an oval forearm section within 20 mm of the wrist
+        oval = _smoothstep(-points[:, 1] / 20.0)
+        dome = (self.dome + (_FOREARM_DOME - self.dome) * oval) * points[:, 0] ** 2
+        top = (self.top[0] + (self.top[1] - self.top[0]) * v) * scale - dome
+        bottom = (self.bottom[0] + (self.bottom[1] - self.bottom[0]) * v) * scale + _FOREARM_DOME * oval \
+            * points[:, 0] ** 2
         centre, half = (top + bottom) / 2, (top - bottom) / 2
         round_radius = 0.85 * half
         qx = planar + round_radius
@@ -222,37 +242,29 @@ class _Palm:
 
 
 def _palm(skeleton: Skeleton, proportions: HandProportions) -> _Palm:
-    """Palm slab spanning the wrist and the knuckles of the four fingers."""
+    """Palm slab from the forearm cut over the wrist to the knuckles of the four fingers."""
     mcp = skeleton.rest_positions[[4, 7, 10, 13]]                   # index, middle, ring, little
     radii = proportions.finger_radii[1:, 0]
     corner = 9.0
     half_wrist = 0.5 * proportions.wrist_width
+    half_cut = _FOREARM_TAPER * half_wrist
     outline = np.array([
-        [half_wrist - corner, -4.0],
+        [-half_cut + corner, -FOREARM_LENGTH + corner],
+        [half_cut - corner, -FOREARM_LENGTH + corner],
+        [half_wrist - corner, 0.0],
         [mcp[3, 0] + radii[3] + 1.5 - corner, mcp[3, 1] - 14.0],
-        [mcp[3, 0] + 0.3 * radii[3], mcp[3, 1] + 2.0 - corner],
-        [mcp[2, 0], mcp[2, 1] + 2.0 - corner],
-        [mcp[1, 0], mcp[1, 1] + 2.0 - corner],
-        [mcp[0, 0] - 0.3 * radii[0], mcp[0, 1] + 2.0 - corner],
+        [mcp[3, 0] + 0.3 * radii[3], mcp[3, 1] + _PALM_OVERHANG - corner],
+        [mcp[2, 0], mcp[2, 1] + _PALM_OVERHANG - corner],
+        [mcp[1, 0], mcp[1, 1] + _PALM_OVERHANG - corner],
+        [mcp[0, 0] - 0.3 * radii[0], mcp[0, 1] + _PALM_OVERHANG - corner],
         [mcp[0, 0] - radii[0] - 1.0 + corner, mcp[0, 1] - 16.0],
-        [-half_wrist + corner + 2.0, -4.0],
+        [-half_wrist + corner, 0.0],
     ])
     thickness, wrist_thickness = proportions.palm_thickness, proportions.wrist_thickness
-    return _Palm(outline=outline[::-1].copy(), corner=corner, knuckle_y=float(mcp[:, 1].mean()),
-                 top=(0.40 * wrist_thickness, 0.30 * thickness),
-                 bottom=(-0.45 * wrist_thickness, -0.55 * thickness), dome=0.004)
-
-
-def _forearm(proportions: HandProportions) -> _Tube:
-    """Capped elliptical forearm stub from ``FOREARM_LENGTH`` mm proximal of the wrist into the palm."""
-    frame = np.array([[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]]).T   # x, y, z = palmar
-    half_width, half_thick = 0.5 * proportions.wrist_width, 0.5 * proportions.wrist_thickness
-    cap = 9.0
-    stations = np.array([cap, FOREARM_LENGTH, FOREARM_LENGTH + 12.0])
-    lateral = half_width * np.array([_FOREARM_TAPER, 1.0, 0.9])
-    thick = half_thick * np.array([_FOREARM_TAPER, 1.0, 0.85])
-    return _Tube(np.array([0.0, -FOREARM_LENGTH, 0.0]), frame, stations, lateral, thick, thick,
-                 cap_start=cap, cap_end=10.0)
+    return _Palm(outline=outline, corner=corner, knuckle_y=float(mcp[:, 1].mean()),
+                 top=(_WRIST_HALF_THICKNESS * wrist_thickness, 0.30 * thickness),
+                 bottom=(-_WRIST_HALF_THICKNESS * wrist_thickness, -0.55 * thickness), dome=0.003,
+                 length=FOREARM_LENGTH, taper=_FOREARM_TAPER)
 
 
 def _frame_from_axes(y_axis: np.ndarray, z_hint: np.ndarray) -> np.ndarray:
@@ -269,7 +281,6 @@ class _HandShape:
 
     digits: list[_Tube]
     palm: _Palm
-    forearm: _Tube
     pads: list[tuple[np.ndarray, np.ndarray, np.ndarray]]       # (centre, frame, radii) ellipsoids
     webs: list[tuple[np.ndarray, np.ndarray, np.ndarray]]
     knuckles: list[tuple[np.ndarray, np.ndarray, np.ndarray]]
@@ -281,7 +292,6 @@ class _HandShape:
             body = _smin(body, _ellipsoid(points, centre, frame, radii), 6.0)
         for centre, frame, radii in self.pads:
             body = _smin(body, _ellipsoid(points, centre, frame, radii), _SMIN_PALM)
-        body = _smin(body, self.forearm.distance(points), _SMIN_PALM)
         fingers = np.minimum.reduce([tube.distance(points) for tube in self.digits[1:]])
         webs = np.minimum.reduce([_ellipsoid(points, *web) for web in self.webs])
         body = _smin(body, webs, 5.0)
@@ -298,7 +308,7 @@ def _hand_shape(skeleton: Skeleton, proportions: HandProportions) -> _HandShape:
     # thenar eminence: along the thumb metacarpal, towards the palm centre and the palmar side
     thenar_centre = cmc + 0.45 * thumb_axis + np.array([9.0, -4.0, -3.0])
     thenar = (thenar_centre, _frame_from_axes(thumb_axis, np.array([0.0, 0.0, -1.0])),
-              np.array([15.0, 0.55 * np.linalg.norm(thumb_axis), 12.0]))
+              np.array([13.0, 0.5 * np.linalg.norm(thumb_axis), 10.0]))
     little = positions[13]
     hypothenar = (np.array([little[0] - 4.0, 0.45 * little[1], -9.0]), np.eye(3),
                   np.array([11.0, 0.38 * little[1], 10.0]))
@@ -316,10 +326,10 @@ def _hand_shape(skeleton: Skeleton, proportions: HandProportions) -> _HandShape:
     centre = thumb_mcp + 0.45 * span + np.array([0.0, -10.0, 0.0])
     webs.append((centre, _frame_from_axes(span, np.array([0.0, 0.0, -1.0]) - 0.3 * rotations[2][:, 2]),
                  np.array([6.0, 0.45 * np.linalg.norm(span), 6.0])))
-    knuckles = [(positions[j] + np.array([0.0, -2.0, 3.0]), np.eye(3),
-                 np.array([0.8, 0.9, 0.75]) * proportions.finger_radii[(j - 1) // 3, 0])
+    knuckles = [(positions[j] + np.array([0.0, -3.0, 1.5]), np.eye(3),
+                 np.array([0.75, 0.9, 0.7]) * proportions.finger_radii[(j - 1) // 3, 0])
                 for j in (4, 7, 10, 13)]
-    return _HandShape(digits, _palm(skeleton, proportions), _forearm(proportions), pads, webs, knuckles)
+    return _HandShape(digits, _palm(skeleton, proportions), pads, webs, knuckles)
 
 
 # --------------------------------------------------------------------------- meshing
@@ -330,7 +340,9 @@ def _mesh_at(shape: _HandShape, lower: np.ndarray, upper: np.ndarray, voxel: flo
     """Marching cubes of the zero level of ``shape`` on a grid of ``voxel`` mm over [lower, upper]."""
     axes = [np.arange(lo, hi + voxel, voxel) for lo, hi in zip(lower, upper, strict=True)]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    volume = shape.distance(grid).reshape([len(a) for a in axes])
+    # evaluated in chunks of ~100k points to bound the memory of the (N, primitives) temporaries
+    chunks = np.array_split(grid, max(1, len(grid) // 100_000))
+    volume = np.concatenate([shape.distance(chunk) for chunk in chunks]).reshape([len(a) for a in axes])
     vertices, faces, _, _ = marching_cubes(volume, 0.0, spacing=(voxel, voxel, voxel), method="lewiner")
     return vertices + lower, faces.astype(np.int64)
 
@@ -368,6 +380,30 @@ def _taubin(vertices: np.ndarray, faces: np.ndarray, iterations: int, lam: float
         result += lam * (averaging @ result - result)
         result += mu * (averaging @ result - result)
     return result
+
+
+def _project(shape: _HandShape, points: np.ndarray, steps: int = 2, step: float = 0.2) -> np.ndarray:
+    """Newton steps of points (N,3) onto the zero level of ``shape`` (central-difference gradient)."""
+    offsets = np.vstack([np.zeros(3), step * np.eye(3), -step * np.eye(3)])
+    for _ in range(steps):
+        values = shape.distance((points[None] + offsets[:, None, :]).reshape(-1, 3)).reshape(7, -1)
+        gradient = (values[1:4] - values[4:7]).T / (2.0 * step)
+        points = points - (values[0] / np.maximum(np.einsum("ij,ij->i", gradient, gradient), 1e-6))[:, None] \
+            * gradient
+    return points
+
+
+def _relax_on_surface(shape: _HandShape, vertices: np.ndarray, faces: np.ndarray, iterations: int
+                      ) -> np.ndarray:
+    """Tangential Laplacian relaxation (even triangle sizes) with re-projection onto the implicit surface."""
+    adjacency = _adjacency(faces, len(vertices))
+    averaging = sparse.diags(1.0 / np.asarray(adjacency.sum(axis=1)).ravel()) @ adjacency
+    for _ in range(iterations):
+        normals = mesh_vertex_normals(vertices, faces)
+        delta = averaging @ vertices - vertices
+        delta -= np.einsum("ij,ij->i", delta, normals)[:, None] * normals
+        vertices = _project(shape, vertices + 0.5 * delta)
+    return vertices
 
 
 def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
@@ -408,6 +444,7 @@ def _mesh(shape: _HandShape, skeleton: Skeleton, target_vertices: int) -> tuple[
     if signed_volume(vertices, faces) < 0:
         faces = faces[:, ::-1].copy()
     vertices = _taubin(vertices, faces, _SMOOTH_ITERATIONS)
+    vertices = _relax_on_surface(shape, vertices, faces, _RELAX_ITERATIONS)
     _check_closed(vertices, faces)
     return vertices, faces
 
@@ -415,29 +452,28 @@ def _mesh(shape: _HandShape, skeleton: Skeleton, target_vertices: int) -> tuple[
 # --------------------------------------------------------------------------- skinning
 
 
-def _smoothstep(x: np.ndarray) -> np.ndarray:
-    x = np.clip(x, 0.0, 1.0)
-    return x * x * (3.0 - 2.0 * x)
-
-
-def _segments(skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Bone segments (S,) owner joints, starts (S,3), ends (S,3).
+def _segments(skeleton: Skeleton, proportions: HandProportions
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Bone segments: owner joints (S,), starts (S,3), ends (S,3), flesh radii (S,) in mm.
 
     The wrist owns the forearm axis and the four metacarpals of the fingers; every digit joint owns
     the segment to its child joint (or to the tip).
     """
     positions = skeleton.rest_positions
     owners, starts, ends = [0], [np.array([0.0, -FOREARM_LENGTH, 0.0])], [np.zeros(3)]
+    radii = [0.5 * proportions.wrist_thickness]
     for mcp in (4, 7, 10, 13):
         owners.append(0)
         starts.append(np.zeros(3))
         ends.append(positions[mcp])
+        radii.append(0.4 * proportions.palm_thickness)
     for joint in range(1, N_JOINTS):
-        segment = (joint - 1) % 3
+        digit, segment = divmod(joint - 1, 3)
         owners.append(joint)
         starts.append(positions[joint])
-        ends.append(positions[joint + 1] if segment < 2 else skeleton.tip_positions[(joint - 1) // 3])
-    return np.array(owners), np.array(starts), np.array(ends)
+        ends.append(positions[joint + 1] if segment < 2 else skeleton.tip_positions[digit])
+        radii.append(proportions.finger_radii[digit, segment])
+    return np.array(owners), np.array(starts), np.array(ends), np.array(radii)
 
 
 def _segment_distances(points: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
@@ -448,10 +484,13 @@ def _segment_distances(points: np.ndarray, starts: np.ndarray, ends: np.ndarray)
     return np.linalg.norm(relative - along[..., None] * axis[None], axis=2)
 
 
-def _initial_weights(vertices: np.ndarray, skeleton: Skeleton) -> np.ndarray:
-    """Dense weights (V,16): nearest-segment ownership with smooth-step blends around the joints."""
-    owners, starts, ends = _segments(skeleton)
-    distances = _segment_distances(vertices, starts, ends)
+def _initial_weights(vertices: np.ndarray, skeleton: Skeleton, proportions: HandProportions
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Dense weights (V,16) from nearest-segment ownership with smooth-step blends around the joints,
+    whether each vertex is owned by the palm (wrist joint) (V,) int, and the rigid digit cores (V,) bool
+    (digit-owned vertices outside every blend zone)."""
+    owners, starts, ends, radii = _segments(skeleton, proportions)
+    distances = _segment_distances(vertices, starts, ends) - radii
     owner = owners[distances.argmin(axis=1)]
     lengths = skeleton.bone_lengths()                                        # (5,3)
     positions, rotations = skeleton.rest_positions, skeleton.rest_rotations
@@ -476,21 +515,32 @@ def _initial_weights(vertices: np.ndarray, skeleton: Skeleton) -> np.ndarray:
     weights = np.zeros((len(vertices), N_JOINTS))
     has_zone = zone > 0
     zone_weight = blend[rows[has_zone], zone[has_zone]]
+    # palm-owned vertices do not follow the thumb metacarpal, which lies inside the palm (that seam is
+    # relaxed by diffusion)
+    zone_weight = np.where((owner[has_zone] == 0) & (zone[has_zone] == 1), 0.0, zone_weight)
     weights[rows[has_zone], zone[has_zone]] = zone_weight
     weights[rows[has_zone], JOINT_PARENTS[zone[has_zone]]] += 1.0 - zone_weight
     weights[rows[~has_zone], owner[~has_zone]] = 1.0
-    return weights
+    return weights, (owner == 0).astype(np.int64), (owner > 0) & ~has_zone
 
 
-def _relax_seams(weights: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Harmonic diffusion of the weights near ownership seams (jumps between neighbours)."""
+def _relax_seams(weights: np.ndarray, palm_owned: np.ndarray, core: np.ndarray, faces: np.ndarray
+                 ) -> np.ndarray:
+    """Harmonic diffusion of the weights (V,16) around ownership seams.
+
+    A seam is an edge whose ends differ in their set of influences or in palm ownership and whose
+    weights jump by more than 0.5 (L1); the vertices within ``_SEAM_RINGS`` rings of a seam are relaxed
+    unless they belong to a rigid digit ``core`` (V,) bool; all other vertices stay fixed.
+    """
     adjacency = _adjacency(faces, len(weights))
     rows, cols = adjacency.nonzero()
-    jump = np.abs(weights[rows] - weights[cols]).sum(axis=1) > 0.6
+    label = (weights > 0) @ (2 ** np.arange(N_JOINTS)) + (palm_owned << N_JOINTS)
+    seam = (label[rows] != label[cols]) & (np.abs(weights[rows] - weights[cols]).sum(axis=1) > 0.5)
     free = np.zeros(len(weights), dtype=bool)
-    free[rows[jump]] = True
+    free[rows[seam]] = True
     for _ in range(_SEAM_RINGS):
         free |= (adjacency @ free.astype(float)) > 0
+    free &= ~core
     averaging = sparse.diags(1.0 / np.asarray(adjacency.sum(axis=1)).ravel()) @ adjacency
     result = weights.copy()
     for _ in range(_SEAM_ITERATIONS):
@@ -563,7 +613,8 @@ def build_template(proportions: HandProportions | None = None, target_vertices: 
     skeleton = build_skeleton(proportions)
     shape = _hand_shape(skeleton, proportions)
     vertices, faces = _mesh(shape, skeleton, target_vertices)
-    skin_joints, skin_weights = _sparse_weights(_relax_seams(_initial_weights(vertices, skeleton), faces))
+    weights, palm_owned, core = _initial_weights(vertices, skeleton, proportions)
+    skin_joints, skin_weights = _sparse_weights(_relax_seams(weights, palm_owned, core, faces))
     back = -skeleton.rest_rotations[7][:, 2]
     return HandModel(
         skeleton=skeleton, vertices=vertices, faces=faces, skin_joints=skin_joints,
@@ -582,8 +633,3 @@ def write_default_template(path: str | Path = DEFAULT_TEMPLATE_PATH) -> HandMode
     model = build_template()
     model.save(path)
     return model
-
-
-if __name__ == "__main__":
-    written = write_default_template()
-    print(f"{DEFAULT_TEMPLATE_PATH}: {len(written.vertices)} vertices, {len(written.faces)} faces")
