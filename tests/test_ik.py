@@ -101,3 +101,12 @@ def test_solve_take_matches_names_and_rejects_foreign_takes(model, dense_take, t
     foreign = Take(["a", "b"], np.zeros((5, 2, 3)), 100.0)
     with pytest.raises(InputError, match="no marker of layout"):
         solve_take(foreign, model, load_layout("dense"))
+
+
+def test_layered_beats_standard_ik_on_held_out_grasps_with_four_markers():
+    from core.evaluation import evaluate_ik
+
+    figures = evaluate_ik()
+    assert figures["grasp4_layered_mean_mm"] <= 0.6 * figures["grasp4_standard_mean_mm"]
+    assert figures["grasp4_layered_max_mm"] <= 0.5 * figures["grasp4_standard_max_mm"]
+    assert figures["dense_angle_error_deg"] < 0.5 and figures["dense_residual_mm"] < 0.05
