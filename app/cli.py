@@ -29,6 +29,14 @@ def _print_json(figures: dict) -> None:
     print(json.dumps(figures))
 
 
+def _print_figures(figures: dict, as_json: bool) -> None:
+    """One ``key value`` line per figure; with ``as_json`` also one JSON object as the last line."""
+    for key, value in figures.items():
+        print(f"  {key:<28} {value}")
+    if as_json:
+        _print_json(figures)
+
+
 def command_gui(args: argparse.Namespace) -> int:
     from app.gui import run_gui
 
@@ -132,11 +140,7 @@ def command_bench(args: argparse.Namespace) -> int:
 def command_evaluate(args: argparse.Namespace) -> int:
     from core.evaluation import evaluate_ik
 
-    figures = evaluate_ik(frames=args.frames or 1500)
-    for key, value in figures.items():
-        print(f"  {key:<28} {value}")
-    if args.json:
-        _print_json(figures)
+    _print_figures(evaluate_ik(frames=args.frames or 1500), args.json)
     return 0
 
 
@@ -193,10 +197,7 @@ def command_layout_evaluate(args: argparse.Namespace) -> int:
                "worst_occluded_condition": round(metrics.worst_occluded_condition, 3),
                "worst_occluded_marker": metrics.worst_occluded_marker,
                "min_distance_mm": round(metrics.min_distance_mm, 2), "closest_pair": list(metrics.closest_pair)}
-    for key, value in figures.items():
-        print(f"  {key:<26} {value}")
-    if args.json:
-        _print_json(figures)
+    _print_figures(figures, args.json)
     return 0
 
 

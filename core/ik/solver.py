@@ -10,6 +10,7 @@ in layered IK it holds only the digits whose three segments are not all observed
 
 from __future__ import annotations
 
+import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -67,6 +68,18 @@ class IKResult:
                             frame_rate=self.frame_rate, first_frame=self.first_frame,
                             param_names=np.array(PARAM_NAMES))
         temporary.replace(path)
+
+    @staticmethod
+    def read_joint_angles(path: str | Path) -> np.ndarray:
+        """``joint_angles (F,26)`` of a result file written by :meth:`save`; InputError if unreadable."""
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                angles = np.asarray(data["joint_angles"], dtype=float)
+        except (OSError, KeyError, ValueError, TypeError, zipfile.BadZipFile) as error:
+            raise InputError(f"{Path(path).name}: not an IK result with joint angles ({error})") from error
+        if angles.ndim != 2 or angles.shape[1] != N_PARAMS:
+            raise InputError(f"{Path(path).name}: joint_angles must be (F, 26), got {angles.shape}")
+        return angles
 
     def save_csv(self, path: str | Path) -> None:
         """Joint angles as CSV: frame, time (s), 3 translations (mm), 23 angles (deg)."""

@@ -7,12 +7,12 @@ farthest-point sampling in the 20-D finger posture space (the journal uses 3–1
 
 from __future__ import annotations
 
-import zipfile
 from pathlib import Path
 
 import numpy as np
 
 from core.errors import InputError
+from core.ik import IKResult
 from core.model import HandModel
 from core.model.skeleton import N_GLOBAL, N_PARAMS, N_POSTURE
 from core.prior import canonical_postures
@@ -55,16 +55,7 @@ def gesture_motion(n_frames: int, seed: int = 0, frame_rate: float = 100.0) -> n
 
 def motion_from_results(paths: list[str | Path]) -> np.ndarray:
     """``theta (F, 26)`` of solved takes (result ``.npz`` files with ``joint_angles``), NaN frames dropped."""
-    motions = []
-    for path in paths:
-        try:
-            with np.load(path, allow_pickle=False) as data:
-                angles = np.asarray(data["joint_angles"], dtype=float)
-        except (OSError, KeyError, ValueError, TypeError, zipfile.BadZipFile) as error:
-            raise InputError(f"{Path(path).name}: no joint angles to take a motion from ({error})") from error
-        if angles.ndim != 2 or angles.shape[1] != N_PARAMS:
-            raise InputError(f"{Path(path).name}: joint_angles must be (F, 26), got {angles.shape}")
-        motions.append(angles[np.isfinite(angles).all(axis=1)])
+    motions = [angles[np.isfinite(angles).all(axis=1)] for angles in map(IKResult.read_joint_angles, paths)]
     motion = np.vstack(motions) if motions else np.empty((0, N_PARAMS))
     if len(motion) == 0:
         raise InputError("the motion set is empty: no solved frames in the given results")

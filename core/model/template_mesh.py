@@ -55,7 +55,7 @@ LANDMARK_DESCRIPTIONS: dict[str, str] = {
     for name in LANDMARK_NAMES
 }
 
-FOREARM_LENGTH = 56.0          # mm of forearm stub proximal of the wrist joint
+FOREARM_LENGTH = 56.0          # mm of forearm proximal of the wrist joint
 _FOREARM_TAPER = 0.96          # radius at the cut end / radius at the wrist
 _FOREARM_DOME = 0.008         # 1/mm, curvature of the dorsal and palmar forearm surfaces
 _WRIST_HALF_THICKNESS = 0.45   # half-thickness of the wrist skin at the joint / wrist_thickness

@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
-from core.model.skeleton import N_GLOBAL, N_PARAMS, N_POSTURE, default_joint_limits
+from core.ik import IKResult
+from core.model.skeleton import N_GLOBAL, N_POSTURE, default_joint_limits
 from core.prior.canonical_postures import prior_postures
 
 DEFAULT_PRIOR_PATH = Path(__file__).resolve().parents[2] / "resources" / "priors" / "default_prior.npz"
@@ -195,17 +196,8 @@ def build_prior_from_results(paths: list[str | Path]) -> PosturePrior:
     """
     if not paths:
         raise InputError("no result files given to build a posture prior from")
-    postures = []
-    for path in paths:
-        name = Path(path).name
-        try:
-            with np.load(path, allow_pickle=False) as data:
-                angles = np.asarray(data["joint_angles"], dtype=float)
-        except (OSError, KeyError, ValueError, TypeError, zipfile.BadZipFile) as error:
-            raise InputError(f"{name}: no joint angles to build a prior from ({error})") from error
-        if angles.ndim != 2 or angles.shape[1] != N_PARAMS:
-            raise InputError(f"{name}: joint_angles must be (F, 26), got {angles.shape}")
-        postures.append(angles[np.all(np.isfinite(angles), axis=1), N_GLOBAL:])
+    postures = [angles[np.all(np.isfinite(angles), axis=1), N_GLOBAL:]
+                for angles in map(IKResult.read_joint_angles, paths)]
     names = ", ".join(Path(path).name for path in paths)
     return build_prior(np.vstack(postures), f"results: {names}")
 
