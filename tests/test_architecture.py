@@ -8,7 +8,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_core_imports_without_gui_modules():
-    code = ("import sys, core.model, core.ik, core.io, core.prior, core.simulate, core.evaluation, core.layout;"
+    code = ("import sys, core.model, core.ik, core.io, core.prior, core.simulate, core.evaluation, core.layout,"
+            " core.gaps, core.calibration.marker_placement;"
             "bad = [m for m in ('PySide6', 'pyvista', 'pyvistaqt', 'vtk', 'pyqtgraph', 'widgets', 'app')"
             " if m in sys.modules]; print(bad); sys.exit(1 if bad else 0)")
     completed = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)

@@ -1,0 +1,30 @@
+"""Gaps in marker trajectories: detection, fills (linear, spline, pattern, rigid body, model), fill check."""
+
+from core.gaps.check import (
+    FILL_METHODS,
+    METHOD_CODES,
+    MISSING,
+    FillCheck,
+    ModelContext,
+    check_gap,
+    fill_all,
+    fill_gap,
+    recommend,
+)
+from core.gaps.detect import Gap, find_gaps
+from core.gaps.evaluate import evaluate_gap_fill, format_gap_fill_table
+from core.gaps.fills import (
+    fill_linear,
+    fill_model,
+    fill_pattern,
+    fill_rigid,
+    fill_spline,
+    minimum_acceleration_interpolation,
+)
+
+__all__ = [
+    "FILL_METHODS", "METHOD_CODES", "MISSING", "FillCheck", "Gap", "ModelContext", "check_gap",
+    "evaluate_gap_fill", "fill_all", "fill_gap", "fill_linear", "fill_model", "fill_pattern", "fill_rigid",
+    "format_gap_fill_table",
+    "fill_spline", "find_gaps", "minimum_acceleration_interpolation", "recommend",
+]

@@ -1,0 +1,233 @@
+"""Filling gaps of a take: donor choice, fill check (hide a known stretch, measure each method), fill-all.
+
+Provenance codes per (frame, marker): 0 measured, 1 linear, 2 spline, 3 pattern, 4 rigid body,
+5 model, -1 still missing. Measured samples are never changed; donors are always measured samples.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from core.errors import CancelledError, InputError
+from core.gaps.detect import Gap, find_gaps
+from core.gaps.fills import (
+    SPLINE_CONTEXT,
+    fill_linear,
+    fill_model,
+    fill_pattern,
+    fill_rigid,
+    fill_spline,
+)
+from core.ik import IKResult, match_layout, solve_positions, solve_take
+from core.io import Take
+from core.model import HandModel, MarkerLayout, MarkerSet, load_template, resolve_layout
+from core.prior import load_default_prior
+
+FILL_METHODS = ("linear", "spline", "pattern", "rigid", "model")
+METHOD_CODES = {"linear": 1, "spline": 2, "pattern": 3, "rigid": 4, "model": 5}
+MEASURED = 0
+MISSING = -1
+#: order tried by ``fill_all(method="auto")`` when no stretch near a gap can be hidden to check the fills
+FALLBACK_ORDER = ("model", "spline", "linear")
+#: frames of IK solved on each side of a gap for a model fill without precomputed joint angles
+IK_PAD = 30
+#: frames on each side of a gap over which a donor's distance to the gap marker must stay steady
+DONOR_WINDOW = 20
+
+
+@dataclass(frozen=True, eq=False)
+class ModelContext:
+    """A hand model, a layout resolved on it, and the take column of each layout marker (-1 absent)."""
+
+    model: HandModel
+    layout: MarkerLayout
+    markers: MarkerSet
+    columns: np.ndarray
+
+    @classmethod
+    def for_take(cls, marker_names: list[str], model: HandModel, layout: MarkerLayout) -> ModelContext:
+        """Resolve ``layout`` on ``model`` and match it to a take's ``marker_names`` by name."""
+        return cls(model, layout, resolve_layout(model, layout), match_layout(marker_names, layout))
+
+    def layout_index(self, marker: int) -> int:
+        """Index in the layout of take column ``marker``; InputError when the layout lacks it."""
+        found = np.flatnonzero(self.columns == marker)
+        if not found.size:
+            raise InputError(f"model fill: take marker {marker} is not in layout '{self.layout.name}'")
+        return int(found[0])
+
+    def layout_positions(self, positions: np.ndarray) -> np.ndarray:
+        """(F, M_layout, 3) mm in layout order from take positions (F, M, 3); NaN for absent markers."""
+        result = np.full((len(positions), len(self.columns), 3), np.nan)
+        present = self.columns >= 0
+        result[:, present] = positions[:, self.columns[present]]
+        return result
+
+    def solve(self, layout_positions: np.ndarray) -> np.ndarray:
+        """Joint angles (F, 26) by layered IK of ``layout_positions (F, M_layout, 3)`` mm."""
+        return solve_positions(layout_positions, self.model, self.markers, load_default_prior()).joint_angles
+
+
+def choose_donors(positions: np.ndarray, marker: int, start: int, length: int, count: int,
+                  method: str) -> np.ndarray:
+    """``count`` donor columns for a gap: measured from the frame before to the frame after the gap, and
+    with the steadiest distance to the gap marker over ``DONOR_WINDOW`` frames on each side, (count,)."""
+    end = start + length
+    if start < 1 or end >= len(positions):
+        raise InputError(f"{method} fill needs observed frames on both sides of the gap")
+    valid = np.isfinite(positions[start - 1:end + 1]).all(axis=(0, 2))
+    valid[marker] = False
+    candidates = np.flatnonzero(valid)
+    if len(candidates) < count:
+        raise InputError(f"{method} fill needs {count} donor marker(s) observed through the gap "
+                         f"(frames {start - 1}..{end}); {len(candidates)} are")
+    frames = np.r_[max(0, start - DONOR_WINDOW):start, end:min(len(positions), end + DONOR_WINDOW)]
+    distances = np.linalg.norm(positions[frames][:, candidates] - positions[frames, marker][:, None], axis=2)
+    samples = np.isfinite(distances).sum(axis=0)
+    spread = np.where(samples >= 3, np.nanstd(np.where(samples >= 3, distances, 0.0), axis=0), np.inf)
+    return candidates[np.argsort(spread, kind="stable")[:count]]
+
+
+def fill_gap(positions: np.ndarray, marker: int, start: int, length: int, method: str,
+             context: ModelContext | None = None, joint_angles: np.ndarray | None = None) -> np.ndarray:
+    """Fill frames ``start .. start + length - 1`` of take column ``marker`` with ``method``, (length, 3) mm.
+
+    ``positions (F, M, 3)`` mm are the take's measured positions (the gap samples are ignored). Pattern
+    and rigid fills choose their donors with :func:`choose_donors`. The model fill needs ``context``
+    and uses ``joint_angles (F, 26)`` when given (IK solved with the gap missing), else solves IK over
+    ``IK_PAD`` frames on each side with the gap hidden. Raises InputError when the method cannot apply.
+    """
+    trajectory = positions[:, marker]
+    if method == "linear":
+        return fill_linear(trajectory, start, length)
+    if method == "spline":
+        return fill_spline(trajectory, start, length)
+    if method == "pattern":
+        donor = choose_donors(positions, marker, start, length, 1, "pattern")[0]
+        return fill_pattern(trajectory, start, length, positions[:, donor])
+    if method == "rigid":
+        donors = choose_donors(positions, marker, start, length, 3, "rigid body")
+        return fill_rigid(trajectory, start, length, positions[:, donors])
+    if method == "model":
+        if context is None:
+            raise InputError("model fill needs a hand model and a marker layout")
+        index = context.layout_index(marker)
+        first, last = max(0, start - IK_PAD), min(len(positions), start + length + IK_PAD)
+        window = context.layout_positions(positions[first:last])
+        window[start - first:start - first + length, index] = np.nan
+        angles = context.solve(window) if joint_angles is None else joint_angles[first:last]
+        return fill_model(window, start - first, length, index, angles, context.model, context.markers)
+    raise InputError(f"unknown fill method '{method}' (use {', '.join(FILL_METHODS)})")
+
+
+@dataclass
+class FillCheck:
+    """Fill check of one gap: mean error (mm) of each applicable method on a hidden known stretch of the
+    same length starting at frame ``test_start``, and why the other methods did not apply."""
+
+    gap: Gap
+    test_start: int
+    errors_mm: dict[str, float] = field(default_factory=dict)
+    reasons: dict[str, str] = field(default_factory=dict)
+
+    def ranking(self) -> list[str]:
+        """Applicable methods, lowest error first."""
+        return sorted(self.errors_mm, key=self.errors_mm.get)
+
+
+def _test_stretch(observed: np.ndarray, gap: Gap, margin: int) -> int:
+    """Start of the observed stretch of ``gap.length`` frames, with ``margin`` observed frames on each
+    side, nearest to the gap; InputError when there is none."""
+    size = gap.length + 2 * margin
+    counts = np.convolve(observed.astype(np.int64), np.ones(size, dtype=np.int64), mode="valid")
+    starts = np.flatnonzero(counts == size) + margin
+    if not starts.size:
+        raise InputError(f"fill check of '{gap.name}' needs {size} consecutive observed frames near the gap; "
+                         "there are none")
+    return int(starts[np.argmin(np.abs(starts - gap.start))])
+
+
+def check_gap(take: Take, gap: Gap, context: ModelContext | None = None,
+              methods: tuple[str, ...] = FILL_METHODS, margin: int = SPLINE_CONTEXT) -> FillCheck:
+    """Hide a measured stretch of ``gap.length`` frames next to the gap (``margin`` observed frames on each
+    side), fill it with each method and report the mean 3D error in mm. The model fill solves its IK
+    with the stretch hidden."""
+    positions = take.marker_positions
+    test_start = _test_stretch(~take.missing_mask[:, gap.marker], gap, margin)
+    test_end = test_start + gap.length
+    hidden = positions.copy()
+    hidden[test_start:test_end, gap.marker] = np.nan
+    truth = positions[test_start:test_end, gap.marker]
+    check = FillCheck(gap, test_start)
+    for method in methods:
+        try:
+            values = fill_gap(hidden, gap.marker, test_start, gap.length, method, context)
+        except InputError as error:
+            check.reasons[method] = str(error)
+            continue
+        check.errors_mm[method] = float(np.linalg.norm(values - truth, axis=1).mean())
+    return check
+
+
+def recommend(take: Take, gap: Gap, context: ModelContext | None = None) -> str:
+    """The method with the lowest error in the fill check of ``gap``; InputError when none applies."""
+    ranking = check_gap(take, gap, context).ranking()
+    if not ranking:
+        raise InputError(f"no fill method applies to the gap of '{gap.name}' at frame {gap.start}")
+    return ranking[0]
+
+
+def fill_all(take: Take, max_gap: int, method: str = "auto", ik_result: IKResult | None = None,
+             model: HandModel | None = None, layout: MarkerLayout | None = None,
+             progress: Callable[[float], None] | None = None,
+             cancelled: Callable[[], bool] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Fill every closed gap of at most ``max_gap`` frames; returns positions (F, M, 3) mm and provenance
+    (F, M) int (codes in the module docstring). Measured samples are copied unchanged.
+
+    ``method`` is one of :data:`FILL_METHODS` or "auto": per gap, the methods in the order of its fill
+    check (or :data:`FALLBACK_ORDER` when the check cannot run), the first that applies. The model fill
+    needs ``layout`` (``model`` defaults to the template) and uses ``ik_result`` (solved on this take,
+    gaps missing, in layout order) or solves it. Gaps no method fills stay missing (-1).
+    """
+    if method != "auto" and method not in FILL_METHODS:
+        raise InputError(f"unknown fill method '{method}' (use auto, {', '.join(FILL_METHODS)})")
+    if max_gap < 1:
+        raise InputError(f"the maximum gap length must be at least 1 frame, got {max_gap}")
+    if method == "model" and layout is None:
+        raise InputError("model fill needs a marker layout")
+    context = None
+    joint_angles = None
+    if layout is not None and method in ("auto", "model"):
+        context = ModelContext.for_take(take.marker_names, model or load_template(), layout)
+        if ik_result is None:
+            ik_result = solve_take(take, context.model, layout, cancelled=cancelled)
+        if ik_result.marker_names != context.markers.names or len(ik_result.joint_angles) != take.n_frames:
+            raise InputError(f"the IK result does not belong to this take and layout '{layout.name}'")
+        joint_angles = ik_result.joint_angles
+    positions = take.marker_positions
+    filled = positions.copy()
+    provenance = np.where(take.missing_mask, MISSING, MEASURED)
+    gaps = [gap for gap in find_gaps(take) if not gap.open and gap.length <= max_gap]
+    for number, gap in enumerate(gaps):
+        if cancelled is not None and cancelled():
+            raise CancelledError("gap filling cancelled; the take is unchanged")
+        order: tuple[str, ...] | list[str] = (method,)
+        if method == "auto":
+            try:
+                order = check_gap(take, gap, context).ranking()
+            except InputError:
+                order = FALLBACK_ORDER
+        for name in order:
+            try:
+                values = fill_gap(positions, gap.marker, gap.start, gap.length, name, context, joint_angles)
+            except InputError:
+                continue
+            filled[gap.start:gap.end, gap.marker] = values
+            provenance[gap.start:gap.end, gap.marker] = METHOD_CODES[name]
+            break
+        if progress is not None:
+            progress((number + 1) / len(gaps))
+    return filled, provenance
