@@ -19,6 +19,7 @@ class TakeDocument:
     ``solve_request`` is the id of the solve whose result may still be applied (0: none pending); a
     result arriving with another id is stale and dropped. ``auto_solve``: solve it as soon as the
     solver is free (demo takes, ``--solve``). ``current_frame``: where the operator left it (0-based).
+    ``side``: the hand the next solve fits ("right" or "left"); the result knows its own.
     """
 
     take: Take
@@ -28,6 +29,7 @@ class TakeDocument:
     solve_request: int = 0
     auto_solve: bool = False
     current_frame: int = 0
+    side: str = "right"
     _columns: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:

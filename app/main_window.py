@@ -33,6 +33,7 @@ from widgets.marker_panel import MarkerPanel
 from widgets.timeline import TimelineWidget
 from widgets.viewport import HandViewport
 
+HAND_SIDES = ("right", "left")
 APP_NAME = "Hand Mocap Studio"
 HAND_MARKER_COLOR = (0.55, 0.80, 1.00)     # markers of the hand layout
 OTHER_MARKER_COLOR = (0.62, 0.62, 0.66)    # arm, body and object markers
@@ -89,7 +90,7 @@ class MainWindow(QMainWindow):
         self.setAcceptDrops(True)
         self.documents: list[TakeDocument] = []
         self.document: TakeDocument | None = None
-        self.model: HandModel = load_template("right")
+        self.models: dict[str, HandModel] = {side: load_template(side) for side in HAND_SIDES}
         self._pending_opens: list[tuple[str, Callable]] = []
         self._render_timer = QTimer(self)
         self._render_timer.setSingleShot(True)
@@ -219,6 +220,12 @@ class MainWindow(QMainWindow):
         self.layout_box.currentTextChanged.connect(self._layout_chosen)
         toolbar.addWidget(self.layout_box)
         toolbar.addWidget(QLabel(" Method "))
+        self.side_box = QComboBox(self)
+        self.side_box.addItems(list(HAND_SIDES))
+        self.side_box.setToolTip("Which hand the model fits: the left hand mirrors the right template")
+        self.side_box.currentTextChanged.connect(self._side_chosen)
+        toolbar.addWidget(QLabel(" Hand "))
+        toolbar.addWidget(self.side_box)
         self.method_box = QComboBox(self)
         self.method_box.addItems(list(METHODS))
         self.method_box.setToolTip("layered: PCA subspace, then all 26 parameters with the soft prior;\n"
@@ -314,6 +321,9 @@ class MainWindow(QMainWindow):
             self.layout_box.blockSignals(True)
             self.layout_box.setCurrentText(document.layout_name)
             self.layout_box.blockSignals(False)
+        self.side_box.blockSignals(True)
+        self.side_box.setCurrentText(document.side)
+        self.side_box.blockSignals(False)
         colors = self._marker_colors(document)
         self.viewport.set_markers(take.marker_names, take.marker_positions[0], colors)
         self.marker_panel.set_markers(take.marker_names, document.observed_fraction, colors)
@@ -371,7 +381,7 @@ class MainWindow(QMainWindow):
         if document.result is not None:
             theta = document.result.joint_angles[frame]
             if np.isfinite(theta).all():
-                self.viewport.update_hand_vertices(skin_vertices(self.model, theta))
+                self.viewport.update_hand_vertices(skin_vertices(self.models[document.result.hand_side], theta))
             self.viewport.set_effectors(*document.effector_targets(frame))
         self._schedule_render()
 
@@ -388,7 +398,8 @@ class MainWindow(QMainWindow):
             self.viewport.set_hand_mesh(None)
             self.viewport.set_effectors(None)
             return
-        self.viewport.set_hand_mesh(self.model.vertices, self.model.faces)
+        model = self.models[document.result.hand_side]
+        self.viewport.set_hand_mesh(model.vertices, model.faces)
 
     def _marker_selected(self, row: int) -> None:
         self.viewport.set_selected_marker(None if row < 0 else row)
@@ -396,6 +407,10 @@ class MainWindow(QMainWindow):
 
     def _marker_clicked(self, index: int) -> None:
         self.marker_panel.select_marker(index)
+
+    def _side_chosen(self, side: str) -> None:
+        if self.document is not None and side:
+            self.document.side = side
 
     def _layout_chosen(self, name: str) -> None:
         if self.document is not None and name:
@@ -422,7 +437,9 @@ class MainWindow(QMainWindow):
             self.show_error("Cannot solve", str(error))
             return
         document.layout_name = layout.name
-        take, model, method = document.take, self.model, self.method_box.currentText()
+        if document is self.document:
+            document.side = self.side_box.currentText()
+        take, model, method = document.take, self.models[document.side], self.method_box.currentText()
 
         def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> IKResult:
             result = solve_take(take, model, layout, method=method, progress=progress, cancelled=cancelled)

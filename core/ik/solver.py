@@ -44,7 +44,7 @@ class IKSettings:
 @dataclass
 class IKResult:
     """Per-frame IK output. ``joint_angles (F,26)`` rad/mm, ``residuals_mm (F,M)`` (NaN unobserved),
-    ``effector_positions (F,M,3)`` mm, ``marker_names (M,)`` in layout order."""
+    ``effector_positions (F,M,3)`` mm, ``marker_names (M,)`` in layout order, ``hand_side`` of the model."""
 
     joint_angles: np.ndarray
     residuals_mm: np.ndarray
@@ -53,6 +53,7 @@ class IKResult:
     method: str
     frame_rate: float = 100.0
     first_frame: int = 1
+    hand_side: str = "right"
 
     @property
     def mean_residual_mm(self) -> float:
@@ -65,7 +66,7 @@ class IKResult:
         np.savez_compressed(temporary, joint_angles=self.joint_angles, residuals_mm=self.residuals_mm,
                             effector_positions=self.effector_positions,
                             marker_names=np.array(self.marker_names), method=self.method,
-                            frame_rate=self.frame_rate, first_frame=self.first_frame,
+                            frame_rate=self.frame_rate, first_frame=self.first_frame, hand_side=self.hand_side,
                             param_names=np.array(PARAM_NAMES))
         temporary.replace(path)
 
@@ -284,7 +285,8 @@ def solve_positions(targets: np.ndarray, model: HandModel, markers: MarkerSet, p
     if progress is not None:
         progress(1.0)
     residuals = np.linalg.norm(effectors - targets, axis=2)
-    return IKResult(angles, residuals, effectors, list(markers.names), solver.settings.method)
+    return IKResult(angles, residuals, effectors, list(markers.names), solver.settings.method,
+                    hand_side=model.side)
 
 
 def solve_take(take, model: HandModel, layout: MarkerLayout, prior=None, method: str = "layered",

@@ -125,6 +125,23 @@ def test_solve_on_worker_then_hand_follows_the_scrubbing(window, qtbot, take_fil
     assert not window.progress_bar.isVisible()
 
 
+def test_left_hand_take_is_solved_and_drawn_with_the_mirrored_model(window, qtbot, tmp_path):
+    from core.model import load_template, skin_vertices
+
+    simulated = simulate_take(layout="dense", n_frames=60, seed=4)
+    mirrored = simulated.take.marker_positions * np.array([-1.0, 1.0, 1.0])
+    path = tmp_path / "left.trc"
+    save_take(Take(simulated.take.marker_names, mirrored, simulated.take.frame_rate), path)
+    open_and_wait(window, qtbot, path)
+    window.side_box.setCurrentText("left")
+    solve_and_wait(window, qtbot)
+    result = window.document.result
+    assert result.hand_side == "left" and result.mean_residual_mm < 1.0
+    window.timeline.set_frame(30)
+    expected = skin_vertices(load_template("left"), result.joint_angles[30])
+    np.testing.assert_allclose(window.viewport.vertex_points(), expected, atol=1e-3)
+
+
 def test_each_take_keeps_its_solve_and_frame(window, qtbot, take_file, tmp_path):
     other = tmp_path / "other.csv"
     save_take(simulate_take(layout="dense", n_frames=120, seed=3).take, other)
