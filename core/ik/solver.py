@@ -25,6 +25,7 @@ from core.model.skeleton import N_PARAMS, PARAM_NAMES, default_joint_limits
 
 METHODS = ("layered", "subspace", "full")
 LOST_TRACK_MM = 30.0
+HISTORY_FRAMES = 3        # solutions kept: two for the linear prediction, one more for replace_last
 
 
 @dataclass(frozen=True)
@@ -220,16 +221,21 @@ class IKSolver:
                                    self.markers.influence_joints, self.markers.influence_weights,
                                    self.markers.local_points, prior[0], prior[1], prior[2])
 
-    def solve_frame(self, targets: np.ndarray, global_pose: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def solve_frame(self, targets: np.ndarray, global_pose: np.ndarray | None = None,
+                    replace_last: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Joint angles (26,) and effector positions (M,3) mm for one frame of targets (M,3) mm
         (NaN = unobserved). With nothing observed the previous posture is held (NaN before any).
-        ``global_pose (6,)``, when given (e.g. from a tracked wrist rigid body), is held fixed."""
+        ``global_pose (6,)``, when given (e.g. from a tracked wrist rigid body), is held fixed.
+        ``replace_last``: solve the same frame again (other targets), replacing its previous solution."""
+        if replace_last and self._history:
+            self._history.pop()
         self._global_free = global_pose is None
         observed = np.isfinite(targets).all(axis=1)
         if not observed.any():
             if not self._history:
                 return np.full(N_PARAMS, np.nan), np.full(targets.shape, np.nan)
             held = self._history[-1].copy()
+            self._history = (self._history + [held])[-HISTORY_FRAMES:]
             return held, marker_positions(self.model, self.markers, held)
         clean_targets = np.where(observed[:, None], targets, 0.0)
         if not self._history:
@@ -248,7 +254,7 @@ class IKSolver:
             restart = self._solve_from(restart, clean_targets, observed)
             if restart[1] < energy:
                 theta, energy, points = restart
-        self._history = [self._history[-1], theta] if self._history else [theta]
+        self._history = (self._history + [theta])[-HISTORY_FRAMES:]
         return theta, points
 
 
