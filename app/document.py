@@ -9,7 +9,7 @@ import numpy as np
 
 from core.ik import IKResult
 from core.io import Take
-from core.model import best_layout_for, load_layout
+from core.model import best_layout_for, load_layout, marker_columns
 
 
 @dataclass(eq=False)
@@ -54,9 +54,8 @@ class TakeDocument:
         return columns[columns >= 0] if (columns >= 0).any() else np.arange(self.take.n_markers)
 
     def columns_of(self, names: list[str]) -> np.ndarray:
-        """Take column of each marker name (case-insensitive), -1 where the take lacks it ``(len(names),)``."""
-        lookup = {name.strip().lower(): index for index, name in enumerate(self.take.marker_names)}
-        return np.array([lookup.get(name.strip().lower(), -1) for name in names], dtype=np.int64)
+        """Take column of each marker name, -1 where the take lacks it ``(len(names),)``."""
+        return marker_columns(self.take.marker_names, names)
 
     def set_result(self, result: IKResult) -> None:
         """Attach an IK result; its markers are matched to the take's columns by name."""

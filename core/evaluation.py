@@ -11,15 +11,19 @@ import time
 
 import numpy as np
 
+from core.errors import InputError
 from core.ik import IKSettings, solve_positions
-from core.model import load_layout, load_template, resolve_layout, skin_vertices
+from core.model import load_layout, load_template, marker_columns, resolve_layout, skin_vertices
 from core.prior import load_default_prior
 from core.simulate import simulate_take
 
 
 def _truth_targets(simulated, names: list[str]) -> np.ndarray:
     """The simulated take's measured marker positions (F,M,3) in the order of ``names``."""
-    columns = [simulated.take.marker_names.index(name) for name in names]
+    columns = marker_columns(simulated.take.marker_names, names)
+    if (columns < 0).any():
+        missing = [name for name, column in zip(names, columns, strict=True) if column < 0]
+        raise InputError(f"the simulated take lacks markers {missing}")
     return simulated.take.marker_positions[:, columns]
 
 

@@ -19,7 +19,7 @@ import numpy as np
 
 from core.errors import CancelledError, InputError
 from core.ik.kernel import frame_energy_kernel, solve_frame_kernel
-from core.model import HandModel, MarkerLayout, MarkerSet, marker_positions, resolve_layout
+from core.model import HandModel, MarkerLayout, MarkerSet, marker_columns, marker_positions, resolve_layout
 from core.model.kinematics import ANCESTOR, vector_from_rotation
 from core.model.skeleton import N_PARAMS, PARAM_NAMES, default_joint_limits
 
@@ -260,8 +260,7 @@ class IKSolver:
 
 def match_layout(marker_names: list[str], layout: MarkerLayout) -> np.ndarray:
     """Column of each layout marker in a take's marker list, -1 where the take lacks it, (M_layout,)."""
-    lookup = {name.strip().lower(): index for index, name in enumerate(marker_names)}
-    columns = np.array([lookup.get(name.lower(), -1) for name in layout.names], dtype=np.int64)
+    columns = marker_columns(marker_names, layout.names)
     if (columns < 0).all():
         raise InputError(f"no marker of layout '{layout.name}' is in the take "
                          f"(layout: {', '.join(layout.names[:6])}…; take: {', '.join(marker_names[:6])}…)")

@@ -14,6 +14,7 @@ from core.model.markers import (
     best_layout_for,
     layout_names,
     load_layout,
+    marker_columns,
     marker_jacobian,
     marker_positions,
     marker_positions_batch,
@@ -39,6 +40,6 @@ def load_template(side: str = "right") -> HandModel:
 __all__ = [
     "HandModel", "MarkerLayout", "MarkerSet", "MarkerSpec", "N_PARAMS", "PARAM_NAMES", "TEMPLATE_PATH",
     "best_layout_for",
-    "default_joint_limits", "layout_names", "load_layout", "load_template", "marker_jacobian",
+    "default_joint_limits", "layout_names", "load_layout", "load_template", "marker_columns", "marker_jacobian",
     "marker_positions", "marker_positions_batch", "resolve_layout", "save_layout", "skin_vertices",
 ]

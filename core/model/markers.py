@@ -108,11 +108,18 @@ def layout_names() -> list[str]:
     return sorted(path.stem for path in LAYOUT_DIR.glob("*.json"))
 
 
+def marker_columns(available: list[str], wanted: list[str]) -> np.ndarray:
+    """Index in ``available`` of each name in ``wanted`` (case- and space-insensitive), -1 where
+    missing, ``(len(wanted),)``: how take columns are matched to layout markers everywhere."""
+    lookup = {name.strip().lower(): index for index, name in enumerate(available)}
+    return np.array([lookup.get(name.strip().lower(), -1) for name in wanted], dtype=np.int64)
+
+
 def best_layout_for(marker_names: list[str], minimum_matches: int = 3) -> str | None:
     """The shipped layout sharing the most marker names with a take (case-insensitive), or None when
     none shares at least ``minimum_matches``."""
-    names = {name.strip().lower() for name in marker_names}
-    matches = {layout: len(names & {n.lower() for n in load_layout(layout).names}) for layout in layout_names()}
+    matches = {layout: int((marker_columns(marker_names, load_layout(layout).names) >= 0).sum())
+               for layout in layout_names()}
     best = max(matches, key=matches.get, default=None)
     return best if best is not None and matches[best] >= minimum_matches else None
 
