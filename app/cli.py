@@ -6,12 +6,15 @@ Errors are one line on stderr and exit code 2, never a traceback.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-from collections.abc import Callable
 from pathlib import Path
 
+from app import cli_layout
+from app.cli_common import add_json_flag, print_figures, print_json, progress_printer
 from core.errors import HandMocapError, InputError
+
+#: modules that add their own subcommands (``register(commands, bench_commands, evaluate_commands)``)
+SUBCOMMAND_MODULES = (cli_layout,)
 
 EXIT_ERROR = 2
 
@@ -23,18 +26,6 @@ def _version() -> str:
         return version("handmocap")
     except PackageNotFoundError:
         return "0+unknown"
-
-
-def _print_json(figures: dict) -> None:
-    print(json.dumps(figures))
-
-
-def _print_figures(figures: dict, as_json: bool) -> None:
-    """One ``key value`` line per figure; with ``as_json`` also one JSON object as the last line."""
-    for key, value in figures.items():
-        print(f"  {key:<28} {value}")
-    if as_json:
-        _print_json(figures)
 
 
 def command_gui(args: argparse.Namespace) -> int:
@@ -56,7 +47,7 @@ def command_info(args: argparse.Namespace) -> int:
         "marker_names": list(take.marker_names),
     }
     if args.json:
-        _print_json(info)
+        print_json(info)
         return 0
     print(f"{Path(args.file).name}: {info['vendor']}, {take.n_frames} frames at {take.frame_rate:g} Hz "
           f"({info['duration_s']} s, first frame {take.first_frame}), units {take.source_units}")
@@ -94,7 +85,7 @@ def command_solve(args: argparse.Namespace) -> int:
     model = load_template(args.side)
     layout = load_layout(args.layout)
     result = solve_take(take, model, layout, prior=prior, method=args.method,
-                        progress=_progress_printer() if not args.quiet else None)
+                        progress=progress_printer() if not args.quiet else None)
     result.save(args.out)
     if args.csv:
         result.save_csv(args.csv)
@@ -103,44 +94,30 @@ def command_solve(args: argparse.Namespace) -> int:
     return 0
 
 
-def _progress_printer() -> Callable[[float], None]:
-    state = {"last": -1}
+def command_bench_ik(args: argparse.Namespace) -> int:
+    from core.evaluation import bench_ik
 
-    def report(fraction: float) -> None:
-        percent = int(fraction * 100)
-        if percent // 10 != state["last"] // 10:
-            state["last"] = percent
-            print(f"  {percent:3d} %", file=sys.stderr, flush=True)
-
-    return report
-
-
-def command_bench(args: argparse.Namespace) -> int:
-    if args.what == "ik":
-        from core.evaluation import bench_ik
-
-        figures = bench_ik(frames=args.frames or 3000)
-        print(f"layered IK, {figures['markers']} markers: {figures['frames_per_s']:.0f} frames/s")
-    elif args.what == "pso":
-        from core.layout.workflow import bench_pso
-
-        figures = bench_pso()
-        print(f"PSO {figures['pso_seconds']:.2f} s (E {figures['pso_energy']}), "
-              f"greedy {figures['greedy_seconds']:.2f} s (E {figures['greedy_energy']})")
-    else:
-        from core.io.generate import bench_load
-
-        figures = bench_load(n_frames=args.frames or 100_000)
-        print(f"read {figures['frames']} frames × {figures['markers']} markers in {figures['seconds']:.3f} s")
+    figures = bench_ik(frames=args.frames or 3000)
+    print(f"layered IK, {figures['markers']} markers: {figures['frames_per_s']:.0f} frames/s")
     if args.json:
-        _print_json(figures)
+        print_json(figures)
     return 0
 
 
-def command_evaluate(args: argparse.Namespace) -> int:
+def command_bench_load(args: argparse.Namespace) -> int:
+    from core.io.generate import bench_load
+
+    figures = bench_load(n_frames=args.frames or 100_000)
+    print(f"read {figures['frames']} frames × {figures['markers']} markers in {figures['seconds']:.3f} s")
+    if args.json:
+        print_json(figures)
+    return 0
+
+
+def command_evaluate_ik(args: argparse.Namespace) -> int:
     from core.evaluation import evaluate_ik
 
-    _print_figures(evaluate_ik(frames=args.frames or 1500), args.json)
+    print_figures(evaluate_ik(frames=args.frames or 1500), args.json)
     return 0
 
 
@@ -165,53 +142,6 @@ def command_prior(args: argparse.Namespace) -> int:
     prior.save(path)
     print(describe_prior(prior))
     print(f"wrote prior {path}")
-    return 0
-
-
-def _motions(values: list[str]) -> str | list[str]:
-    """A motion-set name (grasps, gestures, all) or a list of solved-take result files."""
-    return values[0] if len(values) == 1 and not values[0].endswith(".npz") else values
-
-
-def command_layout_optimize(args: argparse.Namespace) -> int:
-    from core.layout.workflow import optimise_layout
-    from core.model import load_template, save_layout
-
-    layout, result = optimise_layout(load_template(), _motions(args.motions), args.markers, method=args.method,
-                                     base_layout=args.base, subspace_dims=args.dims, seed=args.seed)
-    save_layout(layout, args.out)
-    print(f"{args.method}: {len(layout.markers)} markers, energy {result.energy:.4f} -> {args.out}")
-    return 0
-
-
-def command_layout_evaluate(args: argparse.Namespace) -> int:
-    from core.layout import default_subspace_dims, evaluate_layout, motion_set
-    from core.model import load_layout, load_template
-
-    layout = load_layout(args.layout)
-    dims = args.dims or default_subspace_dims(len(layout.markers))
-    metrics = evaluate_layout(load_template(), layout, motion_set(_motions(args.motions)), dims)
-    figures = {"layout": layout.name, "markers": len(layout.markers), "subspace_dims": dims,
-               "mean_mm": round(metrics.reconstruction_mean_mm, 3), "max_mm": round(metrics.reconstruction_max_mm, 3),
-               "mean_condition": round(metrics.mean_condition, 3),
-               "worst_occluded_condition": round(metrics.worst_occluded_condition, 3),
-               "worst_occluded_marker": metrics.worst_occluded_marker,
-               "min_distance_mm": round(metrics.min_distance_mm, 2), "closest_pair": list(metrics.closest_pair)}
-    _print_figures(figures, args.json)
-    return 0
-
-
-def command_layout(args: argparse.Namespace) -> int:
-    from core.calibration.marker_placement import fit_marker_placement
-    from core.io import load_take
-    from core.model import load_layout, load_template, save_layout
-
-    take = load_take(args.take)
-    layout, residuals = fit_marker_placement(take.marker_positions, take.marker_names, load_template(args.side),
-                                             load_layout(args.layout), iterations=args.iterations)
-    save_layout(layout, args.out)
-    steps = " -> ".join(f"{value:.2f}" for value in residuals)
-    print(f"mean IK residual per iteration (mm): {steps}; wrote {args.out}")
     return 0
 
 
@@ -258,50 +188,28 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--quiet", action="store_true", help="no progress output")
     solve.set_defaults(handler=command_solve)
 
-    bench = commands.add_parser("bench", help="speed benchmarks")
-    bench.add_argument("what", choices=["ik", "load", "pso"])
-    bench.add_argument("--frames", type=int, help="frames to use (default: ik 3000, load 100000)")
-    bench.add_argument("--json", action="store_true", help="print one JSON object as the last line")
-    bench.set_defaults(handler=command_bench)
+    bench = commands.add_parser("bench", help="speed benchmarks (one JSON object as the last line with --json)")
+    bench_commands = bench.add_subparsers(dest="bench_command", metavar="WHAT", required=True)
+    bench_ik = bench_commands.add_parser("ik", help="layered IK frames per second (dense layout, simulated take)")
+    bench_ik.add_argument("--frames", type=int, help="frames to solve (default 3000)")
+    add_json_flag(bench_ik)
+    bench_ik.set_defaults(handler=command_bench_ik)
+    bench_load = bench_commands.add_parser("load", help="seconds to read a generated 40-marker C3D")
+    bench_load.add_argument("--frames", type=int, help="frames in the generated file (default 100000)")
+    add_json_flag(bench_load)
+    bench_load.set_defaults(handler=command_bench_load)
 
     evaluate = commands.add_parser("evaluate", help="accuracy evaluations on simulated data")
-    evaluate.add_argument("what", choices=["ik"])
-    evaluate.add_argument("--frames", type=int, help="frames per simulated take (default 1500)")
-    evaluate.add_argument("--json", action="store_true", help="print one JSON object as the last line")
-    evaluate.set_defaults(handler=command_evaluate)
+    evaluate_commands = evaluate.add_subparsers(dest="evaluate_command", metavar="WHAT", required=True)
+    evaluate_ik = evaluate_commands.add_parser("ik", help="layered against standard IK (grasp-4) and dense accuracy")
+    evaluate_ik.add_argument("--frames", type=int, help="frames per simulated take (default 1500)")
+    add_json_flag(evaluate_ik)
+    evaluate_ik.set_defaults(handler=command_evaluate_ik)
 
     template = commands.add_parser("template", help="regenerate the template hand mesh")
     template.add_argument("action", choices=["build"])
     template.add_argument("--out", help="output .npz (default: resources/template/right_hand.npz)")
     template.set_defaults(handler=command_template)
-
-    layout = commands.add_parser("layout", help="marker layout tools")
-    layout_commands = layout.add_subparsers(dest="layout_command", metavar="ACTION", required=True)
-    fit = layout_commands.add_parser("fit", help="fit where a layout's markers sit from a labelled take")
-    fit.add_argument("take", help="labelled take (C3D, TSV, TRC, CSV)")
-    fit.add_argument("--layout", required=True, help="layout to refit (name or JSON file)")
-    fit.add_argument("--side", choices=["right", "left"], default="right")
-    fit.add_argument("--iterations", type=int, default=3)
-    fit.add_argument("--out", required=True, metavar="LAYOUT.json")
-    fit.set_defaults(handler=command_layout)
-
-    optimize = layout_commands.add_parser("optimize", help="optimise a reduced marker layout for a motion set")
-    optimize.add_argument("--markers", type=int, required=True, help="number of markers")
-    optimize.add_argument("--motions", nargs="+", default=["grasps"],
-                          help="motion set: grasps, gestures, all, or solved-take result .npz files")
-    optimize.add_argument("--method", choices=["pso", "greedy", "subset"], default="pso")
-    optimize.add_argument("--base", default="dense", help="base layout for --method subset (default dense)")
-    optimize.add_argument("--dims", type=int, help="subspace dimensions (default: one per marker, 2 to 6)")
-    optimize.add_argument("--seed", type=int, default=0)
-    optimize.add_argument("--out", required=True, metavar="LAYOUT.json")
-    optimize.set_defaults(handler=command_layout_optimize)
-    evaluate_layout = layout_commands.add_parser("evaluate", help="metrics and held-out reconstruction error")
-    evaluate_layout.add_argument("layout", help="layout JSON file or shipped layout name")
-    evaluate_layout.add_argument("--motions", nargs="+", default=["grasps"],
-                                 help="motion set: grasps, gestures, all, or result .npz files")
-    evaluate_layout.add_argument("--dims", type=int, help="subspace dimensions (default: one per marker, 2 to 6)")
-    evaluate_layout.add_argument("--json", action="store_true", help="print one JSON object as the last line")
-    evaluate_layout.set_defaults(handler=command_layout_evaluate)
 
     prior = commands.add_parser("prior", help="build a posture prior")
     prior.add_argument("action", choices=["build"])
@@ -309,6 +217,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="solved takes to build from (default: the authored canonical postures)")
     prior.add_argument("--out", help="output .npz (default: resources/priors/default_prior.npz)")
     prior.set_defaults(handler=command_prior)
+
+    for module in SUBCOMMAND_MODULES:
+        module.register(commands, bench_commands, evaluate_commands)
     return parser
 
 
