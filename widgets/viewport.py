@@ -29,9 +29,11 @@ EFFECTOR_COLOR = (1.00, 0.55, 0.10)
 BACKGROUND_TOP = (0.24, 0.26, 0.30)
 BACKGROUND_BOTTOM = (0.07, 0.08, 0.09)
 GRID_COLOR = (0.42, 0.45, 0.50)
+LOOSE_POINT_COLOR = (0.62, 0.62, 0.62)
 
 MARKER_RADIUS_MM = 3.2
 EFFECTOR_RADIUS_MM = 2.2
+LOOSE_POINT_RADIUS_MM = 2.0
 SELECTED_SCALE = 1.7
 PICK_RADIUS_PX = 12.0      # a click this close to a marker's centre selects it
 CLICK_SLOP_PX = 4.0        # a press and release further apart than this is a camera drag, not a click
@@ -107,13 +109,13 @@ class HandViewport(QWidget):
         self._labels_visible = False
         self._effectors_visible = True
         self._mesh_visible = True
-        self._has_mesh = False
 
         self._build_grid()
         self._build_mesh()
         self._build_markers()
         self._build_effectors()
         self._build_labels()
+        self._build_trails()
         self.frame_bounds(np.array([[-100.0, -100.0, 0.0], [100.0, 100.0, 200.0]]))
 
     # ----------------------------------------------------------------------------------- scene setup
@@ -124,27 +126,39 @@ class HandViewport(QWidget):
                                                   name="ground-grid")
 
     def _build_mesh(self) -> None:
-        self._mesh = pv.PolyData()
-        self._normals = vtkPolyDataNormals()
-        self._normals.SetInputData(self._mesh)
-        self._normals.ComputePointNormalsOn()
-        self._normals.ComputeCellNormalsOff()
-        self._normals.SplittingOff()
-        self._normals.ConsistencyOff()
-        self._normals.AutoOrientNormalsOff()
+        self._meshes: list[pv.PolyData] = []
+        self._normal_filters: list[vtkPolyDataNormals] = []
+        self._mesh_actors: list[pv.Actor] = []
+        self._mesh_count = 0
+        self._add_mesh_slot()
+
+    def _add_mesh_slot(self) -> None:
+        """One more hand surface actor (hidden), for scenes with more hands than slots."""
+        mesh = pv.PolyData()
+        normals = vtkPolyDataNormals()
+        normals.SetInputData(mesh)
+        normals.ComputePointNormalsOn()
+        normals.ComputeCellNormalsOff()
+        normals.SplittingOff()
+        normals.ConsistencyOff()
+        normals.AutoOrientNormalsOff()
         mapper = vtkPolyDataMapper()
-        mapper.SetInputConnection(self._normals.GetOutputPort())
+        mapper.SetInputConnection(normals.GetOutputPort())
         mapper.ScalarVisibilityOff()
-        self._mesh_actor = pv.Actor(mapper=mapper)
-        prop = self._mesh_actor.prop
+        actor = pv.Actor(mapper=mapper)
+        prop = actor.prop
         prop.color = SKIN_COLOR
         prop.interpolation = "phong"
         prop.ambient = 0.12
         prop.diffuse = 0.85
         prop.specular = 0.18
         prop.specular_power = 18.0
-        self._mesh_actor.visibility = False
-        self._plotter.add_actor(self._mesh_actor, name="hand-mesh", reset_camera=False)
+        actor.visibility = False
+        actor.SetPickable(False)
+        self._normal_filters.append(normals)     # keep the filter alive with its input
+        self._plotter.add_actor(actor, name=f"hand-mesh-{len(self._meshes)}", reset_camera=False)
+        self._meshes.append(mesh)
+        self._mesh_actors.append(actor)
 
     def _glyph_actor(self, data: pv.PolyData, radius: float, name: str) -> pv.Actor:
         sphere = pv.Sphere(radius=radius, theta_resolution=20, phi_resolution=14)
@@ -208,6 +222,23 @@ class HandViewport(QWidget):
         self._residual_actor.prop.line_width = 2.0
         self._residual_actor.prop.lighting = False
         self._plotter.add_actor(self._residual_actor, name="residual-lines", reset_camera=False)
+
+    def _build_trails(self) -> None:
+        self._trail_data = pv.PolyData()
+        mapper = vtkPolyDataMapper()
+        mapper.SetInputData(self._trail_data)
+        mapper.SetColorModeToDirectScalars()
+        mapper.SetScalarModeToUseCellFieldData()
+        mapper.SelectColorArray("colors")
+        mapper.ScalarVisibilityOn()
+        self._trail_actor = pv.Actor(mapper=mapper)
+        self._trail_actor.prop.line_width = 2.0
+        self._trail_actor.prop.lighting = False
+        self._trail_actor.SetPickable(False)
+        self._plotter.add_actor(self._trail_actor, name="trails", reset_camera=False)
+        self._loose_data = pv.PolyData()
+        self._resize_points(self._loose_data, 0, LOOSE_POINT_COLOR)
+        self._loose_actor = self._glyph_actor(self._loose_data, LOOSE_POINT_RADIUS_MM, "loose-points")
 
     def _build_labels(self) -> None:
         self._label_data = pv.PolyData()
@@ -277,9 +308,9 @@ class HandViewport(QWidget):
         """The marker positions currently shown, ``(M,3)`` mm, NaN where hidden (a copy)."""
         return self._marker_positions.copy()
 
-    def vertex_points(self) -> np.ndarray:
-        """The hand mesh vertices currently shown, ``(V,3)`` mm (empty without a mesh)."""
-        return np.array(self._mesh.points) if self._has_mesh else np.zeros((0, 3))
+    def vertex_points(self, hand: int = 0) -> np.ndarray:
+        """The vertices of hand surface ``hand`` currently shown, ``(V,3)`` mm (empty without one)."""
+        return np.array(self._meshes[hand].points) if hand < self._mesh_count else np.zeros((0, 3))
 
     def selected_marker(self) -> int | None:
         """Index of the highlighted marker, or None."""
@@ -363,30 +394,79 @@ class HandViewport(QWidget):
 
     # ---------------------------------------------------------------------------------- hand mesh
     def set_hand_mesh(self, vertices: np.ndarray | None, faces: np.ndarray | None = None) -> None:
-        """Show the hand surface ``vertices (V,3)`` mm with triangles ``faces (T,3)``; None hides it."""
-        if vertices is None or faces is None:
-            self._has_mesh = False
-            self._mesh_actor.visibility = False
-            return
-        # copies: the widget updates these points in place, the caller's arrays must stay untouched
-        surface = pv.PolyData.from_regular_faces(np.array(vertices, dtype=float),
-                                                 np.array(faces, dtype=np.int64))
-        self._mesh.ShallowCopy(surface)
-        self._has_mesh = True
-        self._mesh_actor.visibility = self._mesh_visible
+        """Show one hand surface ``vertices (V,3)`` mm with triangles ``faces (T,3)``; None hides it."""
+        self.set_hand_meshes([] if vertices is None or faces is None else [(vertices, faces)])
 
-    def update_hand_vertices(self, vertices: np.ndarray) -> None:
-        """Move the shown hand mesh to ``vertices (V,3)`` mm, in place."""
-        if not self._has_mesh:
+    def set_hand_meshes(self, meshes: Sequence[tuple[np.ndarray, np.ndarray]]) -> None:
+        """Show one surface per hand: ``meshes`` of ``(vertices (V,3) mm, faces (T,3))``; [] hides all."""
+        while len(self._meshes) < len(meshes):
+            self._add_mesh_slot()
+        for mesh, (vertices, faces) in zip(self._meshes, meshes, strict=False):
+            # copies: the widget updates these points in place, the caller's arrays must stay untouched
+            surface = pv.PolyData.from_regular_faces(np.array(vertices, dtype=float), np.array(faces, dtype=np.int64))
+            mesh.ShallowCopy(surface)
+        self._mesh_count = len(meshes)
+        self._refresh_mesh_visibility()
+
+    def update_hand_vertices(self, vertices: np.ndarray, hand: int = 0) -> None:
+        """Move the shown surface of ``hand`` to ``vertices (V,3)`` mm, in place."""
+        if hand >= self._mesh_count:
             return
-        vtk_to_numpy(self._mesh.GetPoints().GetData())[:] = vertices
-        self._mesh.GetPoints().Modified()
-        self._mesh.Modified()
+        mesh = self._meshes[hand]
+        vtk_to_numpy(mesh.GetPoints().GetData())[:] = vertices
+        mesh.GetPoints().Modified()
+        mesh.Modified()
+
+    def hand_count(self) -> int:
+        """Number of hand surfaces set."""
+        return self._mesh_count
 
     def set_mesh_visible(self, visible: bool) -> None:
-        """Show or hide the hand mesh (if one is set)."""
+        """Show or hide the hand meshes (those that are set)."""
         self._mesh_visible = bool(visible)
-        self._mesh_actor.visibility = self._mesh_visible and self._has_mesh
+        self._refresh_mesh_visibility()
+
+    def _refresh_mesh_visibility(self) -> None:
+        for index, actor in enumerate(self._mesh_actors):
+            actor.visibility = self._mesh_visible and index < self._mesh_count
+
+    # ------------------------------------------------------------------------ trails and loose points
+    def set_trails(self, trails: Sequence[np.ndarray], colors: np.ndarray | None = None) -> None:
+        """Draw a polyline per trail ``(T,3)`` mm (NaN rows break the line), coloured ``colors (N,3)``
+        in [0, 1] (default the selection colour); an empty list clears them."""
+        points, cells, cell_colors = [], [], []
+        offset = 0
+        palette = (np.tile(SELECTED_MARKER_COLOR, (len(trails), 1)) if colors is None
+                   else np.asarray(colors, dtype=float).reshape(len(trails), 3))
+        for trail, color in zip(trails, palette, strict=True):
+            trail = np.asarray(trail, dtype=float).reshape(-1, 3)
+            finite = np.isfinite(trail).all(axis=1)
+            bounds = np.flatnonzero(np.diff(np.concatenate([[0], finite.astype(np.int8), [0]])))
+            for start, end in zip(bounds[0::2], bounds[1::2], strict=True):
+                if end - start < 2:
+                    continue
+                points.append(trail[start:end])
+                cells.append(np.concatenate([[end - start], offset + np.arange(end - start)]))
+                cell_colors.append(color)
+                offset += end - start
+        if points:
+            lines = pv.PolyData(np.concatenate(points), lines=np.concatenate(cells))
+            lines.cell_data["colors"] = _as_rgb_bytes(np.array(cell_colors))
+        else:
+            lines = pv.PolyData()
+        self._trail_data.ShallowCopy(lines)
+        self._trail_data.Modified()
+
+    def set_loose_points(self, points: np.ndarray | None) -> None:
+        """Show measured points that carry no label (unlabelled or ghosts) ``(K,3)`` mm as small grey
+        dots; None clears them."""
+        points = np.zeros((0, 3)) if points is None else np.asarray(points, dtype=float).reshape(-1, 3)
+        points = points[np.isfinite(points).all(axis=1)]
+        if self._loose_data.GetNumberOfPoints() != len(points):
+            self._resize_points(self._loose_data, len(points), LOOSE_POINT_COLOR)
+        vtk_to_numpy(self._loose_data.GetPoints().GetData())[:] = points
+        self._point_array(self._loose_data, "scale")[:] = 1.0
+        self._modified(self._loose_data)
 
     # ------------------------------------------------------------------------------------ effectors
     def set_effectors(self, effectors: np.ndarray | None, targets: np.ndarray | None = None) -> None:
