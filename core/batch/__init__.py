@@ -1,0 +1,20 @@
+"""Workflows shared by the command line and the GUI: auto-label a take into a review, re-solve the hands
+after an edit, find, check, preview and fill the gaps of a review."""
+
+from core.batch.filling import (
+    GapGroup,
+    ReviewGap,
+    check_review_gap,
+    fill_review_gaps,
+    find_review_gaps,
+    gap_groups,
+    preview_fill,
+)
+from core.batch.labelling import AutoLabelOutcome, auto_label, hand_tracks, labelling_report
+from core.batch.resolve import hand_models_for, resolve_hands
+
+__all__ = [
+    "AutoLabelOutcome", "GapGroup", "ReviewGap", "auto_label", "check_review_gap", "fill_review_gaps",
+    "find_review_gaps", "gap_groups", "hand_models_for", "hand_tracks", "labelling_report", "preview_fill",
+    "resolve_hands",
+]
