@@ -1,15 +1,26 @@
-"""The demo session: a simulated take and, when the shared data folder is present, the real DFKI
-glove recording (``../shared/data/real``; or ``$HANDMOCAP_SHARED/data/real``)."""
+"""The demo session: a session folder with a raw (unlabelled) simulated take to auto-label and review, a
+labelled simulated take, and, when the shared data folder is present, the real DFKI glove recording
+(``../shared/data/real``; or ``$HANDMOCAP_SHARED/data/real``).
+
+The folder is ``$HANDMOCAP_DEMO_SESSION`` or ``~/.cache/handmocap/demo-session``; it is made once and
+reopened afterwards (with the operator's edits), and remade when it is damaged.
+"""
 
 from __future__ import annotations
 
 import os
+import shutil
+import time
 from pathlib import Path
 
-from core.io import Take, load_take
+from core.errors import HandMocapError
+from core.io import save_take
+from core.session import Session
 from core.simulate import simulate_take
 
 REAL_RECORDING = "dfki_glove_right_hand_frames_0001_3000.tsv"
+RAW_TAKE = "simulated raw take (dense, unlabelled).c3d"
+LABELLED_TAKE = "simulated grasps (dense, labelled).trc"
 
 
 def shared_folder() -> Path | None:
@@ -21,11 +32,37 @@ def shared_folder() -> Path | None:
     return None
 
 
-def demo_takes() -> list[tuple[str, Take]]:
-    """(title, take) pairs of the demo session."""
-    simulated = simulate_take(layout="dense", n_frames=900, seed=1, noise_mm=0.3, occlusion=True).take
-    takes = [("Simulated grasps (dense layout)", simulated)]
+def demo_folder() -> Path:
+    """Where the demo session lives."""
+    configured = os.environ.get("HANDMOCAP_DEMO_SESSION")
+    return Path(configured) if configured else Path.home() / ".cache" / "handmocap" / "demo-session"
+
+
+def prepare_demo_session(folder: Path | None = None) -> Path:
+    """The demo session folder, made (takes written and added) when it does not hold a usable session."""
+    folder = folder or demo_folder()
+    if (folder / "session.json").exists():
+        try:
+            session = Session.open(folder)
+            if session.takes:
+                session.close()
+                return folder
+        except HandMocapError:
+            pass
+        shutil.move(folder, folder.with_name(f"{folder.name}.damaged-{time.strftime('%Y%m%d-%H%M%S')}"))
+    session = Session.create(folder, name="Demo session")
+    files = folder / "files"
+    files.mkdir(exist_ok=True)
     shared = shared_folder()
-    if shared is not None and (shared / "data" / "real" / REAL_RECORDING).exists():
-        takes.insert(0, ("DFKI glove recording (real, glove-13)", load_take(shared / "data" / "real" / REAL_RECORDING)))
-    return takes
+    real = None if shared is None else shared / "data" / "real" / REAL_RECORDING
+    if real is not None and real.exists():
+        session.add_take(real, subject="DFKI subject", layout="glove-13", name="DFKI glove recording (real)")
+    labelled = simulate_take(layout="dense", n_frames=900, seed=1, noise_mm=0.3, occlusion=True).take
+    save_take(labelled, files / LABELLED_TAKE)
+    session.add_take(files / LABELLED_TAKE, subject="simulated subject", layout="dense", take=labelled)
+    raw = simulate_take(layout="dense", n_frames=900, seed=3, noise_mm=0.3, ghost_rate=0.05, occlusion=True,
+                        unlabelled=True).take
+    save_take(raw, files / RAW_TAKE)
+    session.add_take(files / RAW_TAKE, subject="simulated subject", layout="dense", take=raw)
+    session.close()
+    return folder

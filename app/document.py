@@ -7,9 +7,11 @@ from functools import cached_property
 
 import numpy as np
 
+from core.batch import looks_unlabelled
 from core.ik import IKResult
 from core.io import Take
-from core.model import best_layout_for, load_layout, marker_columns
+from core.model import HandModel, MarkerSet, best_layout_for, load_layout, load_template, marker_columns, resolve_layout
+from core.session import Command, FrameSpan, OpenTake, ReviewTake, UndoStack
 
 
 @dataclass(eq=False)
@@ -30,11 +32,64 @@ class TakeDocument:
     auto_solve: bool = False
     current_frame: int = 0
     side: str = "right"
+    review: ReviewTake | None = None
+    stack: UndoStack | None = None
+    open_take: OpenTake | None = None
+    session_take_id: str | None = None
+    hand_models: dict[str, HandModel] = field(default_factory=dict)
+    last_report: dict | None = None
     _columns: np.ndarray | None = field(default=None, repr=False)
+    _marker_sets: dict[tuple[str, str, int], MarkerSet] = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
         if self.layout_name is None:
             self.layout_name = best_layout_for(self.take.marker_names)
+        if self.open_take is not None:
+            self.review, self.stack = self.open_take.review, self.open_take.stack
+
+    # ------------------------------------------------------------------------------------ review
+    @property
+    def is_raw(self) -> bool:
+        """Whether the take's points carry no labels yet (placeholder names such as ``*12``)."""
+        return looks_unlabelled(self.take.marker_names)
+
+    def ensure_review(self) -> ReviewTake:
+        """The review of this take: a labelled take's columns are its labels; a raw take starts with none."""
+        if self.review is None:
+            self.review = ReviewTake.unlabelled(self.take) if self.is_raw else ReviewTake.from_labelled_take(self.take)
+            self.stack = UndoStack(self.review)
+        return self.review
+
+    def push(self, command: Command) -> FrameSpan:
+        """Do ``command`` on the review (undoable; journalled when the take is in a session)."""
+        self.ensure_review()
+        return self.open_take.push(command) if self.open_take is not None else self.stack.push(command)
+
+    def attach(self, command: Command) -> FrameSpan:
+        """Do ``command`` as part of the last step (a re-solve after an edit)."""
+        return self.open_take.attach(command) if self.open_take is not None else self.stack.attach(command)
+
+    def undo(self) -> FrameSpan:
+        return self.open_take.undo() if self.open_take is not None else self.stack.undo()
+
+    def redo(self) -> FrameSpan:
+        return self.open_take.redo() if self.open_take is not None else self.stack.redo()
+
+    def model_for(self, side: str) -> HandModel:
+        """The hand model of ``side``: the subject's (calibrated) model when known, else the template."""
+        if side not in self.hand_models:
+            self.hand_models[side] = load_template(side)
+        return self.hand_models[side]
+
+    def marker_set_for(self, side: str, layout_name: str | None) -> MarkerSet | None:
+        """Layout ``layout_name`` resolved on :meth:`model_for` ``side`` (cached), None without a layout."""
+        if not layout_name:
+            return None
+        model = self.model_for(side)
+        key = (side, layout_name, id(model))
+        if key not in self._marker_sets:
+            self._marker_sets[key] = resolve_layout(model, load_layout(layout_name))
+        return self._marker_sets[key]
 
     @cached_property
     def markers_seen(self) -> np.ndarray:

@@ -24,6 +24,8 @@ from PySide6.QtWidgets import (
 )
 
 from app.document import TakeDocument
+from app.review_controller import ReviewController
+from app.session_controller import SessionController
 from app.workers import TaskRunner, one_line
 from core.errors import CancelledError, HandMocapError
 from core.ik import METHODS, IKResult, solve_take
@@ -71,15 +73,6 @@ def _open_files_task(paths: list[Path], solve: bool) -> Callable:
     return task
 
 
-def _open_demo_task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> OpenedTakes:
-    """Worker task building the demo session (simulated take, and the real glove take when present)."""
-    from app.demo import demo_takes
-
-    documents = [TakeDocument(take, title, auto_solve=True) for title, take in demo_takes()]
-    progress(1.0)
-    return OpenedTakes(documents)
-
-
 class MainWindow(QMainWindow):
     """Review takes: scrub the markers, solve IK on a worker, watch the hand follow the data."""
 
@@ -91,7 +84,8 @@ class MainWindow(QMainWindow):
         self.documents: list[TakeDocument] = []
         self.document: TakeDocument | None = None
         self.models: dict[str, HandModel] = {side: load_template(side) for side in HAND_SIDES}
-        self._pending_opens: list[tuple[str, Callable]] = []
+        self._pending_opens: list[tuple[str, Callable, Callable[[object], None]]] = []
+        self._on_loaded: Callable[[object], None] = lambda _result: None
         self._render_timer = QTimer(self)
         self._render_timer.setSingleShot(True)
         self._render_timer.setInterval(0)
@@ -105,7 +99,7 @@ class MainWindow(QMainWindow):
         self.runner.busy_changed.connect(self._solver_busy_changed)
         self.loader = TaskRunner(self)        # opening files and the demo session
         self.loader.succeeded.connect(self._opened)
-        self.loader.failed.connect(lambda _request, message: self.show_error("Cannot open", message))
+        self.loader.failed.connect(self._open_failed)
         self.loader.busy_changed.connect(self._loader_busy_changed)
 
         self.viewport = HandViewport(self, off_screen=off_screen)
@@ -121,6 +115,18 @@ class MainWindow(QMainWindow):
         self._build_actions()
         self._build_toolbar()
         self._build_status_bar()
+        self.review = ReviewController(self)
+        self.sessions = SessionController(self)
+        first = self.file_menu.actions()[0]
+        for action in (self.sessions.new_action, self.sessions.open_action, self.sessions.add_action,
+                       self.sessions.close_action):
+            self.file_menu.insertAction(first, action)
+        self.file_menu.insertSeparator(first)
+        self.file_menu.insertAction(self.export_action, self.close_take_action)
+        self.file_menu.insertMenu(self.export_action, self.review.export_menu)
+        self.view_menu.addAction(self.sessions.dock.toggleViewAction())
+        self.resizeDocks([self.timeline_dock, self.review.tracks_dock], [170, 260], Qt.Orientation.Vertical)
+        self.resizeDocks([self.sessions.dock], [330], Qt.Orientation.Horizontal)
         self._update_enabled()
 
     # ------------------------------------------------------------------------------------ building
@@ -155,12 +161,14 @@ class MainWindow(QMainWindow):
         self.open_action = self._action("&Open…", self.choose_files, QKeySequence.StandardKey.Open,
                                         icon=pixmap.SP_DialogOpenButton)
         self.demo_action = self._action("Open &demo session", self.open_demo, "Ctrl+D")
+        self.close_take_action = self._action("&Close take", self.close_current_document,
+                                              QKeySequence.StandardKey.Close)
         self.screenshot_action = self._action("Save &screenshot…", self.choose_screenshot, "Ctrl+Shift+S")
         self.export_action = self._action("&Export joint angles (CSV)…", self.choose_export, "Ctrl+E")
         quit_action = self._action("&Quit", self.close, QKeySequence.StandardKey.Quit)
         self.solve_action = self._action("&Solve", lambda: self.solve(), "Ctrl+R", icon=pixmap.SP_BrowserReload)
         self.solve_action.setToolTip("Solve the take with inverse kinematics (Ctrl+R)")
-        self.cancel_action = self._action("&Cancel", self.cancel_solve, "Esc", icon=pixmap.SP_BrowserStop)
+        self.cancel_action = self._action("&Cancel", self.cancel_work, "Esc", icon=pixmap.SP_BrowserStop)
         self.labels_action = self._action("Marker &names", self.viewport.set_labels_visible, "N", True, False)
         self.mesh_action = self._action("Hand &mesh", self.viewport.set_mesh_visible, "M", True, True)
         self.effectors_action = self._action("&Effectors and residuals", self.viewport.set_effectors_visible,
@@ -169,14 +177,14 @@ class MainWindow(QMainWindow):
         self.frame_action = self._action("&Frame the hand", self.frame_hand, "F")
 
         menus = self.menuBar()
-        file_menu = menus.addMenu("&File")
+        file_menu = self.file_menu = menus.addMenu("&File")
         for action in (self.open_action, self.demo_action, None, self.export_action, self.screenshot_action,
                        None, quit_action):
             if action is None:
                 file_menu.addSeparator()
             else:
                 file_menu.addAction(action)
-        view_menu = menus.addMenu("&View")
+        view_menu = self.view_menu = menus.addMenu("&View")
         for action in (self.labels_action, self.mesh_action, self.effectors_action, self.grid_action):
             view_menu.addAction(action)
         view_menu.addSeparator()
@@ -272,21 +280,43 @@ class MainWindow(QMainWindow):
         self._queue_open(f"Opening {title}…", _open_files_task(files, solve))
 
     def open_demo(self) -> None:
-        """Open the demo session on the loader thread; its takes are solved one after the other."""
-        self._queue_open("Opening the demo session…", _open_demo_task)
+        """Open the demo session (made on the loader thread the first time): the labelled takes are
+        solved with IK and the raw take is auto-labelled, one after the other."""
+        from app.demo import prepare_demo_session
+
+        self.queue_load("Preparing the demo session…", lambda progress, cancelled: prepare_demo_session(),
+                        self._demo_ready)
+
+    def _demo_ready(self, folder: Path) -> None:
+        if self.sessions.open_session(folder):
+            for entry in self.sessions.session.takes:
+                self.sessions.open_take(entry.id, automatic=True)
 
     def _queue_open(self, text: str, task: Callable) -> None:
-        self._pending_opens.append((text, task))
+        self.queue_load(text, task, self._apply_opened)
+
+    def queue_load(self, text: str, task: Callable, on_success: Callable[[object], None]) -> None:
+        """Run ``task`` on the loader thread after those queued before it; ``on_success(result)`` on the
+        GUI thread when it succeeds (a failure is a one-line message)."""
+        self._pending_opens.append((text, task, on_success))
         self._start_next_open()
 
     def _start_next_open(self) -> None:
         if self.loader.is_busy() or not self._pending_opens:
             return
-        text, task = self._pending_opens.pop(0)
+        text, task, self._on_loaded = self._pending_opens.pop(0)
         self.opening_label.setText(text)
         self.loader.start(task)
 
-    def _opened(self, _request: int, opened: OpenedTakes) -> None:
+    def _opened(self, _request: int, result: object) -> None:
+        self._on_loaded(result)
+        QTimer.singleShot(0, self._start_next_open)
+
+    def _open_failed(self, _request: int, message: str) -> None:
+        self.show_error("Cannot open", message)
+        QTimer.singleShot(0, self._start_next_open)
+
+    def _apply_opened(self, opened: OpenedTakes) -> None:
         if opened.documents:
             first = len(self.documents)
             for document in opened.documents:
@@ -295,7 +325,6 @@ class MainWindow(QMainWindow):
         self._solve_next_pending()
         if opened.errors:
             self.show_error("Cannot open", "\n".join(opened.errors))
-        QTimer.singleShot(0, self._start_next_open)
 
     def add_document(self, document: TakeDocument, make_current: bool = True) -> None:
         """Add an open take to the take list (and show it)."""
@@ -335,6 +364,10 @@ class MainWindow(QMainWindow):
         self.timeline.set_residuals(document.mean_residual_per_frame())
         self.info_label.setText(self._take_summary(take))
         self.setWindowTitle(f"{document.title} — {APP_NAME}")
+        self.review.attach(document)
+        if document.session_take_id:
+            self.sessions.browser.set_current(document.session_take_id)
+        self._show_result_geometry()
         self.show_frame(self.timeline.frame)
         self.frame_hand()
         self._update_enabled()
@@ -378,7 +411,9 @@ class MainWindow(QMainWindow):
         positions = document.take.marker_positions[frame]
         self.viewport.update_markers(positions)
         self.marker_panel.set_frame_values(positions, document.residuals_per_take_marker(frame))
-        if document.result is not None:
+        if self.review.document is document and (self.review.has_labels() or document.is_raw):
+            self.review.show_frame(frame)
+        if document.result is not None and not self.review.has_solved_hands():
             theta = document.result.joint_angles[frame]
             if np.isfinite(theta).all():
                 self.viewport.update_hand_vertices(skin_vertices(self.models[document.result.hand_side], theta))
@@ -394,6 +429,9 @@ class MainWindow(QMainWindow):
 
     def _show_result_geometry(self) -> None:
         document = self.document
+        if self.review.document is document and self.review.has_solved_hands():
+            self.review._set_hand_meshes()
+            return
         if document is None or document.result is None:
             self.viewport.set_hand_mesh(None)
             self.viewport.set_effectors(None)
@@ -407,6 +445,7 @@ class MainWindow(QMainWindow):
 
     def _marker_clicked(self, index: int) -> None:
         self.marker_panel.select_marker(index)
+        self.review.point_clicked(index)
 
     def _side_chosen(self, side: str) -> None:
         if self.document is not None and side:
@@ -449,6 +488,13 @@ class MainWindow(QMainWindow):
         document.solve_request = self.runner.start(task)
         self.statusBar().showMessage(f"Solving {document.title} with {method} IK ({layout.name})…")
         self._update_enabled()
+
+    def cancel_work(self) -> None:
+        """Stop what the progress bar shows: the IK solve, or the review job (auto-label, fill, re-solve)."""
+        if self.runner.is_busy():
+            self.cancel_solve()
+        else:
+            self.review.jobs.cancel()
 
     def cancel_solve(self) -> None:
         """Stop the running solve; its take stays as it was and is not solved automatically again."""
@@ -523,13 +569,79 @@ class MainWindow(QMainWindow):
     def _update_enabled(self) -> None:
         document = self.document
         self.solve_action.setEnabled(document is not None and document.solve_request == 0)
-        self.cancel_action.setEnabled(self.runner.is_busy())
+        self.cancel_action.setEnabled(self.runner.is_busy() or self.review.jobs.is_busy())
         self.export_action.setEnabled(document is not None and document.result is not None)
         self.frame_action.setEnabled(document is not None)
+        self.close_take_action.setEnabled(document is not None)
 
     def is_busy(self) -> bool:
         """Whether takes are being opened or solved."""
-        return self.loader.is_busy() or bool(self._pending_opens) or self.runner.is_busy()
+        return (self.loader.is_busy() or bool(self._pending_opens) or self.runner.is_busy()
+                or self.review.jobs.is_busy())
+
+    # ------------------------------------------------------------------------------ review hooks
+    def show_progress(self, text: str, cancel: Callable[[], None]) -> None:
+        """Show the status-bar progress bar for a review job (its Cancel stops it)."""
+        self.progress_bar.setFormat(text)
+        self.progress_bar.setValue(0)
+        self.progress_bar.show()
+        self.cancel_button.show()
+        self.cancel_action.setEnabled(True)
+
+    def set_progress(self, fraction: float) -> None:
+        self.progress_bar.setValue(int(round(100 * fraction)))
+
+    def hide_progress(self) -> None:
+        if not self.runner.is_busy():
+            self.progress_bar.hide()
+            self.cancel_button.hide()
+            self.progress_bar.setFormat("Solving… %p %")
+        self._update_enabled()
+
+    def auto_label_finished(self, document: TakeDocument) -> None:
+        """An auto-label was applied to ``document``: a session take is saved (it is now labelled)."""
+        self.sessions.save_document(document)
+        self._update_enabled()
+
+    def export_done(self, document: TakeDocument, kind: str, path: str) -> None:
+        """``document`` was exported (``kind`` c3d, csv or bvh) to ``path``: the session records it."""
+        self.sessions.export_done(document, kind, path)
+
+    def close_current_document(self) -> None:
+        if self.document is not None:
+            self.close_document(self.document)
+
+    def close_document(self, document: TakeDocument) -> None:
+        """Close an open take (a session take is saved first); another open take is shown."""
+        if document.solve_request:
+            self.runner.stop()
+        if self.review.document is document:
+            self.review.stop()
+        if document.open_take is not None and not document.open_take.closed:
+            try:
+                document.open_take.close(save=True)
+            except HandMocapError as error:
+                self.show_error("Cannot save", f"{document.title}: {error}; the edits stay in its journal")
+        index = self.documents.index(document)
+        self.documents.pop(index)
+        if self.document is document:
+            self.document = None
+        self.take_box.blockSignals(True)
+        self.take_box.removeItem(index)
+        self.take_box.blockSignals(False)
+        if self.documents:
+            self.take_box.setCurrentIndex(min(index, len(self.documents) - 1))
+            self._take_chosen(self.take_box.currentIndex())
+        else:
+            self.review.detach()
+            self.viewport.set_markers([], np.zeros((0, 3)))
+            self.viewport.set_hand_mesh(None)
+            self.viewport.set_effectors(None)
+            self.marker_panel.set_markers([], np.zeros(0), np.zeros((0, 3)))
+            self.info_label.setText("No take open — File ▸ Open… or File ▸ Open demo session")
+            self.setWindowTitle(APP_NAME)
+            self._schedule_render()
+        self._update_enabled()
 
     # -------------------------------------------------------------------------------------- output
     def choose_screenshot(self) -> None:
@@ -598,8 +710,10 @@ class MainWindow(QMainWindow):
         """Cancel and wait for the workers, release the render window."""
         self.timeline.pause()
         self._pending_opens.clear()
+        self.sessions.close()
         self.runner.stop()
         self.loader.stop()
+        self.review.stop()
         self._render_timer.stop()
         self.viewport.close_viewport()
         super().closeEvent(event)

@@ -330,6 +330,17 @@ class HandViewport(QWidget):
         self._marker_positions = np.full((count, 3), np.nan)
         self.update_markers(positions)
 
+    def set_marker_names(self, names: Sequence[str]) -> None:
+        """New names for the current markers (same count), e.g. the labels the points hold this frame."""
+        if len(names) != len(self._marker_names):
+            raise ValueError(f"{len(names)} names for {len(self._marker_names)} markers")
+        self._marker_names = list(names)
+        self._refresh_labels()
+
+    def marker_names(self) -> list[str]:
+        """Names of the current markers."""
+        return list(self._marker_names)
+
     def set_marker_colors(self, colors: np.ndarray) -> None:
         """Base colours ``(M,3)`` in [0, 1] of the current markers."""
         self._marker_colors = np.asarray(colors, dtype=float).reshape(len(self._marker_names), 3)
@@ -457,15 +468,19 @@ class HandViewport(QWidget):
         self._trail_data.ShallowCopy(lines)
         self._trail_data.Modified()
 
-    def set_loose_points(self, points: np.ndarray | None) -> None:
-        """Show measured points that carry no label (unlabelled or ghosts) ``(K,3)`` mm as small grey
-        dots; None clears them."""
+    def set_loose_points(self, points: np.ndarray | None, colors: np.ndarray | None = None) -> None:
+        """Show small dots that are not pickable markers, e.g. gap fills, ``(K,3)`` mm coloured
+        ``colors (K,3)`` in [0, 1] (default grey); None clears them."""
         points = np.zeros((0, 3)) if points is None else np.asarray(points, dtype=float).reshape(-1, 3)
-        points = points[np.isfinite(points).all(axis=1)]
+        colors = (np.tile(LOOSE_POINT_COLOR, (len(points), 1)) if colors is None
+                  else np.asarray(colors, dtype=float).reshape(len(points), 3))
+        finite = np.isfinite(points).all(axis=1)
+        points, colors = points[finite], colors[finite]
         if self._loose_data.GetNumberOfPoints() != len(points):
             self._resize_points(self._loose_data, len(points), LOOSE_POINT_COLOR)
         vtk_to_numpy(self._loose_data.GetPoints().GetData())[:] = points
         self._point_array(self._loose_data, "scale")[:] = 1.0
+        self._point_array(self._loose_data, "colors")[:] = _as_rgb_bytes(colors)
         self._modified(self._loose_data)
 
     # ------------------------------------------------------------------------------------ effectors

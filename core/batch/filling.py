@@ -15,6 +15,7 @@ import numpy as np
 
 from core.errors import CancelledError, InputError
 from core.gaps import FILL_METHODS, FillCheck, Gap, ModelContext, check_gap, fill_gap, find_gaps
+from core.gaps.check import FALLBACK_ORDER
 from core.gaps.fills import fill_pattern
 from core.io import Take
 from core.model import HandModel, best_layout_for, load_layout, load_template
@@ -70,7 +71,7 @@ def gap_groups(review: ReviewTake, models: dict[str, HandModel] | None = None) -
         take = _group_take(review, labels, names)
         context = (ModelContext.for_take(names, models.get(hand.side) or load_template(hand.side), layout)
                    if layout is not None else None)
-        angles = hand.joint_angles if np.isfinite(hand.joint_angles).all(axis=1).any() else None
+        angles = hand.joint_angles.copy() if np.isfinite(hand.joint_angles).all(axis=1).any() else None
         groups.append(GapGroup(labels, take, context, angles))
     rest = np.flatnonzero(~owned)
     if len(rest):
@@ -120,16 +121,21 @@ def preview_fill(group: GapGroup, gap: ReviewGap, method: str, donor: int | None
                     group.joint_angles)
 
 
-def fill_review_gaps(review: ReviewTake, groups: list[GapGroup], max_gap: int, method: str = "auto",
-                     progress: Callable[[float], None] | None = None,
-                     cancelled: Callable[[], bool] | None = None) -> AcceptFills | None:
-    """One undoable command filling every open (not yet filled) gap of at most ``max_gap`` frames with
-    ``method`` ("auto": the best method of each gap's fill check that applies); None when none fills."""
-    if method != "auto" and method not in FILL_METHODS:
-        raise InputError(f"unknown fill method '{method}' (use auto, {', '.join(FILL_METHODS)})")
+def short_open_gaps(review: ReviewTake, groups: list[GapGroup], max_gap: int) -> list[ReviewGap]:
+    """The gaps of at most ``max_gap`` frames that no accepted fill covers yet."""
     if max_gap < 1:
         raise InputError(f"the maximum gap length must be at least 1 frame, got {max_gap}")
-    gaps = [gap for gap in find_review_gaps(review, groups) if gap.length <= max_gap and gap.filled_method is None]
+    return [gap for gap in find_review_gaps(review, groups) if gap.length <= max_gap and gap.filled_method is None]
+
+
+def fill_gaps(groups: list[GapGroup], gaps: list[ReviewGap], method: str = "auto",
+              progress: Callable[[float], None] | None = None,
+              cancelled: Callable[[], bool] | None = None) -> AcceptFills | None:
+    """One undoable command filling ``gaps`` with ``method`` ("auto": per gap, the best method of its fill
+    check that applies, else model, spline, linear); None when nothing could be filled. Reads only the
+    groups (copies), so it may run on a worker while the review changes."""
+    if method != "auto" and method not in FILL_METHODS:
+        raise InputError(f"unknown fill method '{method}' (use auto, {', '.join(FILL_METHODS)})")
     fills = []
     for number, gap in enumerate(gaps):
         if cancelled is not None and cancelled():
@@ -138,9 +144,9 @@ def fill_review_gaps(review: ReviewTake, groups: list[GapGroup], max_gap: int, m
         order: list[str] = [method]
         if method == "auto":
             try:
-                order = check_review_gap(group, gap).ranking() or ["model", "spline", "linear"]
+                order = check_review_gap(group, gap).ranking() or list(FALLBACK_ORDER)
             except InputError:
-                order = ["model", "spline", "linear"]
+                order = list(FALLBACK_ORDER)
         for name in order:
             try:
                 values = preview_fill(group, gap, name)
@@ -152,3 +158,10 @@ def fill_review_gaps(review: ReviewTake, groups: list[GapGroup], max_gap: int, m
         if progress is not None:
             progress((number + 1) / len(gaps))
     return AcceptFills(fills) if fills else None
+
+
+def fill_review_gaps(review: ReviewTake, groups: list[GapGroup], max_gap: int, method: str = "auto",
+                     progress: Callable[[float], None] | None = None,
+                     cancelled: Callable[[], bool] | None = None) -> AcceptFills | None:
+    """:func:`short_open_gaps` filled by :func:`fill_gaps` in one call (command line, tests)."""
+    return fill_gaps(groups, short_open_gaps(review, groups, max_gap), method, progress, cancelled)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -30,24 +31,52 @@ def hand_models_for(review: ReviewTake, models: dict[str, HandModel] | None = No
     return result
 
 
-def resolve_hands(review: ReviewTake, span: FrameSpan | tuple[int, int],
-                  models: dict[str, HandModel] | None = None, prior: PosturePrior | None = None,
-                  pad: int = RESOLVE_PAD, cancelled: Callable[[], bool] | None = None) -> list[SetSolve]:
-    """Layered IK of every hand of ``review`` over frames ``span`` (± ``pad``) from the labelled positions
-    (measured points and accepted fills); one :class:`SetSolve` per hand to attach to the edit."""
+@dataclass(eq=False)
+class ResolveJob:
+    """The IK of one hand over frames ``first ..``: ``targets (n,K,3)`` mm copied from the review (so the
+    job can run on a worker while the review changes), the hand's index, model and marker set."""
+
+    hand: int
+    first: int
+    targets: np.ndarray
+    model: HandModel
+    markers: MarkerSet
+
+
+def resolve_jobs(review: ReviewTake, span: FrameSpan | tuple[int, int],
+                 models: dict[str, HandModel] | None = None, pad: int = RESOLVE_PAD) -> list[ResolveJob]:
+    """What to re-solve after an edit of frames ``span``: every hand with a layout and data there, over
+    the span ± ``pad`` frames, from the labelled positions (measured points and accepted fills)."""
     start, stop = int(span[0]), int(span[1])
     if stop <= start:
         return []
     first, last = max(0, start - pad), min(review.n_frames, stop + pad)
     positions = review.labelled_positions()
-    commands = []
+    jobs = []
     for number, (hand, pair) in enumerate(zip(review.hands, hand_models_for(review, models), strict=True)):
         if pair is None or not len(hand.labels):
             continue
-        model, markers = pair
-        targets = positions[first:last][:, hand.labels]
-        if not np.isfinite(targets).any():
-            continue
-        result = solve_positions(targets, model, markers, prior, cancelled=cancelled)
-        commands.append(SetSolve(number, first, result.joint_angles, result.residuals_mm))
+        targets = positions[first:last][:, hand.labels].copy()
+        if np.isfinite(targets).any():
+            jobs.append(ResolveJob(number, first, targets, *pair))
+    return jobs
+
+
+def run_resolve_jobs(jobs: list[ResolveJob], prior: PosturePrior | None = None,
+                     progress: Callable[[float], None] | None = None,
+                     cancelled: Callable[[], bool] | None = None) -> list[SetSolve]:
+    """Layered IK of each job; one :class:`SetSolve` per hand to attach to the edit."""
+    commands = []
+    for number, job in enumerate(jobs):
+        result = solve_positions(job.targets, job.model, job.markers, prior, cancelled=cancelled)
+        commands.append(SetSolve(job.hand, job.first, result.joint_angles, result.residuals_mm))
+        if progress is not None:
+            progress((number + 1) / len(jobs))
     return commands
+
+
+def resolve_hands(review: ReviewTake, span: FrameSpan | tuple[int, int],
+                  models: dict[str, HandModel] | None = None, prior: PosturePrior | None = None,
+                  pad: int = RESOLVE_PAD, cancelled: Callable[[], bool] | None = None) -> list[SetSolve]:
+    """:func:`resolve_jobs` and :func:`run_resolve_jobs` in one call (command line, tests)."""
+    return run_resolve_jobs(resolve_jobs(review, span, models, pad), prior, cancelled=cancelled)
