@@ -7,9 +7,8 @@ from functools import cached_property
 
 import numpy as np
 
-from core.batch import looks_unlabelled
 from core.ik import IKResult
-from core.io import Take
+from core.io import Take, looks_unlabelled
 from core.model import HandModel, MarkerSet, best_layout_for, load_layout, load_template, marker_columns, resolve_layout
 from core.session import Command, FrameSpan, OpenTake, ReviewTake, UndoStack
 

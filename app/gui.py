@@ -32,7 +32,9 @@ def run_gui(files: list[str], screenshot: str | None = None, frame: int | None =
     if files:
         window.open_files(files, solve=solve)
     if screenshot is None:
-        return app.exec()
+        code = app.exec()
+        _release(window, app)
+        return code
 
     clock = QElapsedTimer()
     clock.start()
@@ -54,7 +56,14 @@ def run_gui(files: list[str], screenshot: str | None = None, frame: int | None =
     timer.timeout.connect(take_screenshot_when_ready)
     timer.start(200)
     app.exec()
+    _release(window, app)
     return outcome["code"]
+
+
+def _release(window, app: QApplication) -> None:
+    """Delete the window while Qt still runs: pyqtgraph plots alive at interpreter exit can abort it."""
+    window.deleteLater()
+    app.processEvents()
 
 
 def apply_dark_palette(app: QApplication) -> None:

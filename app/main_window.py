@@ -29,7 +29,7 @@ from app.session_controller import SessionController
 from app.workers import TaskRunner, one_line
 from core.errors import CancelledError, HandMocapError
 from core.ik import METHODS, IKResult, solve_take
-from core.io import Take, load_take
+from core.io import READ_SUFFIXES, TAKE_FILE_FILTER, Take, load_take
 from core.model import HandModel, layout_names, load_layout, load_template, skin_vertices
 from widgets.marker_panel import MarkerPanel
 from widgets.timeline import TimelineWidget
@@ -40,8 +40,8 @@ APP_NAME = "Hand Mocap Studio"
 HAND_MARKER_COLOR = (0.55, 0.80, 1.00)     # markers of the hand layout
 OTHER_MARKER_COLOR = (0.62, 0.62, 0.66)    # arm, body and object markers
 FRAMING_RADIUS_MM = 90.0                   # half-size of the box the camera frames around the hand
-TAKE_SUFFIXES = (".c3d", ".tsv", ".trc", ".csv")
-TAKE_FILTER = "Motion capture takes (*.c3d *.tsv *.trc *.csv);;All files (*)"
+TAKE_SUFFIXES = READ_SUFFIXES
+TAKE_FILTER = TAKE_FILE_FILTER
 
 
 @dataclass
@@ -202,6 +202,8 @@ class MainWindow(QMainWindow):
         self.timeline.loop_box.toggled.connect(loop_action.setChecked)
         playback_menu.addSeparator()
         playback_menu.addAction(loop_action)
+        tools_menu = self.tools_menu = menus.addMenu("&Tools")
+        tools_menu.addAction(self._action("Marker &layouts…", self.open_layout_tools, "Ctrl+Shift+L"))
         solve_menu = menus.addMenu("&Solve")
         solve_menu.addAction(self.solve_action)
         solve_menu.addAction(self.cancel_action)
@@ -606,6 +608,23 @@ class MainWindow(QMainWindow):
     def export_done(self, document: TakeDocument, kind: str, path: str) -> None:
         """``document`` was exported (``kind`` c3d, csv or bvh) to ``path``: the session records it."""
         self.sessions.export_done(document, kind, path)
+
+    def refresh_layout_names(self) -> None:
+        """List the shipped layouts and those of the open session in the layout choice."""
+        current = self.layout_box.currentText()
+        self.layout_box.blockSignals(True)
+        self.layout_box.clear()
+        self.layout_box.addItems(layout_names())
+        self.layout_box.setCurrentText(current)
+        self.layout_box.blockSignals(False)
+
+    def open_layout_tools(self) -> None:
+        """The marker layout window: optimise, compare, save into the session, print a placement sheet."""
+        from app.layout_view import open_layout_view
+
+        session = self.sessions.session
+        self._layout_window = open_layout_view(self, session=session,
+                                               save_to_session=self.sessions.save_layout if session else None)
 
     def close_current_document(self) -> None:
         if self.document is not None:

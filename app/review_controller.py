@@ -192,6 +192,7 @@ class ReviewController(QObject):
         self.lanes.stretch_clicked.connect(self._stretch_clicked)
         self.tracks_dock = window._add_dock("Tracks", self.lanes, area.BottomDockWidgetArea)
         window.splitDockWidget(window.timeline_dock, self.tracks_dock, Qt.Orientation.Vertical)
+        self.lanes.link_x(window.timeline.plot.getPlotItem().vb)
         self.gap_list = GapList(window)
         self.preview = FillPreview(window)
         splitter = QSplitter(Qt.Orientation.Vertical, window)
@@ -329,8 +330,16 @@ class ReviewController(QObject):
             self.lanes.set_selected_marker(self.selected_label)
         self._refresh_gaps()
         self._refresh_problem_count()
+        if self.has_solved_hands():
+            self.window.timeline.set_residuals(self._mean_residual_per_frame())
         self.update_enabled()
         self.window.show_frame(self.window.timeline.frame)
+
+    def _mean_residual_per_frame(self) -> np.ndarray:
+        """Mean residual (mm) over the labelled samples of each frame ``(F,)``, NaN where none."""
+        residuals = np.where(self.review.assignment >= 0, self.review.residuals_mm, np.nan)
+        counts = np.isfinite(residuals).sum(axis=1)
+        return np.where(counts > 0, np.nansum(residuals, axis=1) / np.maximum(counts, 1), np.nan)
 
     def _set_hand_meshes(self) -> None:
         document = self.document

@@ -20,7 +20,7 @@ from app.document import TakeDocument
 from app.review_controller import AutoLabelSettings
 from core.errors import HandMocapError
 from core.io import Take, load_take
-from core.model import best_layout_for
+from core.model import add_layout_folder, best_layout_for, remove_layout_folder
 from core.session import OpenTake, Session
 from widgets.session_browser import SessionBrowser, TakeRow
 
@@ -103,6 +103,8 @@ class SessionController(QObject):
     def _set_session(self, session: Session) -> None:
         self.close_session()
         self.session = session
+        add_layout_folder(session.folder / "layouts")
+        self.window.refresh_layout_names()
         self.refresh()
         self.dock.show()
         self.dock.raise_()
@@ -116,6 +118,8 @@ class SessionController(QObject):
         for document in [d for d in self.window.documents if d.open_take is not None]:
             self.window.close_document(document)
         self.session.close()
+        remove_layout_folder(self.session.folder / "layouts")
+        self.window.refresh_layout_names()
         self.session = None
         self.browser.set_takes([])
         self.dock.hide()
@@ -248,6 +252,13 @@ class SessionController(QObject):
             except HandMocapError as error:
                 self.window.show_error("Cannot record the export", str(error))
             self.refresh()
+
+    def save_layout(self, layout) -> None:
+        """Store a layout in the session: it is listed with the shipped ones and labelling can use it."""
+        if self.session is None:
+            raise HandMocapError("open or create a session first to keep layouts in it")
+        self.session.save_layout(layout)
+        self.window.refresh_layout_names()
 
     def close(self) -> None:
         """The window is closing: save every open take and release the journals."""

@@ -20,7 +20,7 @@ MISSING_TEXT = "—"
 SWATCH_PX = 10
 
 
-def _swatch(color: np.ndarray, filled: bool) -> QIcon:
+def swatch(color: np.ndarray, filled: bool) -> QIcon:
     """A small round colour chip: filled when the marker is observed in the current frame."""
     pixmap = QPixmap(SWATCH_PX + 2, SWATCH_PX + 2)
     pixmap.fill(QColor(0, 0, 0, 0))
@@ -53,7 +53,7 @@ class MarkerTableModel(QAbstractTableModel):
         self._names = list(names)
         self._observed = np.asarray(observed_fraction, dtype=float)
         colors = np.full((len(names), 3), 0.7) if colors is None else np.asarray(colors, dtype=float)
-        self._icons = [(_swatch(color, True), _swatch(color, False)) for color in colors]
+        self._icons = [(swatch(color, True), swatch(color, False)) for color in colors]
         self._positions = np.full((len(names), 3), np.nan)
         self._residuals = np.full(len(names), np.nan)
         self.endResetModel()

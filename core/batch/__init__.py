@@ -12,12 +12,11 @@ from core.batch.filling import (
     preview_fill,
     short_open_gaps,
 )
-from core.batch.labelling import AutoLabelOutcome, auto_label, hand_tracks, labelling_report, looks_unlabelled
+from core.batch.labelling import AutoLabelOutcome, auto_label, hand_tracks, labelling_report
 from core.batch.resolve import ResolveJob, hand_models_for, resolve_hands, resolve_jobs, run_resolve_jobs
 
 __all__ = [
     "AutoLabelOutcome", "GapGroup", "ResolveJob", "ReviewGap", "auto_label", "check_review_gap", "fill_gaps",
     "fill_review_gaps", "find_review_gaps", "gap_groups", "hand_models_for", "hand_tracks", "labelling_report",
-    "looks_unlabelled",
     "preview_fill", "resolve_hands", "resolve_jobs", "run_resolve_jobs", "short_open_gaps",
 ]

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import re
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -14,18 +13,6 @@ from core.io import Take
 from core.labeling.scene import SceneLabeling, label_scene
 from core.model import HandModel, MarkerLayout, load_layout
 from core.session import ApplyLabelling, HandTrack, LabellingArrays
-
-#: point names that carry no label: "*12" (Vicon), "Unlabeled 3" (Motive), "point_004", "M7", "2003"...
-UNLABELLED_NAME = re.compile(r"^(\*|point[_ ]?|unlabell?ed[_ ]?|uname\*?|marker[_ ]?|m|channel|ghost[_ ]?)?\d*$",
-                             re.IGNORECASE)
-
-
-def looks_unlabelled(marker_names: list[str]) -> bool:
-    """True when most of a take's point names are placeholders rather than marker labels (a raw take)."""
-    if not marker_names:
-        return True
-    placeholders = sum(bool(UNLABELLED_NAME.match(name.strip())) for name in marker_names)
-    return placeholders >= 0.5 * len(marker_names)
 
 
 @dataclass

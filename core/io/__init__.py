@@ -1,7 +1,7 @@
 """Takes and their files: C3D, Qualisys TSV, TRC and CSV (millimetres, seconds, NaN for missing)."""
 
 from core.io.errors import TakeFormatError
-from core.io.loader import load_take, save_take
-from core.io.take import Take
+from core.io.loader import READ_SUFFIXES, TAKE_FILE_FILTER, load_take, save_take
+from core.io.take import Take, looks_unlabelled
 
-__all__ = ["Take", "TakeFormatError", "load_take", "save_take"]
+__all__ = ["READ_SUFFIXES", "TAKE_FILE_FILTER", "Take", "TakeFormatError", "load_take", "looks_unlabelled", "save_take"]

@@ -17,6 +17,10 @@ _READERS: dict[str, Callable[[Path], Take]] = {
     ".trc": read_trc,
     ".csv": read_csv,
 }
+
+#: file types a take can be read from, and the file-dialog filter for them
+READ_SUFFIXES = tuple(_READERS)
+TAKE_FILE_FILTER = f"Motion capture takes ({' '.join('*' + suffix for suffix in READ_SUFFIXES)});;All files (*)"
 _WRITERS: dict[str, Callable[[Take, Path], None]] = {".c3d": write_c3d, ".trc": write_trc, ".csv": write_csv}
 
 

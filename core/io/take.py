@@ -7,6 +7,7 @@ indices are 0-based; `Take.first_frame` keeps the number the file gave to frame 
 import math
 import operator
 import os
+import re
 import secrets
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -201,3 +202,16 @@ def atomic_target(path: str | PathLike[str]) -> Iterator[Path]:
         os.replace(temporary, target)
     finally:
         temporary.unlink(missing_ok=True)
+
+
+#: point names that carry no label: "*12" (Vicon), "Unlabeled 3" (Motive), "point_004", "M7", "2003"...
+UNLABELLED_NAME = re.compile(r"^(\*|point[_ ]?|unlabell?ed[_ ]?|uname\*?|marker[_ ]?|m|channel|ghost[_ ]?)?\d*$",
+                             re.IGNORECASE)
+
+
+def looks_unlabelled(marker_names: list[str]) -> bool:
+    """True when most of a take's point names are placeholders rather than marker labels (a raw take)."""
+    if not marker_names:
+        return True
+    placeholders = sum(bool(UNLABELLED_NAME.match(name.strip())) for name in marker_names)
+    return placeholders >= 0.5 * len(marker_names)

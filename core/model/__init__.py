@@ -11,6 +11,7 @@ from core.model.markers import (
     MarkerLayout,
     MarkerSet,
     MarkerSpec,
+    add_layout_folder,
     best_layout_for,
     layout_names,
     load_layout,
@@ -18,6 +19,7 @@ from core.model.markers import (
     marker_jacobian,
     marker_positions,
     marker_positions_batch,
+    remove_layout_folder,
     resolve_layout,
     save_layout,
 )
@@ -39,7 +41,8 @@ def load_template(side: str = "right") -> HandModel:
 
 __all__ = [
     "HandModel", "MarkerLayout", "MarkerSet", "MarkerSpec", "N_PARAMS", "PARAM_NAMES", "TEMPLATE_PATH",
-    "best_layout_for",
+    "add_layout_folder", "best_layout_for",
     "default_joint_limits", "layout_names", "load_layout", "load_template", "marker_columns", "marker_jacobian",
-    "marker_positions", "marker_positions_batch", "resolve_layout", "save_layout", "skin_vertices",
+    "marker_positions", "marker_positions_batch", "remove_layout_folder", "resolve_layout", "save_layout",
+    "skin_vertices",
 ]

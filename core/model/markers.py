@@ -103,9 +103,31 @@ def _spec_from_json(entry: dict) -> MarkerSpec:
                       offset_mm=float(entry.get("offset_mm", 4.0)))
 
 
+_EXTRA_LAYOUT_DIRS: list[Path] = []
+
+
+def add_layout_folder(folder: str | Path) -> None:
+    """Also find layouts by name in ``folder`` (e.g. an open session's ``layouts``); searched before
+    the shipped layouts, most recently added first."""
+    folder = Path(folder)
+    if folder in _EXTRA_LAYOUT_DIRS:
+        _EXTRA_LAYOUT_DIRS.remove(folder)
+    _EXTRA_LAYOUT_DIRS.insert(0, folder)
+
+
+def remove_layout_folder(folder: str | Path) -> None:
+    """Stop finding layouts in ``folder``."""
+    if Path(folder) in _EXTRA_LAYOUT_DIRS:
+        _EXTRA_LAYOUT_DIRS.remove(Path(folder))
+
+
+def _layout_folders() -> list[Path]:
+    return [*_EXTRA_LAYOUT_DIRS, LAYOUT_DIR]
+
+
 def layout_names() -> list[str]:
-    """Names of the layouts shipped in ``resources/layouts``."""
-    return sorted(path.stem for path in LAYOUT_DIR.glob("*.json"))
+    """Names of the layouts shipped in ``resources/layouts`` and in the added folders."""
+    return sorted({path.stem for folder in _layout_folders() for path in folder.glob("*.json")})
 
 
 def marker_columns(available: list[str], wanted: list[str]) -> np.ndarray:
@@ -128,7 +150,8 @@ def load_layout(name_or_path: str | Path) -> MarkerLayout:
     """A shipped layout by name (``dense``, ``glove-13``, ``grasp-4``) or a layout JSON file."""
     path = Path(name_or_path)
     if not path.suffix:
-        path = LAYOUT_DIR / f"{name_or_path}.json"
+        path = next((folder / f"{name_or_path}.json" for folder in _layout_folders()
+                     if (folder / f"{name_or_path}.json").exists()), LAYOUT_DIR / f"{name_or_path}.json")
         if not path.exists():
             raise InputError(f"unknown layout '{name_or_path}' (available: {', '.join(layout_names())})")
     try:

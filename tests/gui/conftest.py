@@ -28,3 +28,18 @@ def window(qtbot, monkeypatch):
     main_window.show()
     yield main_window
     main_window.close()
+    release(main_window)
+
+
+def release(widget) -> None:
+    """Delete a top-level widget now, while Qt runs: pyqtgraph items left to the interpreter's final
+    garbage collection can crash it (PySide6 refcount bug), failing an otherwise green run."""
+    import gc
+
+    from PySide6.QtCore import QCoreApplication, QEvent
+    from PySide6.QtWidgets import QApplication
+
+    widget.deleteLater()
+    QCoreApplication.sendPostedEvents(None, QEvent.Type.DeferredDelete)
+    QApplication.processEvents()
+    gc.collect()

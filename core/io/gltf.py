@@ -1,0 +1,501 @@
+"""glTF 2.0 skinned hands: import a user's rigged hand as a :class:`HandModel`, export a calibrated one.
+
+Written with ``json`` + numpy only (``.glb`` binary and ``.gltf`` with embedded or external buffers).
+
+Import (:func:`load_gltf_hand`):
+
+* the first mesh primitive with a skin (triangles, ``POSITION``, ``JOINTS_0``, ``WEIGHTS_0``); the bind
+  pose joint positions come from the inverse bind matrices; duplicated vertices (UV/normal seams) are
+  welded so the surface is one connected mesh; metres are converted to mm;
+* joints are mapped onto the 16-joint skeleton by name (digit words thumb/index/middle/ring/little or
+  pinky, with numbers or the words metacarpal/proximal/intermediate/distal/tip, Mixamo/Unreal/WebXR
+  styles) and by geometry: within a digit the joints are ordered by their distance from the wrist;
+  a finger with a metacarpal bone drops it (our wrist carries the palm); a missing tip is placed on the
+  surface along the last bone;
+* the hand side comes from the names (left/right, l_/r_, _l/_r) or the ``side`` argument;
+* the model is expressed in the rest frame of :mod:`core.model.skeleton` (wrist at the origin, fingers
+  +Y, back +Z, thumb on -X for a right hand) and joint frames are rebuilt from the bones;
+* skin weights of unmapped or metacarpal joints go to the wrist, tip weights to the distal joint;
+* the 20 landmarks are transferred by geometry (dorsal surface points over the knuckles, the most
+  distal point of each fingertip, the back of the wrist).
+
+Export (:func:`save_gltf_hand`): mesh + normals, a 21-node joint hierarchy (16 joints + 5 tips) in
+metres with the rest frames as node rotations, inverse bind matrices, 4 weights per vertex, and the
+model's landmarks, side and name in ``extras.handmocap`` so that re-importing is exact.
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import re
+import struct
+from pathlib import Path
+
+import numpy as np
+
+from core.errors import InputError
+from core.model.hand_model import MAX_INFLUENCES, HandModel
+from core.model.skeleton import DIGITS, JOINT_NAMES, JOINT_PARENTS, N_JOINTS, Skeleton
+from core.model.template_mesh import LANDMARK_NAMES
+
+_COMPONENTS = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
+_WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
+_GLB_MAGIC, _JSON_CHUNK, _BIN_CHUNK = 0x46546C67, 0x4E4F534A, 0x004E4942
+THUMB_PALMAR_HINT = np.array([0.65, 0.25, -0.72])     # thumb pad direction in the rest frame (template's)
+_DIGIT_WORDS = {"thumb": 0, "index": 1, "middle": 2, "ring": 3, "little": 4, "pinky": 4, "pinkie": 4}
+_PART_ORDER = {"metacarpal": 0, "cmc": 0, "proximal": 1, "mcp": 1, "intermediate": 2, "pip": 2, "middle": 2,
+               "distal": 3, "dip": 3, "ip": 3, "tip": 4, "end": 4}
+
+
+# --------------------------------------------------------------------------- reading
+
+
+class _Document:
+    """A parsed glTF: the JSON and its binary buffers."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        data = path.read_bytes()
+        if path.suffix.lower() == ".glb" or data[:4] == b"glTF":
+            self.json, chunk = _parse_glb(path, data)
+            buffers = [chunk]
+        else:
+            try:
+                self.json = json.loads(data.decode("utf-8"))
+            except (UnicodeDecodeError, json.JSONDecodeError) as error:
+                raise InputError(f"{path.name}: not a glTF file ({error})") from None
+            buffers = []
+        for index, buffer in enumerate(self.json.get("buffers", [])):
+            uri = buffer.get("uri")
+            if uri is None:
+                if index >= len(buffers):
+                    raise InputError(f"{path.name}: buffer {index} has no data")
+                continue
+            if uri.startswith("data:"):
+                buffers.append(base64.b64decode(uri.split(",", 1)[1]))
+            else:
+                try:
+                    buffers.append((path.parent / uri).read_bytes())
+                except OSError:
+                    raise InputError(f"{path.name}: external buffer '{uri}' not found") from None
+        self.buffers = buffers
+
+    def accessor(self, index: int) -> np.ndarray:
+        """The accessor's data as a float64/int array ``(count, width)`` (normalised integers scaled)."""
+        try:
+            accessor = self.json["accessors"][index]
+            view = self.json["bufferViews"][accessor["bufferView"]]
+            dtype = np.dtype(_COMPONENTS[accessor["componentType"]]).newbyteorder("<")
+            width = _WIDTHS[accessor["type"]]
+            count = accessor["count"]
+            buffer = self.buffers[view["buffer"]]
+        except (KeyError, IndexError) as error:
+            raise InputError(f"{self.path.name}: malformed accessor {index} ({error})") from None
+        offset = view.get("byteOffset", 0) + accessor.get("byteOffset", 0)
+        stride = view.get("byteStride", 0) or dtype.itemsize * width
+        if offset + stride * (count - 1) + dtype.itemsize * width > len(buffer):
+            raise InputError(f"{self.path.name}: accessor {index} runs past the end of its buffer")
+        raw = np.lib.stride_tricks.as_strided(
+            np.frombuffer(buffer, dtype=dtype, count=(len(buffer) - offset) // dtype.itemsize, offset=offset),
+            shape=(count, width), strides=(stride, dtype.itemsize)).copy()
+        if accessor.get("normalized") and np.issubdtype(dtype, np.integer):
+            return raw.astype(np.float64) / np.iinfo(dtype).max
+        return raw if np.issubdtype(dtype, np.integer) else raw.astype(np.float64)
+
+
+def _parse_glb(path: Path, data: bytes) -> tuple[dict, bytes]:
+    if len(data) < 20:
+        raise InputError(f"{path.name}: not a glTF binary file (too short)")
+    magic, version, _ = struct.unpack_from("<III", data, 0)
+    if magic != _GLB_MAGIC or version != 2:
+        raise InputError(f"{path.name}: not a glTF 2.0 binary file")
+    offset, document, binary = 12, None, b""
+    while offset + 8 <= len(data):
+        length, kind = struct.unpack_from("<II", data, offset)
+        chunk = data[offset + 8:offset + 8 + length]
+        if kind == _JSON_CHUNK:
+            document = json.loads(chunk.decode("utf-8"))
+        elif kind == _BIN_CHUNK:
+            binary = chunk
+        offset += 8 + length
+    if document is None:
+        raise InputError(f"{path.name}: the glTF binary has no JSON chunk")
+    return document, binary
+
+
+def _node_matrix(node: dict) -> np.ndarray:
+    """Local 4×4 transform of a node (matrix, or translation × rotation × scale)."""
+    if "matrix" in node:
+        return np.array(node["matrix"], dtype=np.float64).reshape(4, 4).T
+    matrix = np.eye(4)
+    x, y, z, w = node.get("rotation", [0.0, 0.0, 0.0, 1.0])
+    rotation = np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    matrix[:3, :3] = rotation * np.array(node.get("scale", [1.0, 1.0, 1.0]))
+    matrix[:3, 3] = node.get("translation", [0.0, 0.0, 0.0])
+    return matrix
+
+
+def _world_matrices(document: dict) -> list[np.ndarray]:
+    """World 4×4 transform of every node."""
+    nodes = document.get("nodes", [])
+    parent = {child: index for index, node in enumerate(nodes) for child in node.get("children", [])}
+    world: dict[int, np.ndarray] = {}
+
+    def resolve(index: int, depth: int = 0) -> np.ndarray:
+        if index not in world:
+            if depth > len(nodes):
+                raise InputError("glTF node hierarchy has a cycle")
+            local = _node_matrix(nodes[index])
+            world[index] = resolve(parent[index], depth + 1) @ local if index in parent else local
+        return world[index]
+
+    return [resolve(index) for index in range(len(nodes))]
+
+
+# --------------------------------------------------------------------------- joint names
+
+
+def classify_joint_name(name: str) -> tuple[int | None, int | None, str | None]:
+    """``(digit 0..4 or None, part or None, side 'left'/'right' or None)`` read from a bone name.
+
+    Parts: 0 metacarpal, 1 proximal, 2 intermediate, 3 distal, 4 tip; numbered bones (``Index1``,
+    ``index_02_r``) give their number as a rank to be ordered by geometry (part None)."""
+    words = [w.lower() for w in re.findall(r"[A-Z]?[a-z]+|[A-Z]+(?![a-z])", name.replace("mixamorig", ""))]
+    side = "left" if {"left", "l"} & set(words) else "right" if {"right", "r"} & set(words) else None
+    digit = next((_DIGIT_WORDS[w] for w in words if w in _DIGIT_WORDS and w != "middle"), None)
+    if digit is None and "middle" in words:
+        digit = 2
+    part = None
+    for word in words:
+        if word in _PART_ORDER and not (word == "middle" and digit == 2 and words.count("middle") == 1):
+            part = _PART_ORDER[word]
+    return digit, part, side
+
+
+def map_joints(names: list[str], positions: np.ndarray) -> tuple[int, dict[int, list[int]], str | None]:
+    """The wrist joint index and, per digit, the glTF joint indices from proximal to distal."""
+    digits: dict[int, list[int]] = {}
+    sides = []
+    wrist = None
+    for index, name in enumerate(names):
+        digit, _, side = classify_joint_name(name)
+        if side:
+            sides.append(side)
+        if digit is not None:
+            digits.setdefault(digit, []).append(index)
+        elif wrist is None and re.search(r"wrist|hand", name.lower()):
+            wrist = index
+    if len(digits) < 5:
+        missing = [DIGITS[d] for d in range(5) if d not in digits]
+        raise InputError(f"cannot find the joints of the {', '.join(missing)} in the glTF skin "
+                         f"(joint names: {', '.join(names[:8])}...)")
+    if wrist is None:
+        # the joint nearest to the centroid of the digit bases, among the non-digit joints
+        others = [i for i in range(len(names)) if all(i not in chain for chain in digits.values())]
+        bases = np.array([positions[min(chain, key=lambda i: np.linalg.norm(positions[i]))] for chain in
+                          digits.values()])
+        if not others:
+            raise InputError("the glTF skin has no wrist/hand joint")
+        wrist = min(others, key=lambda i: np.linalg.norm(positions[i] - bases.mean(axis=0)))
+    for digit, chain in digits.items():
+        digits[digit] = sorted(chain, key=lambda i: np.linalg.norm(positions[i] - positions[wrist]))
+    side = max(set(sides), key=sides.count) if sides else None
+    return wrist, digits, side
+
+
+# --------------------------------------------------------------------------- import
+
+
+def _weld(vertices: np.ndarray, faces: np.ndarray, tolerance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Merge vertices closer than ``tolerance``: returns unique vertices, remapped faces, and for each
+    unique vertex one original index."""
+    keys = np.round(vertices / tolerance).astype(np.int64)
+    _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.ravel()
+    faces = inverse[faces]
+    faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])]
+    return vertices[first], faces, first
+
+
+def _frame(y_axis: np.ndarray, z_hint: np.ndarray) -> np.ndarray:
+    y_axis = y_axis / np.linalg.norm(y_axis)
+    z_axis = z_hint - (z_hint @ y_axis) * y_axis
+    z_axis /= np.linalg.norm(z_axis)
+    return np.column_stack([np.cross(y_axis, z_axis), y_axis, z_axis])
+
+
+def transfer_landmarks(vertices: np.ndarray, skeleton: Skeleton, skin_joints: np.ndarray,
+                       skin_weights: np.ndarray) -> dict[str, int]:
+    """The 20 landmark vertices of a rest-pose hand (definitions of ``LANDMARK_DESCRIPTIONS``)."""
+    positions, rotations = skeleton.rest_positions, skeleton.rest_rotations
+    dominant = skin_joints[np.arange(len(vertices)), np.argmax(skin_weights, axis=1)]
+    found: dict[str, int] = {}
+    for name in LANDMARK_NAMES:
+        if name == "wrist":
+            origin, direction = positions[0], np.array([0.0, 0.0, 1.0])
+        else:
+            digit_name, joint_name = name.split("_")
+            digit = DIGITS.index(digit_name)
+            if joint_name == "tip":
+                distal = 3 + 3 * digit
+                members = np.flatnonzero(dominant == distal)
+                if len(members) == 0:
+                    members = np.arange(len(vertices))
+                along = (vertices[members] - positions[distal]) @ rotations[distal][:, 1]
+                found[name] = int(members[np.argmax(along)])
+                continue
+            names = ("cmc", "mcp", "ip") if digit == 0 else ("mcp", "pip", "dip")
+            joint = 1 + 3 * digit + names.index(joint_name)
+            origin, direction = positions[joint], -rotations[joint][:, 2]
+        relative = vertices - origin
+        depth = relative @ direction
+        lateral = np.linalg.norm(relative - depth[:, None] * direction, axis=1)
+        score = np.where(depth > 0, lateral, np.inf)
+        near = score < max(3.0, np.nanmin(score) + 1.5)
+        found[name] = int(np.flatnonzero(near)[np.argmax(depth[near])]) if np.any(near) else int(np.argmin(score))
+    return found
+
+
+def load_gltf_hand(path: str | Path, side: str | None = None) -> HandModel:
+    """Import a rigged glTF 2.0 hand (``.glb``/``.gltf``) as a :class:`HandModel` (see module docstring)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"glTF file not found: {path}")
+    document = _Document(path)
+    gltf = document.json
+    nodes = gltf.get("nodes", [])
+    holder = next((i for i, node in enumerate(nodes) if "mesh" in node and "skin" in node), None)
+    if holder is None:
+        raise InputError(f"{path.name}: no skinned mesh in the glTF file")
+    skin = gltf["skins"][nodes[holder]["skin"]]
+    primitive = gltf["meshes"][nodes[holder]["mesh"]]["primitives"][0]
+    attributes = primitive.get("attributes", {})
+    if primitive.get("mode", 4) != 4 or not {"POSITION", "JOINTS_0", "WEIGHTS_0"} <= attributes.keys():
+        raise InputError(f"{path.name}: the skinned mesh needs triangles with POSITION, JOINTS_0 and WEIGHTS_0")
+    vertices = document.accessor(attributes["POSITION"])[:, :3]
+    faces = (document.accessor(primitive["indices"]).reshape(-1, 3).astype(np.int64) if "indices" in primitive
+             else np.arange(len(vertices)).reshape(-1, 3))
+    joints_of = document.accessor(attributes["JOINTS_0"]).astype(np.int64)
+    weights_of = document.accessor(attributes["WEIGHTS_0"])
+    joint_nodes = skin["joints"]
+    if "inverseBindMatrices" in skin:
+        inverse_bind = document.accessor(skin["inverseBindMatrices"]).reshape(-1, 4, 4).transpose(0, 2, 1)
+        bind = np.linalg.inv(inverse_bind)
+    else:
+        worlds = _world_matrices(gltf)
+        bind = np.array([worlds[node] for node in joint_nodes])
+    names = [nodes[node].get("name", f"joint{i}") for i, node in enumerate(joint_nodes)]
+    extras = gltf.get("extras", {}).get("handmocap") if isinstance(gltf.get("extras"), dict) else None
+    if extras is not None and len(names) == N_JOINTS + 5:
+        return _from_own_export(path, vertices, faces, joints_of, weights_of, bind, extras)
+
+    scale = 1000.0 if np.linalg.norm(np.ptp(vertices, axis=0)) < 2.0 else 1.0
+    vertices, bind_positions = vertices * scale, bind[:, :3, 3] * scale
+    wrist, digits, named_side = map_joints(names, bind_positions)
+    side = side or named_side or _side_from_names(gltf, path) or "right"
+    chains = {}
+    for digit, chain in digits.items():
+        if digit > 0 and len(chain) >= 5:
+            chain = chain[1:]                     # metacarpal: carried by our wrist
+        if len(chain) < 3:
+            raise InputError(f"{path.name}: the {DIGITS[digit]} has only {len(chain)} joints (3 needed)")
+        chains[digit] = chain[:4]
+    # canonical frame: origin at the wrist, Y towards the middle finger's base, X from index to little
+    origin = bind_positions[wrist]
+    y_axis = bind_positions[chains[2][0]] - origin
+    y_axis /= np.linalg.norm(y_axis)
+    x_axis = bind_positions[chains[4][0]] - bind_positions[chains[1][0]]
+    x_axis -= (x_axis @ y_axis) * y_axis
+    x_axis /= np.linalg.norm(x_axis)
+    axes = np.column_stack([x_axis, y_axis, np.cross(x_axis, y_axis)])
+    flip = np.array([1.0, 1.0, -1.0 if side == "left" else 1.0])   # a left hand becomes its right mirror image
+    rest_vertices = ((vertices - origin) @ axes) * flip
+    joints = ((bind_positions - origin) @ axes) * flip
+
+    positions = np.zeros((N_JOINTS, 3))
+    tips = np.zeros((5, 3))
+    owner = np.zeros(len(names), dtype=np.int64)        # our joint for each glTF joint (default: wrist)
+    for digit, chain in chains.items():
+        for segment in range(3):
+            positions[1 + 3 * digit + segment] = joints[chain[segment]]
+            owner[chain[segment]] = 1 + 3 * digit + segment
+        if len(chain) >= 4:
+            tips[digit] = joints[chain[3]]
+            owner[chain[3]] = 3 + 3 * digit
+        else:
+            direction = joints[chain[2]] - joints[chain[1]]
+            direction /= np.linalg.norm(direction)
+            reach = (rest_vertices - joints[chain[2]]) @ direction
+            tips[digit] = joints[chain[2]] + direction * np.max(reach)
+    rotations = np.tile(np.eye(3), (N_JOINTS, 1, 1))
+    for joint in range(1, N_JOINTS):
+        digit, segment = divmod(joint - 1, 3)
+        child = positions[joint + 1] if segment < 2 else tips[digit]
+        hint = THUMB_PALMAR_HINT if digit == 0 else np.array([0.0, 0.0, -1.0])
+        rotations[joint] = _frame(child - positions[joint], hint)
+    skeleton = Skeleton(positions, rotations, tips, "right")
+
+    dense = np.zeros((len(vertices), N_JOINTS))
+    for k in range(joints_of.shape[1]):
+        np.add.at(dense, (np.arange(len(vertices)), owner[np.clip(joints_of[:, k], 0, len(owner) - 1)]),
+                  weights_of[:, k])
+    rest_vertices, faces, kept = _weld(rest_vertices, faces, tolerance=1e-3)
+    dense = dense[kept]
+    order = np.argsort(-dense, axis=1, kind="stable")[:, :MAX_INFLUENCES]
+    top = np.take_along_axis(dense, order, axis=1)
+    top = np.where(top > 1e-4, top, 0.0)
+    empty = top.sum(axis=1) == 0
+    top[empty, 0] = 1.0
+    order[empty, 0] = 0
+    top /= top.sum(axis=1, keepdims=True)
+    skin_joints = np.where(top > 0, order, order[:, :1]).astype(np.int64)
+    if _signed_volume(rest_vertices, faces) < 0:
+        faces = faces[:, ::-1].copy()
+    back = -rotations[7][:, 2]
+    model = HandModel(skeleton=skeleton, vertices=rest_vertices, faces=faces, skin_joints=skin_joints,
+                      skin_weights=top, landmarks=transfer_landmarks(rest_vertices, skeleton, skin_joints, top),
+                      back_direction=back / np.linalg.norm(back),
+                      hand_length=float(np.linalg.norm(tips[2] - positions[0])), name=path.stem)
+    model.validate()
+    return model.mirrored() if side == "left" else model
+
+
+def _signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
+    a, b, c = vertices[faces[:, 0]], vertices[faces[:, 1]], vertices[faces[:, 2]]
+    return float(np.einsum("ij,ij->", a, np.cross(b, c)) / 6.0)
+
+
+def _side_from_names(gltf: dict, path: Path) -> str | None:
+    """'left'/'right' from the node, mesh and file names, or None."""
+    texts = [node.get("name", "") for node in gltf.get("nodes", []) if "mesh" in node] + [path.stem]
+    for text in texts:
+        _, _, side = classify_joint_name(text)
+        if side:
+            return side
+    return None
+
+
+def _from_own_export(path: Path, vertices: np.ndarray, faces: np.ndarray, joints_of: np.ndarray,
+                     weights_of: np.ndarray, bind: np.ndarray, extras: dict) -> HandModel:
+    """Exact re-import of a file written by :func:`save_gltf_hand` (joints 0..15, then the 5 tips)."""
+    positions = bind[:N_JOINTS, :3, 3] * 1000.0
+    rotations = bind[:N_JOINTS, :3, :3]
+    tips = bind[N_JOINTS:, :3, 3] * 1000.0
+    side = extras.get("side", "right")
+    owner = np.concatenate([np.arange(N_JOINTS), 3 + 3 * np.arange(5)])
+    skin_joints = owner[joints_of]
+    model = HandModel(skeleton=Skeleton(positions, rotations, tips, side), vertices=vertices * 1000.0,
+                      faces=faces, skin_joints=skin_joints, skin_weights=weights_of / weights_of.sum(axis=1,
+                                                                                                  keepdims=True),
+                      landmarks={str(k): int(v) for k, v in extras.get("landmarks", {}).items()},
+                      back_direction=np.asarray(extras.get("back_direction", [0.0, 0.0, 1.0]), dtype=np.float64),
+                      hand_length=float(extras.get("hand_length", 190.0)), name=str(extras.get("name", path.stem)))
+    model.validate()
+    return model
+
+
+# --------------------------------------------------------------------------- export
+
+
+def _quaternion(rotation: np.ndarray) -> list[float]:
+    """Unit quaternion ``[x, y, z, w]`` of a rotation matrix."""
+    m = rotation
+    trace = np.trace(m)
+    if trace > 0:
+        s = 2.0 * np.sqrt(trace + 1.0)
+        q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s]
+    else:
+        i = int(np.argmax(np.diag(m)))
+        j, k = (i + 1) % 3, (i + 2) % 3
+        s = 2.0 * np.sqrt(max(1.0 + m[i, i] - m[j, j] - m[k, k], 1e-12))
+        q = [0.0, 0.0, 0.0, (m[k, j] - m[j, k]) / s]
+        q[i] = 0.25 * s
+        q[j] = (m[j, i] + m[i, j]) / s
+        q[k] = (m[k, i] + m[i, k]) / s
+    q = np.array(q)
+    return [float(v) for v in q / np.linalg.norm(q)]
+
+
+def save_gltf_hand(model: HandModel, path: str | Path) -> None:
+    """Write ``model`` as glTF 2.0 (``.glb`` binary or ``.gltf`` with an embedded buffer), metres, atomically."""
+    path = Path(path)
+    if path.suffix.lower() not in (".glb", ".gltf"):
+        raise InputError(f"{path.name}: glTF export needs a .glb or .gltf file name")
+    skeleton = model.skeleton
+    world = np.tile(np.eye(4), (N_JOINTS + 5, 1, 1))
+    world[:N_JOINTS, :3, :3] = skeleton.rest_rotations
+    world[:N_JOINTS, :3, 3] = skeleton.rest_positions / 1000.0
+    for digit in range(5):
+        world[N_JOINTS + digit, :3, :3] = skeleton.rest_rotations[3 + 3 * digit]
+        world[N_JOINTS + digit, :3, 3] = skeleton.tip_positions[digit] / 1000.0
+    parents = list(JOINT_PARENTS) + [3 + 3 * d for d in range(5)]
+    names = list(JOINT_NAMES) + [f"{d}_tip" for d in DIGITS]
+    nodes = []
+    for index in range(N_JOINTS + 5):
+        parent = parents[index]
+        local = world[index] if parent < 0 else np.linalg.inv(world[parent]) @ world[index]
+        children = [c for c in range(N_JOINTS + 5) if parents[c] == index]
+        node = {"name": names[index], "translation": [float(v) for v in local[:3, 3]],
+                "rotation": _quaternion(local[:3, :3])}
+        if children:
+            node["children"] = children
+        nodes.append(node)
+    mesh_node = len(nodes)
+    nodes.append({"name": f"{model.side}_hand_mesh", "mesh": 0, "skin": 0})
+
+    positions = (model.vertices / 1000.0).astype(np.float32)
+    normals = model.vertex_normals.astype(np.float32)
+    joints = model.skin_joints.astype(np.uint16)
+    weights = model.skin_weights.astype(np.float32)
+    indices = model.faces.astype(np.uint32).ravel()
+    inverse_bind = np.linalg.inv(world).transpose(0, 2, 1).astype(np.float32)   # column-major
+    blobs = [positions, normals, joints, weights, indices, inverse_bind]
+    specs = [(5126, "VEC3", 34962), (5126, "VEC3", 34962), (5123, "VEC4", 34962), (5126, "VEC4", 34962),
+             (5125, "SCALAR", 34963), (5126, "MAT4", None)]
+    binary = b""
+    views, accessors = [], []
+    for blob, (component, kind, target) in zip(blobs, specs, strict=True):
+        data = np.ascontiguousarray(blob).tobytes()
+        view = {"buffer": 0, "byteOffset": len(binary), "byteLength": len(data)}
+        if target:
+            view["target"] = target
+        views.append(view)
+        count = blob.size // _WIDTHS[kind]
+        accessor = {"bufferView": len(views) - 1, "componentType": component, "count": int(count), "type": kind}
+        if blob is positions:
+            accessor["min"] = [float(v) for v in positions.min(axis=0)]
+            accessor["max"] = [float(v) for v in positions.max(axis=0)]
+        accessors.append(accessor)
+        binary += data + b"\0" * ((-len(data)) % 4)
+    document = {
+        "asset": {"version": "2.0", "generator": "Hand Mocap Studio"},
+        "scene": 0, "scenes": [{"name": "Scene", "nodes": [0, mesh_node]}],
+        "nodes": nodes,
+        "meshes": [{"name": model.name, "primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1, "JOINTS_0": 2,
+                                                                        "WEIGHTS_0": 3}, "indices": 4, "mode": 4}]}],
+        "skins": [{"name": f"{model.side}_hand", "joints": list(range(N_JOINTS + 5)), "inverseBindMatrices": 5,
+                   "skeleton": 0}],
+        "accessors": accessors, "bufferViews": views,
+        "buffers": [{"byteLength": len(binary)}],
+        "extras": {"handmocap": {"side": model.side, "landmarks": {k: int(v) for k, v in model.landmarks.items()},
+                                 "back_direction": [float(v) for v in model.back_direction],
+                                 "hand_length": float(model.hand_length), "name": model.name}},
+    }
+    temporary = path.with_name(path.name + ".tmp")
+    if path.suffix.lower() == ".gltf":
+        document["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(binary).decode()
+        temporary.write_text(json.dumps(document), encoding="utf-8")
+    else:
+        text = json.dumps(document).encode("utf-8")
+        text += b" " * ((-len(text)) % 4)
+        total = 12 + 8 + len(text) + 8 + len(binary)
+        with temporary.open("wb") as stream:
+            stream.write(struct.pack("<III", _GLB_MAGIC, 2, total))
+            stream.write(struct.pack("<II", len(text), _JSON_CHUNK) + text)
+            stream.write(struct.pack("<II", len(binary), _BIN_CHUNK) + binary)
+    temporary.replace(path)
+

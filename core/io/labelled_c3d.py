@@ -1,0 +1,237 @@
+"""Labelled C3D export and import, with the provenance of every sample.
+
+Points: the labels first (``POINT:LABELS`` = the label names, e.g. the layout's markers, ``R_``/``L_``
+prefixed for two hands), then optionally the unlabelled points as ``*<column>`` (one C3D point per raw
+column that is unlabelled in some frame, holding that column's point in the frames where no label
+took it — so a fragmented raw export keeps its trajectories). Coordinates are written as float32 in
+mm through :func:`core.io.c3d_file.write_c3d`: a measured sample is exactly the input point (bit for
+bit when the input came from a float C3D; other inputs are rounded to float32, under 0.1 µm at 1 m).
+Filled samples are written too, as valid points.
+
+Residual word (C3D convention): -1 for a missing sample, 0 for every written sample (the C3D
+standard's "valid, residual not computed"; filled and measured samples are told apart by the
+``PROVENANCE`` group, not by the residual).
+
+``PROVENANCE`` parameter group (C3D parameters are limited to 255 per dimension, so per-sample codes
+are run-length encoded and split over numbered parameters, like ``POINT:LABELS2``):
+
+* ``FORMAT`` (int) 1; ``SOFTWARE`` (text); ``DESCRIPTION`` (text, this scheme in one line);
+* ``LABELLED`` (int): the number of labelled points (the first points; the rest are ``*n``);
+* ``CODES`` (text list): the code legend ``-1 missing, 0 measured, 1 linear, 2 spline, 3 pattern,
+  4 rigid, 5 model``;
+* ``RUNS``, ``RUNS2``, ``RUNS3``... (float, dims 4 × n ≤ 255): one column per run of a labelled
+  point's samples whose code is not 0 (measured): point index (0-based in ``POINT:LABELS``), first
+  frame (0-based from the file's first frame), number of frames, code. Samples not covered are
+  measured (0). Frame numbers are exact in float32 up to 16 777 216;
+* ``EDITED``, ``EDITED2``... (float, 3 × n): runs of samples whose label was set by hand: point,
+  first frame, number of frames;
+* ``GHOSTS``, ``GHOSTS2``... (float, 3 × n): runs of unlabelled (``*n``) samples judged ghosts;
+* ``SOURCE`` (text): the raw take the labels were made from; ``HANDS`` (text list, optional):
+  ``"<name>:<side>:<layout>"`` per solved hand.
+
+Other parameter groups of the source take are copied when they can be written.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from os import PathLike
+from pathlib import Path
+
+import numpy as np
+
+from core.errors import InputError
+from core.io.c3d_file import read_c3d, write_c3d
+from core.io.errors import TakeFormatError
+from core.io.take import Take
+
+_log = logging.getLogger(__name__)
+
+GROUP = "PROVENANCE"
+FORMAT_VERSION = 1
+RUN_LIMIT = 255  # C3D: at most 255 per dimension
+CODE_LEGEND = ["-1 missing", "0 measured", "1 linear fill", "2 spline fill", "3 pattern fill", "4 rigid body fill",
+               "5 model fill"]
+DESCRIPTION = ("per-sample provenance of the labelled points: RUNS* (point, first frame, frames, code), "
+               "samples not in a run are measured; EDITED* and GHOSTS* runs (point, first frame, frames)")
+UNLABELLED_PREFIX = "*"
+
+
+@dataclass
+class LabelledC3D:
+    """A labelled C3D read back: ``take`` holds every point of the file (labels first, then the
+    unlabelled ``*n`` points); ``n_labels`` labelled points; ``provenance (F, n_labels)`` int8 codes;
+    ``edited (F, n_labels)`` bool; ``ghost (F, P - n_labels)`` bool for the unlabelled points;
+    ``source``: the raw take it came from; ``hands``: ``"name:side:layout"`` strings. A C3D without a
+    PROVENANCE group reads as all-labelled, measured where present."""
+
+    take: Take
+    n_labels: int
+    provenance: np.ndarray
+    edited: np.ndarray
+    ghost: np.ndarray
+    source: str | None = None
+    hands: list[str] | None = None
+
+    @property
+    def label_names(self) -> list[str]:
+        return self.take.marker_names[:self.n_labels]
+
+    @property
+    def labelled_positions(self) -> np.ndarray:
+        """``(F, n_labels, 3)`` mm, measured and filled samples."""
+        return self.take.marker_positions[:, :self.n_labels]
+
+    @property
+    def unlabelled_positions(self) -> np.ndarray:
+        """``(F, P - n_labels, 3)`` mm."""
+        return self.take.marker_positions[:, self.n_labels:]
+
+
+def encode_runs(values: np.ndarray, skip: int = 0) -> np.ndarray:
+    """Runs of equal values along frames of ``values (F, N)`` int, except runs of ``skip``:
+    ``(4, R)`` float64 rows point, first frame, length, value (ordered by point then frame)."""
+    values = np.asarray(values, dtype=np.int64)
+    frames, count = values.shape
+    if frames == 0 or count == 0:
+        return np.zeros((4, 0))
+    change = np.ones((frames, count), dtype=bool)
+    change[1:] = values[1:] != values[:-1]
+    point, start = np.nonzero(change.T)
+    ends = np.append(start[1:], frames)
+    ends[np.append(point[1:] != point[:-1], True)] = frames
+    value = values[start, point]
+    keep = value != skip
+    return np.vstack([point[keep], start[keep], (ends - start)[keep], value[keep]]).astype(np.float64)
+
+
+def decode_runs(runs: np.ndarray, shape: tuple[int, int], default: int = 0, dtype: type = np.int8) -> np.ndarray:
+    """Inverse of :func:`encode_runs` into an array of ``shape (F, N)`` filled with ``default``; runs
+    outside the shape are clipped (a damaged file never raises here)."""
+    result = np.full(shape, default, dtype=dtype)
+    runs = np.asarray(runs, dtype=np.float64).reshape(4, -1) if np.size(runs) else np.zeros((4, 0))
+    for point, start, length, value in np.rint(runs.T).astype(np.int64):
+        if 0 <= point < shape[1] and length > 0:
+            result[max(start, 0):max(start + length, 0), point] = value
+    return result
+
+
+def _split(runs: np.ndarray, name: str) -> dict[str, np.ndarray]:
+    """``{NAME: runs[:, :255], NAME2: runs[:, 255:510], ...}`` (nothing when there are no runs)."""
+    parts = {}
+    for index, first in enumerate(range(0, runs.shape[1], RUN_LIMIT)):
+        parts[name if index == 0 else f"{name}{index + 1}"] = np.ascontiguousarray(runs[:, first:first + RUN_LIMIT])
+    return parts
+
+
+def _joined(parameters: dict, name: str, rows: int) -> np.ndarray:
+    """The runs of ``NAME``, ``NAME2``... concatenated, ``(rows, R)``."""
+    parts = []
+    for index in range(1, 10_000):
+        key = name if index == 1 else f"{name}{index}"
+        if key not in parameters:
+            break
+        value = np.asarray(parameters[key], dtype=np.float64)
+        if value.size % rows:
+            raise InputError(f"{GROUP}:{key} has {value.size} values, not a multiple of {rows}")
+        parts.append(value.reshape(rows, -1, order="F") if value.ndim < 2 else value.reshape(rows, -1))
+    return np.concatenate(parts, axis=1) if parts else np.zeros((rows, 0))
+
+
+def write_labelled_c3d(path: str | PathLike[str], label_names: list[str], positions: np.ndarray,
+                       provenance: np.ndarray, frame_rate: float, first_frame: int = 1, *,
+                       edited: np.ndarray | None = None, unlabelled: np.ndarray | None = None,
+                       unlabelled_names: list[str] | None = None, ghost: np.ndarray | None = None,
+                       source: str | None = None, hands: list[str] | None = None,
+                       parameters: dict[str, dict] | None = None) -> None:
+    """Write a labelled C3D (scheme in the module docstring), atomically.
+
+    ``positions (F, M, 3)`` mm: measured and filled samples of the M labels (NaN missing);
+    ``provenance (F, M)`` codes (0 measured, 1..5 fill method, -1 missing); ``edited (F, M)`` bool;
+    ``unlabelled (F, U, 3)`` mm named ``unlabelled_names`` (default ``*0``, ``*1``...), ``ghost (F, U)``
+    bool; ``parameters``: other groups to copy (a group the writer cannot store is dropped with a
+    warning). Raises TakeFormatError (one line) when the file cannot be written.
+    """
+    positions = np.asarray(positions, dtype=np.float64)
+    frames, count = positions.shape[:2]
+    provenance = np.asarray(provenance, dtype=np.int64)
+    if provenance.shape != (frames, count):
+        raise TakeFormatError.at(path, f"provenance must be {(frames, count)}, got {provenance.shape}")
+    present = np.isfinite(positions).all(axis=2)
+    codes = np.where(present, np.where(provenance == -1, 0, provenance), -1)
+    edited = np.zeros((frames, count), dtype=bool) if edited is None else np.asarray(edited, dtype=bool)
+    names = list(label_names)
+    columns = [positions]
+    unlabelled_count = 0
+    ghost_runs = np.zeros((3, 0))
+    if unlabelled is not None and np.size(unlabelled):
+        unlabelled = np.asarray(unlabelled, dtype=np.float64)
+        unlabelled_count = unlabelled.shape[1]
+        names += list(unlabelled_names or [f"{UNLABELLED_PREFIX}{i}" for i in range(unlabelled_count)])
+        columns.append(unlabelled)
+        if ghost is not None:
+            ghost_runs = encode_runs(np.asarray(ghost, dtype=np.int64))[:3]
+            ghost_runs[0] += count
+    group: dict[str, object] = {
+        "FORMAT": FORMAT_VERSION, "SOFTWARE": "Hand Mocap Studio", "DESCRIPTION": DESCRIPTION,
+        "LABELLED": int(count), "CODES": CODE_LEGEND,
+    }
+    group.update(_split(encode_runs(codes), "RUNS"))
+    group.update(_split(encode_runs(edited.astype(np.int64))[:3], "EDITED"))
+    group.update(_split(ghost_runs, "GHOSTS"))
+    if source:
+        group["SOURCE"] = str(source)
+    if hands:
+        group["HANDS"] = list(hands)
+    kept = {name: dict(values) for name, values in (parameters or {}).items() if name.upper() != GROUP}
+    take = Take(marker_names=names, marker_positions=np.concatenate(columns, axis=1), frame_rate=frame_rate,
+                first_frame=first_frame, parameters={**kept, GROUP: group})
+    try:
+        write_c3d(take, path)
+    except TakeFormatError:
+        if not kept:
+            raise
+        _log.warning("%s: the source take's parameter groups cannot all be written; writing without them",
+                     Path(path).name)
+        take.parameters = {GROUP: group}
+        write_c3d(take, path)
+
+
+def read_labelled_c3d(path: str | PathLike[str]) -> LabelledC3D:
+    """Read a labelled C3D written by :func:`write_labelled_c3d` (or any labelled C3D: without a
+    PROVENANCE group every point is a label, measured where present). Raises TakeFormatError."""
+    take = read_c3d(path)
+    frames, points = take.n_frames, take.n_markers
+    group = take.parameters.get(GROUP)
+    present = np.isfinite(take.marker_positions).all(axis=2)
+    if not isinstance(group, dict) or "LABELLED" not in group:
+        starred = [name.startswith(UNLABELLED_PREFIX) for name in take.marker_names]
+        count = starred.index(True) if True in starred and all(starred[starred.index(True):]) else points
+        provenance = np.where(present[:, :count], 0, -1).astype(np.int8)
+        return LabelledC3D(take, count, provenance, np.zeros((frames, count), dtype=bool),
+                           np.zeros((frames, points - count), dtype=bool))
+    try:
+        count = int(np.asarray(group["LABELLED"]).ravel()[0])
+        if not 0 <= count <= points:
+            raise ValueError(f"{count} labelled points of {points}")
+        runs = _joined(group, "RUNS", 4)
+        edited_runs = _joined(group, "EDITED", 3)
+        ghost_runs = _joined(group, "GHOSTS", 3)
+    except (InputError, ValueError, TypeError, IndexError) as error:
+        raise TakeFormatError.at(path, f"damaged {GROUP} parameter group ({error})") from None
+    provenance = decode_runs(runs, (frames, count))
+    provenance[~present[:, :count]] = -1
+    provenance[present[:, :count] & (provenance == -1)] = 0
+    edited = decode_runs(np.vstack([edited_runs, np.ones((1, edited_runs.shape[1]))]), (frames, count),
+                         dtype=bool)
+    ghost_runs = ghost_runs.copy()
+    ghost_runs[0] -= count
+    ghost = decode_runs(np.vstack([ghost_runs, np.ones((1, ghost_runs.shape[1]))]), (frames, points - count),
+                        dtype=bool)
+    source = group.get("SOURCE")
+    hands = group.get("HANDS")
+    hands = [hands] if isinstance(hands, str) else (list(hands) if isinstance(hands, list) else None)
+    take.parameters = {name: values for name, values in take.parameters.items() if name != GROUP}
+    return LabelledC3D(take, count, provenance, edited, ghost & present[:, count:],
+                       source=source if isinstance(source, str) and source else None, hands=hands)
