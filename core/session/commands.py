@@ -30,6 +30,7 @@ exclusive.
 from __future__ import annotations
 
 import base64
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, ClassVar, NamedTuple, Protocol
@@ -93,7 +94,7 @@ def decode_array(data: dict[str, Any], blobs: BlobStore | None = None) -> np.nda
         raise InputError(f"malformed array in an edit record ({error})") from None
 
 
-class Command:
+class Command(ABC):
     """Base of every undoable edit. Subclasses set ``kind``, implement :meth:`_extent`, :meth:`_apply`,
     :meth:`params` and (for arrays) :meth:`_from_params`; ``whole = True`` captures the whole state."""
 
@@ -112,16 +113,17 @@ class Command:
         self._text = ""
 
     # -- to implement --
+    @abstractmethod
     def _extent(self, review: ReviewTake) -> FrameSpan:
         """Validate against ``review`` and return the frames ``_apply`` will change (InputError if invalid)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def _apply(self, review: ReviewTake) -> None:
-        raise NotImplementedError
+        """Change ``review`` (the frames :meth:`_extent` returned)."""
 
+    @abstractmethod
     def params(self, blobs: BlobStore | None = None) -> dict[str, Any]:
         """JSON-serialisable parameters (arrays through :func:`encode_array`)."""
-        raise NotImplementedError
 
     @classmethod
     def _from_params(cls, params: dict[str, Any], blobs: BlobStore | None) -> Command:
@@ -699,6 +701,12 @@ class CompoundCommand(Command):
         super().__init__()
         self.children = list(children)
         self.description = description
+
+    def _extent(self, review: ReviewTake) -> FrameSpan:
+        return self.span
+
+    def _apply(self, review: ReviewTake) -> None:
+        """Unused: :meth:`do` does and :meth:`undo` undoes the children one by one."""
 
     def do(self, review: ReviewTake) -> FrameSpan:
         span = EMPTY_SPAN
