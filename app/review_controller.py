@@ -198,7 +198,7 @@ class ReviewController(QObject):
         splitter = QSplitter(Qt.Orientation.Vertical, window)
         splitter.addWidget(self.gap_list)
         splitter.addWidget(self.preview)
-        splitter.setSizes([320, 200])
+        splitter.setSizes([640, 240])
         self.gap_list.gap_selected.connect(self._gap_selected)
         self.gap_list.method_changed.connect(lambda _gap, method: self.preview.set_selected(method))
         self.gap_list.preview_requested.connect(self._preview_requested)
