@@ -11,12 +11,14 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 from PySide6.QtCore import QObject, Qt
 from PySide6.QtGui import QCursor, QKeySequence
 from PySide6.QtWidgets import (
+    QApplication,
     QCheckBox,
     QComboBox,
     QDialog,
@@ -24,6 +26,7 @@ from PySide6.QtWidgets import (
     QFileDialog,
     QFormLayout,
     QHBoxLayout,
+    QInputDialog,
     QLabel,
     QLineEdit,
     QMenu,
@@ -50,6 +53,7 @@ from core.batch import (
 )
 from core.errors import HandMocapError
 from core.gaps import FILL_METHODS, FillCheck
+from core.labeling.objects import load_scene_spec, rigid_body_from_points, save_scene_spec
 from core.model import layout_names, marker_positions, skin_vertices
 from core.session import (
     AcceptFills,
@@ -76,6 +80,7 @@ if TYPE_CHECKING:
 UNLABELLED_COLOR = (0.62, 0.62, 0.64)
 GHOST_COLOR = (0.55, 0.22, 0.22)
 FILL_COLOR = (0.45, 0.95, 0.55)
+RIGID_SELECTION_COLOR = (1.0, 1.0, 1.0)
 TRAIL_FRAMES = 60                  # frames of trail on each side of the current frame
 SCOPE_TITLES = {"fragment": "to end of fragment", "range": "in the marked range", "take": "whole take"}
 PALETTE = np.array([                # Tableau-like qualitative colours, distinct on a dark background
@@ -151,6 +156,7 @@ class ReviewController(QObject):
         self.document: TakeDocument | None = None
         self.selected_label = -1
         self.selected_column = -1
+        self.rigid_points: list[int] = []
         self.range_in: int | None = None
         self.range_out: int | None = None
         self.auto_settings = AutoLabelSettings()
@@ -225,6 +231,10 @@ class ReviewController(QObject):
         self.clear_range_action = action("&Clear range", self.clear_range, "Shift+I")
         self.next_problem_action = action("&Next problem", lambda: self.go_to_problem(True), "F3")
         self.previous_problem_action = action("&Previous problem", lambda: self.go_to_problem(False), "Shift+F3")
+        self.rigid_body_action = action("Define &rigid body from selected points…", self.choose_rigid_body_name,
+                                        "Ctrl+B")
+        self.rigid_body_action.setToolTip("Ctrl+click three or more points of an object in the 3D view, then "
+                                          "name it: auto-label then tracks it as a rigid body")
         self.fill_all_action = action("&Fill short gaps…", lambda: self.fill_all(self.gap_list.max_length_box.value()),
                                       "Ctrl+Shift+F")
         self.cancel_job_action = action("Cancel review &job", self.jobs.cancel)
@@ -241,7 +251,8 @@ class ReviewController(QObject):
             edit_menu.addSeparator() if item is None else edit_menu.addAction(item)
         review_menu = QMenu("&Review", window)
         menus.insertMenu(menus.actions()[-1], review_menu)
-        for item in (self.auto_label_action, self.cancel_job_action, None, self.next_problem_action,
+        for item in (self.auto_label_action, self.cancel_job_action, self.rigid_body_action, None,
+                     self.next_problem_action,
                      self.previous_problem_action, None, self.fill_all_action):
             review_menu.addSeparator() if item is None else review_menu.addAction(item)
         self.export_menu = QMenu("E&xport", window)
@@ -290,6 +301,7 @@ class ReviewController(QObject):
         document.ensure_review()
         self.selected_label = -1
         self.selected_column = -1
+        self.rigid_points = []
         self.range_in = self.range_out = None
         self._rejected = set()
         self._previews = {}
@@ -361,6 +373,7 @@ class ReviewController(QObject):
         review, busy = self.review, self.jobs.is_busy()
         stack = None if self.document is None else self.document.stack
         self.auto_label_action.setEnabled(review is not None and not busy)
+        self.rigid_body_action.setEnabled(review is not None and len(self.rigid_points) >= 3)
         self.cancel_job_action.setEnabled(busy)
         self.undo_action.setEnabled(stack is not None and stack.can_undo() and not busy)
         self.redo_action.setEnabled(stack is not None and stack.can_redo() and not busy)
@@ -396,6 +409,7 @@ class ReviewController(QObject):
         colors[review.ghost[frame]] = GHOST_COLOR
         palette = label_colors(review.n_labels)
         colors[point_label >= 0] = palette[point_label[point_label >= 0]]
+        colors[self.rigid_points] = RIGID_SELECTION_COLOR
         names = [review.label_names[label] if label >= 0 else f"*{column}"
                  for column, label in enumerate(point_label)]
         viewport.set_marker_names(names)
@@ -452,6 +466,9 @@ class ReviewController(QObject):
         if review is None:
             return
         frame = self.window.timeline.frame
+        if QApplication.keyboardModifiers() & Qt.KeyboardModifier.ControlModifier and column >= 0:
+            self.toggle_rigid_point(column)
+            return
         self.selected_column = column
         label = review.label_of_point(frame, column) if column >= 0 else -1
         self.selected_label = label
@@ -460,6 +477,54 @@ class ReviewController(QObject):
         self.window.viewport.set_selected_marker(column if column >= 0 else None)
         self._draw_trail(frame)
         self.window._schedule_render()
+
+    def toggle_rigid_point(self, column: int) -> None:
+        """Add raw point ``column`` to the points of a new rigid body (or take it out again)."""
+        if column in self.rigid_points:
+            self.rigid_points.remove(column)
+        else:
+            self.rigid_points.append(column)
+        self.update_enabled()
+        self.window.statusBar().showMessage(f"{len(self.rigid_points)} points selected for a rigid body "
+                                            "(Review ▸ Define rigid body…)", 5000)
+        self.window.show_frame(self.window.timeline.frame)
+
+    def choose_rigid_body_name(self) -> None:
+        name, accepted = QInputDialog.getText(self.window, "Rigid body", "Name of the object:", text="object")
+        if accepted and name.strip():
+            self.define_rigid_body(name.strip())
+
+    def define_rigid_body(self, name: str) -> Path | None:
+        """Make a rigid body named ``name`` from the selected points in the current frame and add it to the
+        scene spec auto-label uses (in the session folder, or next to the take file). Returns the spec."""
+        review = self.review
+        frame = self.window.timeline.frame
+        try:
+            if len(self.rigid_points) < 3:
+                raise HandMocapError("Ctrl+click at least 3 points of the object in the 3D view first")
+            markers = [f"{name}{number + 1}" for number in range(len(self.rigid_points))]
+            spec = rigid_body_from_points(name, markers, review.take.marker_positions[frame, self.rigid_points])
+            path = Path(self.auto_settings.objects) if self.auto_settings.objects else self._default_spec_path()
+            objects = [item for item in (load_scene_spec(path) if path.exists() else []) if item.name != name]
+            path.parent.mkdir(parents=True, exist_ok=True)
+            save_scene_spec([*objects, spec], path)
+        except (HandMocapError, OSError) as error:
+            self.window.show_error("Cannot define the rigid body", str(error))
+            return None
+        self.auto_settings.objects = str(path)
+        self.rigid_points = []
+        self.window.statusBar().showMessage(f"Rigid body '{name}' ({len(markers)} markers) added to the scene "
+                                            f"{path.name}; the next auto-label tracks it", 8000)
+        self.window.show_frame(frame)
+        return path
+
+    def _default_spec_path(self) -> Path:
+        document = self.document
+        if document.open_take is not None:
+            return document.open_take.folder / "scene_objects.json"
+        source = document.take.source_path
+        folder = Path(source).parent if source else Path.home() / ".cache" / "handmocap"
+        return folder / f"{Path(document.title).stem}_objects.json"
 
     def _stretch_clicked(self, marker: int, first: int, _last: int) -> None:
         self.select_label(marker)

@@ -22,7 +22,8 @@ from core.layout import (
     select_subset,
     vertex_layout,
 )
-from core.layout.pso import project_to_candidates, random_layouts
+from core.layout.pso import align_to, project_to_candidates, random_layouts
+from core.layout.workflow import error_against_markers, optimise_layout
 from core.model import load_layout, load_template, resolve_layout
 
 SMALL_SWARM = PSOSettings(particles=200, iterations=30)
@@ -116,6 +117,46 @@ def test_pso_improves_reports_progress_and_is_seedable(problem):
 def test_pso_can_be_cancelled(problem):
     with pytest.raises(CancelledError):
         optimise_pso(problem, 5, SMALL_SWARM, cancelled=lambda: True)
+    calls = []
+    with pytest.raises(CancelledError):
+        optimise_pso(problem, 5, SMALL_SWARM, progress=lambda f, e: calls.append(e), cancelled=lambda: len(calls) >= 3)
+    assert len(calls) == 3
+
+
+def test_pso_counts_each_distinct_layout_once(problem):
+    settings = PSOSettings(particles=60, iterations=10)
+    result = optimise_pso(problem, 5, settings, seed=2)
+    assert 0 < result.evaluations <= settings.particles * (settings.iterations + 1)
+    every = optimise_pso(problem, 5, settings, seed=2)
+    assert every.energy == result.energy and every.evaluations == result.evaluations
+
+
+def test_pso_starts_from_a_given_layout_and_never_ends_worse(problem):
+    start = optimise_greedy(problem, 5).indices
+    result = optimise_pso(problem, 5, PSOSettings(particles=50, iterations=5), seed=0, initial=start)
+    assert result.energy <= layout_energies(problem, start)[0] + 1e-9
+
+
+def test_align_pairs_each_marker_with_its_nearest_best_marker():
+    reference = np.array([[0.0, 0, 0], [100, 0, 0], [0, 100, 0]])
+    particle = reference[[2, 0, 1]] + 1.0
+    aligned = align_to(reference, particle[None])
+    np.testing.assert_array_equal(aligned[0], reference[[2, 0, 1]])
+
+
+def test_unknown_perturbation_is_an_input_error(problem):
+    with pytest.raises(InputError, match="perturbation"):
+        optimise_pso(problem, 5, PSOSettings(particles=10, iterations=1, perturbation="cauchy"))
+
+
+def test_pso_beats_or_ties_greedy_on_the_grasp_problem(problem):
+    """A small swarm (300 × 40) on the 5-keyframe problem: the best of three seeds at most greedy's energy,
+    none more than 10 % above it (the full-size comparison is tests/bench/bench_pso.py)."""
+    greedy = optimise_greedy(problem, 5)
+    energies = [optimise_pso(problem, 5, PSOSettings(particles=300, iterations=40), seed=seed).energy
+                for seed in range(3)]
+    assert min(energies) <= greedy.energy + 1e-9
+    assert max(energies) <= greedy.energy * 1.10
 
 
 def test_greedy_swap_never_worsens_the_start(problem):
@@ -123,6 +164,19 @@ def test_greedy_swap_never_worsens_the_start(problem):
     result = optimise_greedy(problem, 5, initial=start)
     assert result.energy <= layout_energies(problem, start)[0]
     assert (np.diff(result.history) < 0).all()
+
+
+def test_greedy_is_a_local_optimum_over_all_candidates(problem):
+    """After greedy add-then-swap no single marker can move to any free candidate and lower the energy
+    (the journal's baseline, evaluated over every feasible vertex)."""
+    result = optimise_greedy(problem, 4)
+    layout = result.indices
+    assert result.evaluations >= 4 * (problem.n_candidates - 4)
+    for slot in range(4):
+        free = np.setdiff1d(np.arange(problem.n_candidates), layout)
+        trials = np.repeat(layout[None], len(free), axis=0)
+        trials[:, slot] = free
+        assert layout_energies(problem, trials).min() >= result.energy - 1e-9
 
 
 def test_subset_selection_is_exhaustive_for_a_small_base(model, grasps):
@@ -151,3 +205,43 @@ def test_evaluate_layout_reports_all_metrics(model, grasps, problem):
     assert 1.0 < metrics.mean_condition < metrics.worst_occluded_condition
     assert metrics.min_distance_mm > 0 and metrics.closest_pair[0] != metrics.closest_pair[1]
     assert 0 < metrics.reconstruction_mean_mm <= metrics.reconstruction_max_mm < 50
+    assert 0.0 <= metrics.risk_fraction <= 1.0
+
+
+def test_optimised_layouts_get_anatomical_names(model, grasps):
+    layout, result = optimise_layout(model, grasps[::3], 5, "pso", subspace_dims=4, n_keyframes=4,
+                                     settings=PSOSettings(particles=80, iterations=8), name="tiny")
+    assert layout.name == "tiny" and len(set(layout.names)) == 5
+    assert all(name.split("_")[0] in ("thumb", "index", "middle", "ring", "little", "hand") for name in layout.names)
+    assert "energy" in layout.description and result.energy < np.inf
+
+
+def test_pso_swap_polish_never_raises_the_pso_energy(model, grasps):
+    settings = PSOSettings(particles=60, iterations=6)
+    plain, pso = optimise_layout(model, grasps[::3], 5, "pso", subspace_dims=4, n_keyframes=4, settings=settings)
+    polished, result = optimise_layout(model, grasps[::3], 5, "pso-swap", subspace_dims=4, n_keyframes=4,
+                                       settings=settings)
+    assert result.energy <= pso.energy + 1e-9 and result.evaluations > pso.evaluations
+    assert len(result.history) >= len(pso.history) and np.all(np.diff(result.history) <= 1e-9)
+
+
+def test_workflow_rejects_bad_requests(model):
+    with pytest.raises(InputError, match="only"):
+        optimise_layout(model, "grasps", 100_000, "greedy")
+    with pytest.raises(InputError, match="at least"):
+        optimise_layout(model, "grasps", 2, "pso", subspace_dims=6)
+    with pytest.raises(InputError, match="unknown motion set"):
+        optimise_layout(model, "dancing", 6)
+    with pytest.raises(InputError, match="method"):
+        optimise_layout(model, "grasps", 6, "annealing")
+
+
+def test_error_table_rows_and_cancel(model):
+    rows = []
+    table = error_against_markers(model, [4], "grasps", "gestures", PSOSettings(particles=40, iterations=4),
+                                  n_keyframes=3, reconstruction_frames=60, row_done=rows.append)
+    assert table == rows and table[0].markers == 4 and table[0].subspace_dims == 4
+    assert 0 < table[0].specific_mean_mm <= table[0].specific_max_mm
+    assert set(table[0].to_json()) >= {"markers", "specific_mean_mm", "generic_mean_mm"}
+    with pytest.raises(CancelledError):
+        error_against_markers(model, [4], settings=PSOSettings(particles=20, iterations=2), cancelled=lambda: True)

@@ -12,11 +12,13 @@ from core.layout.objective import (
     layout_terms,
     vertex_layout,
 )
+from core.layout.placement_sheet import PlacementSheet, placement_sheet, segment_marker_names
 from core.layout.pso import OptimisationResult, PSOSettings, optimise_pso
 
 __all__ = [
     "LayoutMetrics", "LayoutProblem", "OptimisationResult", "PSOSettings", "build_problem",
     "default_subspace_dims", "evaluate_layout", "feasible_vertices", "gesture_motion", "keyframes",
     "layout_energies", "layout_terms", "motion_from_results", "motion_set", "optimise_greedy",
-    "optimise_pso", "reconstruction_error", "select_subset", "vertex_layout",
+    "optimise_pso", "PlacementSheet", "placement_sheet", "reconstruction_error", "segment_marker_names",
+    "select_subset", "vertex_layout",
 ]

@@ -8,6 +8,7 @@ per-frame mean vertex distance (mm).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,13 +22,17 @@ from core.model.skeleton import N_GLOBAL
 from core.prior import PosturePrior, load_default_prior
 from core.simulate import simulate_joint_angles
 
+LABELLING_RISK_MM = 20.0   # two markers closer than this (two marker diameters plus noise) can be swapped
+
 
 @dataclass(frozen=True)
 class LayoutMetrics:
     """``mean_condition``: mean κ(JᵀJ) of the subspace Jacobian without translation (the objective's
     E_cond); ``worst_occluded_condition``: the largest such mean when any one marker is hidden, and
     ``worst_occluded_marker``; ``min_distance_mm`` and the ``closest_pair`` of marker names reaching it
-    at ``closest_frame``; ``reconstruction_mean_mm``/``reconstruction_max_mm`` (NaN when not computed)."""
+    at ``closest_frame``; ``risk_fraction``: the share of frames in which two markers come closer than
+    :data:`LABELLING_RISK_MM` (where a labeller can swap them); ``reconstruction_mean_mm`` /
+    ``reconstruction_max_mm`` (NaN when not computed)."""
 
     mean_condition: float
     worst_occluded_condition: float
@@ -37,6 +42,7 @@ class LayoutMetrics:
     closest_frame: int
     reconstruction_mean_mm: float
     reconstruction_max_mm: float
+    risk_fraction: float = 0.0
 
 
 def _condition(jacobian: np.ndarray) -> np.ndarray:
@@ -50,23 +56,26 @@ def _condition(jacobian: np.ndarray) -> np.ndarray:
 
 def reconstruction_error(model: HandModel, layout: MarkerLayout, prior: PosturePrior | None = None,
                          n_frames: int = 1500, seed: int = 7, subspace_dims: int | None = None,
-                         step: int = 5) -> tuple[float, float]:
-    """Mean and max (mm) per-vertex error of layered IK on a held-out grasp motion (global pose given)."""
+                         step: int = 5, progress: Callable[[float], None] | None = None,
+                         cancelled: Callable[[], bool] | None = None) -> tuple[float, float]:
+    """Mean and max (mm) per-vertex error of layered IK on a held-out grasp motion (global pose given);
+    :class:`CancelledError` when ``cancelled()`` turns true."""
     prior = prior or load_default_prior()
     truth = simulate_joint_angles(n_frames, seed, motion="heldout")
     markers = resolve_layout(model, layout)
     targets = marker_positions_batch(model, markers, truth)
     result = solve_positions(targets, model, markers, prior,
                              IKSettings(method="layered", subspace_dims=subspace_dims),
-                             global_poses=truth[:, :N_GLOBAL])
+                             progress=progress, cancelled=cancelled, global_poses=truth[:, :N_GLOBAL])
     return mean_vertex_error(model, result.joint_angles, truth, step)
 
 
 def evaluate_layout(model: HandModel, layout: MarkerLayout, motion: np.ndarray, subspace_dims: int,
                     prior: PosturePrior | None = None, step: int = 10,
-                    reconstruction_frames: int = 1500) -> LayoutMetrics:
+                    reconstruction_frames: int = 1500, progress: Callable[[float], None] | None = None,
+                    cancelled: Callable[[], bool] | None = None) -> LayoutMetrics:
     """Metrics of ``layout`` over ``motion (F, 26)`` (every ``step``-th frame) with ``subspace_dims`` PCs;
-    ``reconstruction_frames = 0`` skips the IK reconstruction."""
+    ``reconstruction_frames = 0`` skips the IK reconstruction (which reports ``progress``)."""
     motion = np.asarray(motion, dtype=float)
     if motion.ndim != 2 or len(motion) == 0:
         raise InputError("the motion set is empty: nothing to evaluate the layout on")
@@ -88,12 +97,15 @@ def evaluate_layout(model: HandModel, layout: MarkerLayout, motion: np.ndarray, 
     worst = int(np.argmax(occluded))
     first, second = np.triu_indices(n_markers, k=1)
     distances = np.linalg.norm(points[:, first] - points[:, second], axis=2)  # (F', pairs)
+    risk = float((distances.min(axis=1) < LABELLING_RISK_MM).mean()) if distances.size else 0.0
     frame, pair = np.unravel_index(np.argmin(distances), distances.shape) if distances.size else (0, 0)
-    error = (reconstruction_error(model, layout, prior, reconstruction_frames, subspace_dims=subspace_dims)
+    error = (reconstruction_error(model, layout, prior, reconstruction_frames, subspace_dims=subspace_dims,
+                                  progress=progress, cancelled=cancelled)
              if reconstruction_frames > 0 else (float("nan"), float("nan")))
     return LayoutMetrics(
         mean_condition=mean_condition, worst_occluded_condition=occluded[worst],
         worst_occluded_marker=markers.names[worst],
         min_distance_mm=float(distances[frame, pair]) if distances.size else float("inf"),
         closest_pair=(markers.names[first[pair]], markers.names[second[pair]]) if distances.size else ("", ""),
-        closest_frame=int(frames[frame]), reconstruction_mean_mm=error[0], reconstruction_max_mm=error[1])
+        closest_frame=int(frames[frame]), reconstruction_mean_mm=error[0], reconstruction_max_mm=error[1],
+        risk_fraction=risk)

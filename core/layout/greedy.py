@@ -2,9 +2,11 @@
 
 Greedy (after Schlömer et al.'s farthest-point optimisation): add, one at a time, the candidate that
 gives the lowest energy of the markers so far; then, marker by marker, replace each with the best
-candidate not in the layout while that lowers the energy, until a whole pass changes nothing. Each
-step evaluates all candidates at once. Subset selection picks ``k`` of a base layout's markers:
-exhaustively when the number of subsets is small, else by the same greedy method.
+candidate not in the layout while that lowers the energy, until a whole pass changes nothing. Every
+step tries every feasible vertex (the journal's baseline, not a cheaper variant), all at once through
+the same batched energy kernel as the PSO, so a run costs ``k · C · (passes + 1)`` evaluations
+(``OptimisationResult.evaluations``) at the PSO's per-layout cost. Subset selection picks ``k`` of a
+base layout's markers: exhaustively when the number of subsets is small, else by the same greedy method.
 """
 
 from __future__ import annotations
@@ -28,9 +30,9 @@ def _check(cancelled: Callable[[], bool] | None) -> None:
         raise CancelledError("layout optimisation cancelled")
 
 
-def _best_replacement(problem: LayoutProblem, layout: np.ndarray, slot: int) -> tuple[int, float]:
+def _best_replacement(problem: LayoutProblem, layout: np.ndarray, slot: int) -> tuple[int, float, int]:
     """The candidate not in ``layout`` that, put at ``slot`` (``len(layout)`` = appended), gives the
-    lowest energy, and that energy."""
+    lowest energy, that energy, and the number of layouts evaluated."""
     free = np.setdiff1d(np.arange(problem.n_candidates), np.delete(layout, slot) if slot < len(layout) else layout)
     trials = np.empty((len(free), max(len(layout), slot + 1)), dtype=np.int64)
     trials[:, :len(layout)] = layout
@@ -38,7 +40,7 @@ def _best_replacement(problem: LayoutProblem, layout: np.ndarray, slot: int) -> 
     energies = np.concatenate([layout_energies(problem, trials[start:start + _CHUNK])
                                for start in range(0, len(trials), _CHUNK)])
     best = int(np.argmin(energies))
-    return int(free[best]), float(energies[best])
+    return int(free[best]), float(energies[best]), len(trials)
 
 
 def optimise_greedy(problem: LayoutProblem, n_markers: int, initial: np.ndarray | None = None,
@@ -51,11 +53,13 @@ def optimise_greedy(problem: LayoutProblem, n_markers: int, initial: np.ndarray 
     """
     problem.check_marker_count(n_markers)
     history: list[float] = []
+    evaluations = 0
     if initial is None:
         layout = np.empty(0, dtype=np.int64)
         for added in range(n_markers):
             _check(cancelled)
-            candidate, energy = _best_replacement(problem, layout, len(layout))
+            candidate, energy, count = _best_replacement(problem, layout, len(layout))
+            evaluations += count
             layout = np.append(layout, candidate)
             history.append(energy)
             if progress is not None:
@@ -63,20 +67,22 @@ def optimise_greedy(problem: LayoutProblem, n_markers: int, initial: np.ndarray 
     else:
         layout = np.asarray(initial, dtype=np.int64).copy()
         history.append(float(layout_energies(problem, layout)[0]))
+        evaluations += 1
     energy = history[-1]
     swap_pass, improved = 0, True
     while improved:
         improved = False
         for slot in range(n_markers):
             _check(cancelled)
-            candidate, trial_energy = _best_replacement(problem, layout, slot)
+            candidate, trial_energy, count = _best_replacement(problem, layout, slot)
+            evaluations += count
             if trial_energy < energy:
                 layout[slot], energy, improved = candidate, trial_energy, True
                 history.append(energy)
         swap_pass += 1
         if progress is not None:
             progress(1.0 - 0.5 ** (swap_pass + 1), energy)
-    return OptimisationResult(layout, problem.candidates.vertex[layout], energy, np.array(history))
+    return OptimisationResult(layout, problem.candidates.vertex[layout], energy, np.array(history), evaluations)
 
 
 def select_subset(problem: LayoutProblem, n_markers: int, progress: ProgressCallback | None = None,
@@ -100,4 +106,4 @@ def select_subset(problem: LayoutProblem, n_markers: int, progress: ProgressCall
         if progress is not None:
             progress(min(1.0, (start + _CHUNK) / total), best_energy)
     return OptimisationResult(best_layout.copy(), problem.candidates.vertex[best_layout], best_energy,
-                              np.array(history))
+                              np.array(history), total)

@@ -76,10 +76,15 @@ def default_subspace_dims(n_markers: int) -> int:
 
 
 def vertex_layout(model: HandModel, vertices: np.ndarray, name: str = "optimised",
-                  offset_mm: float = MARKER_OFFSET_MM) -> MarkerLayout:
-    """A layout of markers ``m1..mk`` on the given vertex ids ``(k,)``."""
-    markers = tuple(MarkerSpec(name=f"m{i + 1}", vertex=int(v), offset_mm=offset_mm)
-                    for i, v in enumerate(vertices))
+                  offset_mm: float = MARKER_OFFSET_MM, anatomical_names: bool = True) -> MarkerLayout:
+    """A layout of markers on the given vertex ids ``(k,)``, named after the segment each sits on
+    (``index_dist``, ``thumb_prox``, ``hand_back``..., see :func:`segment_marker_names`) or ``m1..mk``."""
+    from core.layout.placement_sheet import segment_marker_names
+
+    names = (segment_marker_names(model, vertices) if anatomical_names
+             else [f"m{i + 1}" for i in range(len(vertices))])
+    markers = tuple(MarkerSpec(name=marker_name, vertex=int(v), offset_mm=offset_mm)
+                    for marker_name, v in zip(names, vertices, strict=True))
     return MarkerLayout(name=name, markers=markers,
                         description=f"{len(markers)} markers on model '{model.name}'")
 
@@ -99,7 +104,8 @@ def build_problem(model: HandModel, motion: np.ndarray, subspace_dims: int, n_ke
         vertices = feasible_vertices(model)
         if len(vertices) == 0:
             raise InputError(f"model '{model.name}' has no feasible marker positions on the back of the hand")
-        candidates = resolve_layout(model, vertex_layout(model, vertices, "feasible", offset_mm))
+        candidates = resolve_layout(model, vertex_layout(model, vertices, "feasible", offset_mm,
+                                                         anatomical_names=False))
     angles = np.asarray(motion, dtype=float)[keyframes(motion, n_keyframes)]
     basis = prior.components[:, :subspace_dims]
     chain = model.chain

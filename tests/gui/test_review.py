@@ -156,3 +156,35 @@ def test_gap_fill_accept_fill_all_and_problems(window, qtbot, raw_take, tmp_path
     labels = ezc3d.c3d(str(out))["parameters"]["POINT"]["LABELS"]["value"]
     assert labels[:24] == review.label_names
     assert not window.messages, window.messages
+
+
+def test_two_hands_and_a_rigid_body_from_selected_points(window, qtbot, tmp_path):
+    from core.simulate.scene import simulate_scene
+
+    scene = simulate_scene(layout="glove-13", n_frames=150, seed=2, hands="both", n_objects=1)
+    path = tmp_path / "scene.c3d"
+    save_take(scene.take, path)
+    open_and_wait(window, qtbot, path)
+    controller = window.review
+    names = list(scene.truth["marker_names"])
+    box = [index for index, name in enumerate(names) if name.startswith("box")]
+    frame = next(f for f in range(150) if all((scene.truth["point_marker"][f] == m).any() for m in box))
+    window.timeline.set_frame(frame)
+    columns = [int(np.flatnonzero(scene.truth["point_marker"][frame] == m)[0]) for m in box]
+    for column in columns:
+        controller.toggle_rigid_point(column)
+    assert controller.rigid_body_action.isEnabled()
+    spec = controller.define_rigid_body("box")
+    assert spec is not None and spec.exists()
+    settings = AutoLabelSettings(layout="glove-13", hands="both", objects=controller.auto_settings.objects)
+    controller.start_auto_label(settings)
+    wait_jobs(window, qtbot)
+    assert not window.messages, window.messages
+    review = window.document.review
+    assert review.label_names[:2] == ["R_" + names[0][2:], "R_" + names[1][2:]]
+    assert {hand.side for hand in review.hands} == {"right", "left"}
+    assert [name for name in review.label_names if name.startswith("box")] == ["box1", "box2", "box3", "box4"]
+    assert window.viewport.hand_count() == 2
+    # the selected points carry the rigid body's labels in the frame they were picked in
+    for number, column in enumerate(columns):
+        assert review.label_of_point(frame, column) == review.label_names.index(f"box{number + 1}")
