@@ -30,7 +30,7 @@ from app.workers import TaskRunner, one_line
 from core.errors import CancelledError, HandMocapError
 from core.ik import METHODS, IKResult, solve_take
 from core.io import READ_SUFFIXES, TAKE_FILE_FILTER, Take, load_take
-from core.model import HandModel, layout_names, load_layout, load_template, skin_vertices
+from core.model import layout_names, load_layout, skin_vertices
 from widgets.marker_panel import MarkerPanel
 from widgets.timeline import TimelineWidget
 from widgets.viewport import HandViewport
@@ -83,7 +83,6 @@ class MainWindow(QMainWindow):
         self.setAcceptDrops(True)
         self.documents: list[TakeDocument] = []
         self.document: TakeDocument | None = None
-        self.models: dict[str, HandModel] = {side: load_template(side) for side in HAND_SIDES}
         self._pending_opens: list[tuple[str, Callable, Callable[[object], None]]] = []
         self._on_loaded: Callable[[object], None] = lambda _result: None
         self._render_timer = QTimer(self)
@@ -203,6 +202,7 @@ class MainWindow(QMainWindow):
         playback_menu.addSeparator()
         playback_menu.addAction(loop_action)
         tools_menu = self.tools_menu = menus.addMenu("&Tools")
+        tools_menu.addAction(self._action("&Calibrate a hand scan…", self.open_calibration, "Ctrl+Shift+K"))
         tools_menu.addAction(self._action("Marker &layouts…", self.open_layout_tools, "Ctrl+Shift+L"))
         solve_menu = menus.addMenu("&Solve")
         solve_menu.addAction(self.solve_action)
@@ -418,7 +418,7 @@ class MainWindow(QMainWindow):
         if document.result is not None and not self.review.has_solved_hands():
             theta = document.result.joint_angles[frame]
             if np.isfinite(theta).all():
-                self.viewport.update_hand_vertices(skin_vertices(self.models[document.result.hand_side], theta))
+                self.viewport.update_hand_vertices(skin_vertices(document.model_for(document.result.hand_side), theta))
             self.viewport.set_effectors(*document.effector_targets(frame))
         self._schedule_render()
 
@@ -438,7 +438,7 @@ class MainWindow(QMainWindow):
             self.viewport.set_hand_mesh(None)
             self.viewport.set_effectors(None)
             return
-        model = self.models[document.result.hand_side]
+        model = document.model_for(document.result.hand_side)
         self.viewport.set_hand_mesh(model.vertices, model.faces)
 
     def _marker_selected(self, row: int) -> None:
@@ -480,7 +480,7 @@ class MainWindow(QMainWindow):
         document.layout_name = layout.name
         if document is self.document:
             document.side = self.side_box.currentText()
-        take, model, method = document.take, self.models[document.side], self.method_box.currentText()
+        take, model, method = document.take, document.model_for(document.side), self.method_box.currentText()
 
         def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> IKResult:
             result = solve_take(take, model, layout, method=method, progress=progress, cancelled=cancelled)
@@ -625,6 +625,12 @@ class MainWindow(QMainWindow):
         session = self.sessions.session
         self._layout_window = open_layout_view(self, session=session,
                                                save_to_session=self.sessions.save_layout if session else None)
+
+    def open_calibration(self) -> None:
+        """The scan calibration wizard; the subject model it saves goes into the open session."""
+        from app.calibration_wizard import open_calibration_wizard
+
+        self._calibration_wizard = open_calibration_wizard(self, self.sessions.session)
 
     def close_current_document(self) -> None:
         if self.document is not None:

@@ -197,7 +197,7 @@ class SessionController(QObject):
             except HandMocapError:
                 model = None
             if model is not None:
-                document.hand_models["right"] = model
+                document.hand_models[model.side] = model
         self.window.add_document(document)
         if automatic and not entry.labelled_source and not opened.review.n_labels:
             self.window.review.start_auto_label(AutoLabelSettings(layout=entry.layout or "dense",
