@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 from PySide6.QtCore import QObject, Qt, Signal
-from PySide6.QtGui import QCloseEvent, QImage, QPainter
+from PySide6.QtGui import QCloseEvent, QImage
 from PySide6.QtWidgets import (
     QComboBox,
     QFileDialog,
@@ -48,6 +48,7 @@ from core.model import HandModel, MarkerLayout, layout_names, load_layout, load_
 from widgets.layout_compare import MAX_VIEWS, LayoutCompareView
 from widgets.layout_plots import EnergyPlot, ErrorPlot, LayoutMetricsTable
 from widgets.placement_sheet import save_placement_sheet
+from widgets.window_image import window_image
 
 MOTION_CHOICES = (("Grasps (Cutkosky taxonomy)", "grasps"), ("Gestures", "gestures"), ("All motions", "all"),
                   ("Solved takes…", "results"))
@@ -630,24 +631,7 @@ class LayoutWindow(QMainWindow):
 
     def window_image(self) -> QImage:
         """The whole window as an image with the shown 3D views drawn in (they render through OpenGL)."""
-        image = self.grab().toImage()
-        if self.tabs.currentWidget() is not self.compare:
-            return image
-        painter = QPainter(image)
-        ratio = image.devicePixelRatio()
-        for view in self.compare.views():
-            view.render()
-            try:
-                pixels = view.plotter.screenshot(return_img=True)
-            except (RuntimeError, ValueError):        # no OpenGL context (the offscreen platform)
-                break
-            height, width = pixels.shape[:2]
-            rendered = QImage(np.ascontiguousarray(pixels[:, :, :3]).data, width, height, 3 * width,
-                              QImage.Format.Format_RGB888).copy()
-            target = view.rect().translated(view.mapTo(self, view.rect().topLeft()))
-            painter.drawImage(target, rendered.scaled(int(target.width() * ratio), int(target.height() * ratio)))
-        painter.end()
-        return image
+        return window_image(self, self.compare.views() if self.tabs.currentWidget() is self.compare else [])
 
     def save_screenshot(self, path: str | Path) -> bool:
         """Save the window as a PNG; shows the reason and returns False when it cannot."""

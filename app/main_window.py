@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 from PySide6.QtCore import Qt, QTimer
-from PySide6.QtGui import QAction, QCloseEvent, QDragEnterEvent, QDropEvent, QImage, QKeySequence, QPainter
+from PySide6.QtGui import QAction, QCloseEvent, QDragEnterEvent, QDropEvent, QImage, QKeySequence
 from PySide6.QtWidgets import (
     QComboBox,
     QDockWidget,
@@ -34,6 +34,7 @@ from core.model import layout_names, load_layout, skin_vertices
 from widgets.marker_panel import MarkerPanel
 from widgets.timeline import TimelineWidget
 from widgets.viewport import HandViewport
+from widgets.window_image import window_image
 
 HAND_SIDES = ("right", "left")
 APP_NAME = "Hand Mocap Studio"
@@ -677,21 +678,7 @@ class MainWindow(QMainWindow):
 
     def window_image(self) -> QImage:
         """The whole window as an image, with the 3D view drawn in (it renders through OpenGL)."""
-        self.viewport.render()
-        image = self.grab().toImage()
-        try:
-            view = self.viewport.plotter.screenshot(return_img=True)
-        except (RuntimeError, ValueError):        # no OpenGL context (e.g. the offscreen platform)
-            return image
-        height, width = view.shape[:2]
-        rendered = QImage(np.ascontiguousarray(view[:, :, :3]).data, width, height, 3 * width,
-                          QImage.Format.Format_RGB888).copy()
-        target = self.viewport.rect().translated(self.viewport.mapTo(self, self.viewport.rect().topLeft()))
-        ratio = image.devicePixelRatio()
-        painter = QPainter(image)
-        painter.drawImage(target, rendered.scaled(int(target.width() * ratio), int(target.height() * ratio)))
-        painter.end()
-        return image
+        return window_image(self, [self.viewport])
 
     def save_screenshot(self, path: str | Path) -> bool:
         """Save the whole window as a PNG; shows the reason and returns False when it cannot."""

@@ -9,13 +9,13 @@ The figures come as a :class:`core.session.MarkerStats` (``ReviewTake.marker_sta
 from __future__ import annotations
 
 import numpy as np
-from PySide6.QtCore import QAbstractTableModel, QModelIndex, QObject, QSortFilterProxyModel, Qt, Signal
+from PySide6.QtCore import QAbstractTableModel, QModelIndex, QObject, Qt, Signal
 from PySide6.QtGui import QBrush, QColor, QIcon
-from PySide6.QtWidgets import QAbstractItemView, QHeaderView, QLabel, QLineEdit, QTableView, QVBoxLayout, QWidget
+from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
 from core.session import MarkerStats, ReviewSettings
 from widgets.marker_lanes import LOW_CONFIDENCE_COLOR
-from widgets.marker_panel import MISSING_TEXT, SORT_ROLE, swatch
+from widgets.marker_panel import MISSING_TEXT, SORT_ROLE, filtered_table, swatch
 
 COLUMNS = ("Marker", "Seen %", "Filled %", "Gaps", "Longest", "Resid.", "Conf.")
 #: what each number column shows (MarkerStats field) and how many decimals
@@ -144,30 +144,8 @@ class ReviewTable(QWidget):
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.model = ReviewTableModel(self)
-        self.proxy = QSortFilterProxyModel(self)
-        self.proxy.setSourceModel(self.model)
-        self.proxy.setSortRole(SORT_ROLE)
-        self.proxy.setFilterKeyColumn(0)
-        self.proxy.setFilterCaseSensitivity(Qt.CaseSensitivity.CaseInsensitive)
-        self.filter_edit = QLineEdit(self)
-        self.filter_edit.setPlaceholderText("Filter markers…")
-        self.filter_edit.setClearButtonEnabled(True)
+        self.proxy, self.filter_edit, self.table = filtered_table(self, self.model, minimum_section=56)
         self.filter_edit.textChanged.connect(self._filter_changed)
-        self.table = QTableView(self)
-        self.table.setModel(self.proxy)
-        self.table.setSortingEnabled(True)
-        self.table.sortByColumn(-1, Qt.SortOrder.AscendingOrder)
-        self.table.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectRows)
-        self.table.setSelectionMode(QAbstractItemView.SelectionMode.SingleSelection)
-        self.table.setEditTriggers(QAbstractItemView.EditTrigger.NoEditTriggers)
-        self.table.setAlternatingRowColors(True)
-        self.table.verticalHeader().setVisible(False)
-        self.table.verticalHeader().setDefaultSectionSize(22)
-        header = self.table.horizontalHeader()
-        header.setSectionResizeMode(0, QHeaderView.ResizeMode.ResizeToContents)
-        for column in range(1, len(COLUMNS)):
-            header.setSectionResizeMode(column, QHeaderView.ResizeMode.Stretch)
-        header.setMinimumSectionSize(56)
         self.table.selectionModel().selectionChanged.connect(self._selection_changed)
         self.count_label = QLabel(self)
         self.count_label.setContentsMargins(4, 0, 4, 0)
