@@ -9,12 +9,12 @@ import argparse
 import sys
 from pathlib import Path
 
-from app import cli_layout, cli_review
+from app import cli_calibrate, cli_layout, cli_review
 from app.cli_common import add_json_flag, print_figures, print_json, progress_printer
 from core.errors import HandMocapError, InputError
 
 #: modules that add their own subcommands (``register(commands, bench_commands, evaluate_commands)``)
-SUBCOMMAND_MODULES = (cli_layout, cli_review)
+SUBCOMMAND_MODULES = (cli_layout, cli_review, cli_calibrate)
 
 EXIT_ERROR = 2
 
