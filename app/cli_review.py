@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
-from app.cli_common import add_json_flag, print_json, progress_printer
+from app.cli_common import add_json_flag, print_figures, print_json, progress_printer
 from core.errors import InputError
 
 
@@ -86,6 +87,48 @@ def command_bench_label(args: argparse.Namespace) -> int:
     return 0
 
 
+def command_evaluate_label(args: argparse.Namespace) -> int:
+    from core.labeling.evaluate import evaluate_labelling, evaluate_real_recording
+
+    figures: dict = {}
+    if not args.real_only:
+        synthetic = evaluate_labelling(seeds=tuple(range(1, args.seeds + 1)), frames=args.frames)
+        for case, summary in synthetic["summary"].items():
+            key = case.replace("-", "").replace("/", "_")
+            figures[f"{key}_correct_share"] = summary["correct_share"]
+            figures[f"{key}_ghost_labelled_share"] = summary["ghost_labelled_share"]
+            figures[f"{key}_longest_swap_frames"] = summary["longest_swap_frames"]
+        figures["synthetic_all_meet_targets"] = all(s["all_meet_targets"] for s in synthetic["summary"].values())
+    try:
+        real = evaluate_real_recording()
+    except InputError as error:
+        print(f"real recording skipped: {error}", file=sys.stderr)
+    else:
+        figures.update({f"real_{key}": value for key, value in real.items()
+                        if isinstance(value, int | float) and not isinstance(value, bool)})
+        figures["real_meets_targets"] = real["meets_targets"]
+    print_figures(figures, args.json)
+    return 0
+
+
+def command_evaluate_gaps(args: argparse.Namespace) -> int:
+    from core.gaps import evaluate_gap_fill, format_gap_fill_table
+    from core.io import load_take
+    from core.labeling.evaluate import REAL_RECORDING
+    from core.model import load_layout, load_template
+
+    path = Path(args.take) if args.take else REAL_RECORDING
+    if not path.exists():
+        raise InputError(f"{path}: no take to evaluate gap filling on (give one)")
+    evaluation = evaluate_gap_fill(load_take(path), load_template(), load_layout(args.layout),
+                                   n_trials=args.trials, seed=args.seed)
+    print(format_gap_fill_table(evaluation))
+    if args.json:
+        print_json({f"{method}_{length}_mm": round(value, 3) for method, per_length in
+                    evaluation["mean_error_mm"].items() for length, value in per_length.items()})
+    return 0
+
+
 def register(commands, bench_commands, evaluate_commands) -> None:
     """Add ``label``, ``fill`` and ``bench label`` to the ``handmocap`` parser."""
     label = commands.add_parser("label", help="automatically label the raw points of a take (hands and objects)")
@@ -109,6 +152,23 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     fill.add_argument("--quiet", action="store_true", help="no progress output")
     add_json_flag(fill)
     fill.set_defaults(handler=command_fill)
+
+    evaluate_label = evaluate_commands.add_parser(
+        "label", help="labelling accuracy: simulated hands and scenes, and the stripped real recording")
+    evaluate_label.add_argument("--frames", type=int, default=2000, help="frames per simulated take (default 2000)")
+    evaluate_label.add_argument("--seeds", type=int, default=3, help="seeds per layout (default 3)")
+    evaluate_label.add_argument("--real-only", action="store_true", help="only the real recording")
+    add_json_flag(evaluate_label)
+    evaluate_label.set_defaults(handler=command_evaluate_label)
+
+    evaluate_gaps = evaluate_commands.add_parser(
+        "gaps", help="gap-fill error per method on hidden stretches of finger markers (10, 20, 40 frames)")
+    evaluate_gaps.add_argument("take", nargs="?", help="labelled take (default: the real glove recording)")
+    evaluate_gaps.add_argument("--layout", default="glove-13")
+    evaluate_gaps.add_argument("--trials", type=int, default=200, help="hidden stretches per length")
+    evaluate_gaps.add_argument("--seed", type=int, default=0)
+    add_json_flag(evaluate_gaps)
+    evaluate_gaps.set_defaults(handler=command_evaluate_gaps)
 
     bench = bench_commands.add_parser("label", help="labelling + IK frames per second (one hand; scene)")
     bench.add_argument("--frames", type=int, help="frames per simulated take")

@@ -11,12 +11,14 @@ from core.simulate.motion import (
     prior_motion,
     simulate_joint_angles,
 )
+from core.simulate.scene import SimulatedScene, scene_objects, simulate_scene
 from core.simulate.take import CAMERA_POSITIONS, SimulatedTake, load_truth, save_truth, simulate_take
 
 __all__ = [
     "CAMERA_POSITIONS",
     "MOTIONS",
     "WORKSPACE_CENTRE",
+    "SimulatedScene",
     "SimulatedTake",
     "global_motion",
     "grasp_motion",
@@ -26,6 +28,8 @@ __all__ = [
     "mixed_motion",
     "prior_motion",
     "save_truth",
+    "scene_objects",
     "simulate_joint_angles",
+    "simulate_scene",
     "simulate_take",
 ]

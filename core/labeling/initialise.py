@@ -1,0 +1,328 @@
+"""Automatic initialisation of a scene's models on one frame (Maycock et al. 2015 §III-A, Fig. 2).
+
+Euclidean clustering (single linkage cut above the models' own largest marker gap); every model
+(hands and objects) is aligned to every cluster by its PCA frame with the four proper sign
+combinations of the axes, the oriented-bounding-box scale, rigid ICP (Hungarian pairs + Kabsch), then
+Hungarian assignment + IK (hands) or Kabsch (objects). Each (model, cluster) pair is scored by
+eq. 2, ``E + αD``: E the mean distance (mm) of the matched markers, D the number of markers left
+unmatched on either side (model markers without a point, cluster points without a marker). Pairs
+are taken greedily by increasing score; a right hand and a left hand are told apart by this score
+(a mirrored hand fits worse), never by names.
+
+Assumptions (as the paper's): in the initialisation frame each model forms its own cluster (nothing
+closer to it than the cut), most of its markers are visible, few ghosts sit in the cluster, and a
+hand is not far from the mean posture of the prior.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import product
+
+import numpy as np
+from numba import njit
+from scipy.cluster.hierarchy import fcluster, linkage
+from scipy.optimize import linear_sum_assignment
+
+from core.ik import kabsch
+from core.labeling.models import HandTrack, RigidTrack, SceneSettings, Track, pose_matrix
+from core.model.kinematics import rotation_from_vector, vector_from_rotation
+
+LINK_MARGIN = 1.2
+"""The clustering cut is at least this times a model's own largest single-linkage gap."""
+SCALE_RANGE = (0.75, 1.33)
+"""OBB scale factors outside this range reject a (model, cluster) pair (a different object)."""
+
+
+@dataclass
+class Candidate:
+    """A model fitted to a cluster: eq. 2 score, state, matched marker count, mean residual (mm)."""
+
+    track_index: int
+    cluster_index: int
+    score: float
+    state: object
+    matched: int
+    residual_mm: float
+    point_index: np.ndarray   # (K,) index into the frame's points, -1 unmatched
+
+
+def model_points(track: Track) -> np.ndarray:
+    """The model's markers in its reference configuration (hands: mean posture of the prior) (K,3)."""
+    if isinstance(track, HandTrack):
+        return track.effectors(track.mean_theta)
+    return track.local
+
+
+def cluster_cut(tracks: list[Track], settings: SceneSettings) -> float:
+    """Single-linkage cut (mm): the settings' floor or the largest own gap of a model × margin (so each
+    model is one cluster; models must stand farther apart than this in the initialisation frame)."""
+    cut = settings.cluster_cut_mm
+    for track in tracks:
+        points = model_points(track)
+        if len(points) >= 2:
+            cut = max(cut, LINK_MARGIN * linkage(points, method="single")[:, 2].max())
+    return float(cut)
+
+
+def clusters_of(points: np.ndarray, cut_mm: float) -> list[np.ndarray]:
+    """Index arrays of the single-linkage clusters of ``points (N,3)`` cut at ``cut_mm``, ≥ 3 points each."""
+    if len(points) < 3:
+        return []
+    labels = fcluster(linkage(points, method="single"), t=cut_mm, criterion="distance")
+    groups = [np.flatnonzero(labels == label) for label in np.unique(labels)]
+    return [group for group in groups if len(group) >= 3]
+
+
+def _principal_frame(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Centroid (3,), principal axes as columns (3,3) by decreasing variance, and the extents (3,)
+    of the oriented bounding box along them."""
+    centre = points.mean(axis=0)
+    _, vectors = np.linalg.eigh(np.cov((points - centre).T))
+    axes = vectors[:, ::-1]
+    projected = (points - centre) @ axes
+    return centre, axes, np.ptp(projected, axis=0)
+
+
+@njit(cache=True)
+def pair_distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Euclidean distances (K,N) mm between ``a (K,3)`` and ``b (N,3)``."""
+    result = np.empty((a.shape[0], b.shape[0]))
+    for i in range(a.shape[0]):
+        for j in range(b.shape[0]):
+            dx, dy, dz = a[i, 0] - b[j, 0], a[i, 1] - b[j, 1], a[i, 2] - b[j, 2]
+            result[i, j] = np.sqrt(dx * dx + dy * dy + dz * dz)
+    return result
+
+
+@njit(cache=True)
+def nearest_within(distances: np.ndarray, gate: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Per row of ``distances (K,N)`` the nearest column closer than the row's ``gate (K,)`` (-1 none),
+    and whether no column is the nearest of two rows."""
+    rows, columns = distances.shape
+    nearest = np.full(rows, -1, dtype=np.int64)
+    owner = np.full(columns, -1, dtype=np.int64)
+    unique = True
+    for i in range(rows):
+        best = gate[i]
+        for j in range(columns):
+            if distances[i, j] < best:
+                best = distances[i, j]
+                nearest[i] = j
+        if nearest[i] >= 0:
+            if owner[nearest[i]] >= 0:
+                unique = False
+            owner[nearest[i]] = i
+    return nearest, unique
+
+
+def gated_assignment(effectors: np.ndarray, points: np.ndarray, gate: np.ndarray | float,
+                     distances: np.ndarray | None = None) -> np.ndarray:
+    """Hungarian assignment of ``points (N,3)`` to ``effectors (K,3)`` with a "missing" option at
+    ``gate`` mm (scalar or per effector (K,)); returns the point index per effector (K,), -1 missing.
+    ``distances (K,N)``: the pair distances when already computed.
+
+    Clipping every cost at the row's gate and solving the rectangular problem is equivalent to the
+    augmented matrix with a missing column per effector: a pair at the clip value costs what missing
+    costs, and is reported missing."""
+    chosen = np.full(len(effectors), -1, dtype=np.int64)
+    if not len(points) or not len(effectors):
+        return chosen
+    gate = np.asarray(gate, dtype=float)
+    gate = np.full(len(effectors), float(gate)) if gate.ndim == 0 else gate
+    if distances is None:
+        distances = pair_distances(np.ascontiguousarray(effectors), np.ascontiguousarray(points))
+    nearest, unique = nearest_within(distances, gate)
+    if unique:
+        # every row's own minimum, no two rows on one point: the sum of the row minima is a lower
+        # bound of any assignment's cost and this one reaches it, so it is optimal (no Hungarian needed)
+        return nearest
+    near = distances < gate[:, None]
+    row_any, column_any = near.any(axis=1), near.any(axis=0)
+    if not row_any.any():
+        return chosen
+    rows, columns = np.flatnonzero(row_any), np.flatnonzero(column_any)
+    cost = np.minimum(distances[rows[:, None], columns[None, :]], gate[rows, None])
+    assigned_rows, assigned_columns = linear_sum_assignment(cost)
+    keep = near[rows[assigned_rows], columns[assigned_columns]]
+    chosen[rows[assigned_rows[keep]]] = columns[assigned_columns[keep]]
+    return chosen
+
+
+def _icp(source: np.ndarray, target: np.ndarray, rotation: np.ndarray, translation: np.ndarray,
+         iterations: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rigid ICP of ``source (K,3)`` onto ``target (N,3)``: Hungarian pairs, then Kabsch."""
+    for _ in range(iterations):
+        moved = source @ rotation.T + translation
+        rows, columns = linear_sum_assignment(np.linalg.norm(moved[:, None] - target[None], axis=2))
+        if len(rows) < 3:
+            break
+        new_rotation, new_translation = kabsch(source[rows], target[columns])
+        if np.allclose(new_rotation, rotation, atol=1e-9) and np.allclose(new_translation, translation, atol=1e-6):
+            break
+        rotation, translation = new_rotation, new_translation
+    return rotation, translation
+
+
+def _alignments(source: np.ndarray, target: np.ndarray, iterations: int
+                ) -> list[tuple[float, np.ndarray, np.ndarray]]:
+    """(OBB scale, rotation, translation) per proper sign combination of the PCA axes, after ICP
+    of the OBB-scaled source onto the target."""
+    source_centre, source_axes, source_extents = _principal_frame(source)
+    target_centre, target_axes, target_extents = _principal_frame(target)
+    scale = float(np.sqrt(target_extents[:2].prod() / max(source_extents[:2].prod(), 1e-9)))
+    scaled = source_centre + (source - source_centre) * scale
+    results = []
+    for signs in product((1.0, -1.0), repeat=2):
+        flips = np.diag([signs[0], signs[1], 1.0])
+        flips[2, 2] = np.linalg.det(target_axes @ flips @ source_axes.T)
+        rotation = target_axes @ flips @ source_axes.T
+        translation = target_centre - rotation @ source_centre
+        rotation, translation = _icp(scaled, target, rotation, translation, iterations)
+        # back to the unscaled model: moved = R (c + s (p - c)) + t = s R p + t'
+        translation = translation + rotation @ (source_centre * (1.0 - scale))
+        results.append((scale, rotation, translation))
+    return results
+
+
+def _score(effectors: np.ndarray, cluster: np.ndarray, point_index: np.ndarray, alpha: float,
+           cluster_size: int | None = None) -> tuple[float, float, int]:
+    """Eq. 2 of a fit: (E + αD, E, matched count); the first ``cluster_size`` points of ``cluster`` are
+    the cluster (the rest: stray points offered to unmatched markers, counted only when matched)."""
+    matched = point_index >= 0
+    count = int(matched.sum())
+    if count < 3:
+        return np.inf, np.inf, count
+    residual = float(np.linalg.norm(effectors[matched] - cluster[point_index[matched]], axis=1).mean())
+    size = len(cluster) if cluster_size is None else cluster_size + int((point_index >= cluster_size).sum())
+    unmatched = (len(effectors) - count) + (size - count)
+    return residual + alpha * unmatched, residual, count
+
+
+def fit_hand(track: HandTrack, cluster: np.ndarray, settings: SceneSettings, strays: np.ndarray | None = None
+             ) -> tuple[float, np.ndarray, int, float, np.ndarray]:
+    """Best eq. 2 fit of a hand to ``cluster (N,3)``: (score, θ, matched, residual, point index (K,)).
+    ``strays (S,3)``: points of clusters too small for any model (e.g. an abducted thumb's two markers
+    farther than the cut from the hand), offered to unmatched markers by the completion step; point
+    indices ≥ N refer to them."""
+    source = model_points(track)
+    best = (np.inf, track.mean_theta, 0, np.inf, np.full(track.count, -1))
+    for _scale, rotation, translation in _alignments(source, cluster, settings.icp_iterations):
+        start = track.mean_theta.copy()
+        start[3:6] = vector_from_rotation(rotation @ rotation_from_vector(track.mean_theta[3:6]))
+        start[0:3] = rotation @ track.mean_theta[0:3] + translation
+        theta = start
+        point_index = gated_assignment(track.effectors(start), cluster, settings.gate_mm)
+        effectors = None
+        for _ in range(3):
+            if (point_index >= 0).sum() < 3:
+                break
+            targets = np.where((point_index >= 0)[:, None], cluster[np.maximum(point_index, 0)], np.nan)
+            theta, effectors = track.solve(targets, point_index >= 0, theta)
+            point_index = gated_assignment(effectors, cluster, settings.gate_mm)
+        if effectors is None:
+            continue
+        score, residual, count = _score(effectors, cluster, point_index, settings.alpha)
+        extended = cluster if strays is None or not len(strays) else np.concatenate([cluster, strays])
+        theta, effectors, point_index, score, residual, count = _complete(
+            track, extended, len(cluster), theta, effectors, point_index, (score, residual, count), settings)
+        if score < best[0]:
+            best = (score, theta, count, residual, point_index)
+    return best
+
+
+def _complete(track: HandTrack, cluster: np.ndarray, cluster_size: int, theta: np.ndarray, effectors: np.ndarray,
+              point_index: np.ndarray, scored: tuple[float, float, int], settings: SceneSettings):
+    """Offer the cluster points no marker took to the unmatched markers within
+    ``init_completion_gate_mm`` (a digit posed far from the prior's mean, e.g. an abducted thumb),
+    solve the IK with them, and keep the result when eq. 2 improves."""
+    score, residual, count = scored
+    for _ in range(2):
+        unmatched = np.flatnonzero(point_index < 0)
+        free = np.setdiff1d(np.arange(len(cluster)), point_index[point_index >= 0])
+        if not len(unmatched) or not len(free):
+            break
+        extra = gated_assignment(effectors[unmatched], cluster[free], settings.init_completion_gate_mm)
+        if not (extra >= 0).any():
+            break
+        trial = point_index.copy()
+        trial[unmatched[extra >= 0]] = free[extra[extra >= 0]]
+        targets = np.where((trial >= 0)[:, None], cluster[np.maximum(trial, 0)], np.nan)
+        trial_theta, trial_effectors = track.solve(targets, trial >= 0, theta)
+        trial_theta, trial_effectors = track.solve(targets, trial >= 0, trial_theta)
+        trial_index = gated_assignment(trial_effectors, cluster, settings.gate_mm)
+        trial_score, trial_residual, trial_count = _score(trial_effectors, cluster, trial_index, settings.alpha,
+                                                          cluster_size)
+        if trial_score >= score:
+            break
+        theta, effectors, point_index = trial_theta, trial_effectors, trial_index
+        score, residual, count = trial_score, trial_residual, trial_count
+    return theta, effectors, point_index, score, residual, count
+
+
+def fit_object(track: RigidTrack, cluster: np.ndarray, settings: SceneSettings
+               ) -> tuple[float, np.ndarray, int, float, np.ndarray]:
+    """Best eq. 2 fit of a rigid object to ``cluster (N,3)``: (score, pose (4,4), matched, residual,
+    point index (K,)). The OBB scale must be plausible (the primitive's size), the fit is rigid."""
+    best = (np.inf, np.eye(4), 0, np.inf, np.full(track.count, -1))
+    if len(cluster) > 3 * track.count + 3:
+        return best
+    for scale, rotation, translation in _alignments(track.local, cluster, settings.icp_iterations):
+        if not SCALE_RANGE[0] <= scale <= SCALE_RANGE[1]:
+            continue
+        pose = pose_matrix(rotation, translation + (scale - 1.0) * rotation @ track.local.mean(axis=0))
+        point_index = gated_assignment(track.effectors(pose), cluster, settings.gate_mm)
+        for _ in range(3):
+            if (point_index >= 0).sum() < 3:
+                break
+            targets = np.where((point_index >= 0)[:, None], cluster[np.maximum(point_index, 0)], np.nan)
+            pose, effectors = track.solve(targets, point_index >= 0, pose)
+            point_index = gated_assignment(effectors, cluster, settings.gate_mm)
+        score, residual, count = _score(track.effectors(pose), cluster, point_index, settings.alpha)
+        if score < best[0]:
+            best = (score, pose, count, residual, point_index)
+    return best
+
+
+def initialise_frame(tracks: list[Track], candidates_for: list[int], points: np.ndarray,
+                     settings: SceneSettings, cut_mm: float) -> list[Candidate]:
+    """Fit the tracks ``candidates_for`` (indices into ``tracks``) to the clusters of ``points (N,3)``;
+    returns the accepted fits, at most one per track and per cluster (greedy on eq. 2)."""
+    clusters = clusters_of(points, cut_mm)
+    in_cluster = np.zeros(len(points), dtype=bool)
+    for members in clusters:
+        in_cluster[members] = True
+    strays = np.flatnonzero(~in_cluster)
+    candidates: list[Candidate] = []
+    for track_index in candidates_for:
+        track = tracks[track_index]
+        for cluster_index, members in enumerate(clusters):
+            cluster = points[members]
+            if len(cluster) < max(3, int(np.ceil(settings.init_min_share * track.count))):
+                continue
+            if isinstance(track, HandTrack):
+                score, state, matched, residual, point_index = fit_hand(track, cluster, settings, points[strays])
+            else:
+                score, state, matched, residual, point_index = fit_object(track, cluster, settings)
+            if not np.isfinite(score) or residual > settings.init_max_residual_mm:
+                continue
+            if matched < max(3, int(np.ceil(settings.init_min_share * track.count))):
+                continue
+            reachable = np.concatenate([members, strays])
+            global_index = np.where(point_index >= 0, reachable[np.maximum(point_index, 0)], -1)
+            candidates.append(Candidate(track_index, cluster_index, score, state, matched, residual,
+                                        global_index))
+    accepted: list[Candidate] = []
+    used_tracks: set[int] = set()
+    used_clusters: set[int] = set()
+    for candidate in sorted(candidates, key=lambda c: c.score):
+        if candidate.track_index in used_tracks or candidate.cluster_index in used_clusters:
+            continue
+        taken = {int(index) for fit in accepted for index in fit.point_index if index >= 0}
+        shared = np.isin(candidate.point_index, list(taken)) & (candidate.point_index >= 0)
+        if shared.any():       # a stray point already given to another model
+            candidate.point_index = np.where(shared, -1, candidate.point_index)
+        accepted.append(candidate)
+        used_tracks.add(candidate.track_index)
+        used_clusters.add(candidate.cluster_index)
+    return accepted

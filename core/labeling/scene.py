@@ -1,0 +1,707 @@
+"""Automatic labelling of a whole scene: one or two hands and rigid objects (Maycock et al. 2015 §III,
+the journal's "Fully automatic tracking", Zhao et al. 2012 eq. 2 for the subject calibration).
+
+Pipeline of :func:`label_scene`:
+
+1. Initialisation (:mod:`core.labeling.initialise`): from the first frame on, cluster the points and
+   fit every model not found yet to every cluster (PCA + sign combinations, OBB scale, rigid ICP,
+   Hungarian + IK/Kabsch); keep the fits of least ``E + αD`` (eq. 2). A model not found in a frame
+   is looked for again every ``retry_every`` frames on the points no model took, so a take whose
+   first frames show no hand starts where the hand appears.
+2. Subject calibration of every hand (``settings.calibrate``): the hand is tracked with the
+   template over up to ``calibration_frames`` frames, :func:`core.calibration.subject.calibrate_subject`
+   fits bone lengths and marker offsets to those labelled frames (Levenberg–Marquardt), and the
+   take is tracked again with the calibrated hands (online mode: the calibrated hand replaces the
+   template from the end of the calibration window on, causally).
+3. Tracking, per frame: predict every model by constant velocity; ONE Hungarian assignment of all
+   models' predicted markers to all points with a "missing" option (gate: ``gate_mm``, for a marker
+   missing in the previous frame ``reappear_gate_mm``); IK per hand, Kabsch per object; assignments
+   whose residual exceeds the model's adaptive threshold are dropped (ghost rejection) and the model
+   solved again; a second joint assignment against the solved markers with the threshold as gate
+   catches markers the prediction missed. A marker whose new point breaks the continuity of its own
+   trajectory (farther than ``continuity_mm`` from the extrapolation of its last two points) is
+   missing in that frame; a marker missing in the previous frame is accepted only if the IK that
+   includes it reaches it below the strict reappearance threshold. Points no marker took are ghosts.
+4. Offline mode (default): the first ``verify_frames`` frames after each hand's initialisation are
+   tracked again backwards and the better labelling per frame (eq. 2) is kept (a wrong initial fit is
+   corrected); a backward pass from each model's first initialisation (or the first appearance of its
+   last marker) down to frame 0 labels the frames before it; labelled trajectories are extended into
+   continuing free points (:mod:`core.labeling.fragments`; forward only in online mode); long
+   trajectories of free points are given to the one hand marker the IK brings onto them
+   (:meth:`_Run.rescue`). Online mode is causal only.
+
+Measured coordinates are never changed: :meth:`SceneLabeling.labelled_positions` returns the input
+points rearranged per marker.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+
+from core.errors import CancelledError, InputError
+from core.io import Take
+from core.labeling.fragments import extend_trajectories, free_fragments
+from core.labeling.initialise import Candidate, cluster_cut, gated_assignment, initialise_frame, pair_distances
+from core.labeling.models import HandTrack, RigidTrack, SceneSettings, Track
+from core.labeling.objects import ObjectSpec, check_unique_names, load_scene_spec
+from core.model import N_PARAMS, HandModel, MarkerLayout, MarkerSet, load_layout, load_template, resolve_layout
+
+HANDS = ("right", "left", "both")
+HAND_PREFIX = {"right": "R_", "left": "L_"}
+
+
+@dataclass
+class SceneModel:
+    """One model of the scene: ``name``, ``kind`` ("right", "left" or "object"), its columns
+    ``markers`` (slice into the scene's marker list), the (calibrated) hand model and marker set used,
+    or the object spec; ``init_frame`` where it was first initialised (-1 never) and the subject
+    calibration report of a hand."""
+
+    name: str
+    kind: str
+    markers: slice
+    hand_model: HandModel | None = None
+    marker_set: MarkerSet | None = None
+    object_spec: ObjectSpec | None = None
+    init_frame: int = -1
+    calibration: dict = field(default_factory=dict)
+
+
+@dataclass
+class SceneLabeling:
+    """Labelling of a take with M scene markers over F frames and P point columns.
+
+    ``marker_names (M,)`` (two hands: prefixed ``R_``/``L_``; objects' marker names as given),
+    ``model_of_marker (M,)`` index into ``models``; ``assignment (F,M)`` point column taken by each
+    marker (-1 missing); ``confidence (F,M)`` mm margin between the chosen and the next-best option
+    (0 when the marker did not take its nearest option, NaN where the model was not tracked);
+    ``residuals_mm (F,M)`` distance from the solved marker to its point (NaN missing);
+    ``ghost_points (F,P)`` True for a measured point no marker took; ``joint_angles`` per hand name
+    ``(F,26)``; ``object_poses`` per object name ``(F,4,4)`` (NaN where not tracked); ``points``:
+    the input ``(F,P,3)`` mm.
+    """
+
+    marker_names: list[str]
+    model_of_marker: np.ndarray
+    models: list[SceneModel]
+    assignment: np.ndarray
+    confidence: np.ndarray
+    residuals_mm: np.ndarray
+    ghost_points: np.ndarray
+    joint_angles: dict[str, np.ndarray]
+    object_poses: dict[str, np.ndarray]
+    points: np.ndarray
+    online: bool = False
+
+    def labelled_positions(self) -> np.ndarray:
+        """``(F,M,3)`` mm: the input point each marker took, unchanged; NaN where missing."""
+        taken = np.take_along_axis(self.points, np.maximum(self.assignment, 0)[:, :, None], axis=1)
+        return np.where((self.assignment >= 0)[:, :, None], taken, np.nan)
+
+    def labelled_take(self, take: Take) -> Take:
+        """A labelled copy of ``take``: one column per scene marker (measured points unchanged)."""
+        return Take(marker_names=list(self.marker_names), marker_positions=self.labelled_positions(),
+                    frame_rate=take.frame_rate, first_frame=take.first_frame, vendor=take.vendor,
+                    source_units=take.source_units, source_path=take.source_path,
+                    parameters=dict(take.parameters))
+
+    def model(self, name: str) -> SceneModel:
+        return next(model for model in self.models if model.name == name)
+
+
+class _Run:
+    """Forward/backward tracking of a set of tracks over a take's points; fills the result arrays."""
+
+    def __init__(self, tracks: list[Track], positions: np.ndarray, settings: SceneSettings):
+        self.tracks, self.positions, self.settings = tracks, positions, settings
+        frames = len(positions)
+        self.offsets = np.cumsum([0] + [track.count for track in tracks])
+        marker_count = int(self.offsets[-1])
+        self.present = np.isfinite(positions).all(axis=2)
+        self.assignment = np.full((frames, marker_count), -1, dtype=np.int64)
+        self.confidence = np.full((frames, marker_count), np.nan)
+        self.residuals = np.full((frames, marker_count), np.nan)
+        self.states = [np.full((frames, N_PARAMS), np.nan) if isinstance(track, HandTrack)
+                       else np.full((frames, 4, 4), np.nan) for track in tracks]
+        self.init_frames = [-1] * len(tracks)
+        self.cut = cluster_cut(tracks, settings)
+        #: frame -> [(track index, known labels (K,) point columns, starting state)]: tracks to start
+        #: there with the labels found by an earlier pass (the calibration pre-pass)
+        self.scheduled: dict[int, list[tuple[int, np.ndarray, object]]] = {}
+
+    def columns(self, index: int) -> slice:
+        return slice(int(self.offsets[index]), int(self.offsets[index + 1]))
+
+    def step(self, tracks: Sequence[Track], points: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list]:
+        """Track one frame of ``points (N,3)`` with ``tracks`` (all active). Returns, over the tracks'
+        markers in order, the point index (K,) (-1 missing), the confidence (K,) mm and the residuals
+        (K,) mm, and the state per track."""
+        settings = self.settings
+        starts = [track.predict() for track in tracks]
+        predicted = np.concatenate([track.effectors(start) for track, start in zip(tracks, starts, strict=True)])
+        seen = np.concatenate([track.seen for track in tracks])
+        first = gated_assignment(predicted, points, np.where(seen, settings.gate_mm, settings.reappear_gate_mm))
+        bounds = np.cumsum([0] + [track.count for track in tracks])
+        taken_points = np.where((first >= 0)[:, None], points[np.maximum(first, 0)], np.nan)
+        for number, track in enumerate(tracks):
+            part = slice(bounds[number], bounds[number + 1])
+            if track.seen.any():
+                jumped = track.jumped(taken_points[part]) & track.seen
+                if jumped.any():      # a continuing marker does not jump: missing in this frame
+                    track.seen = track.seen & ~jumped
+                    first[part][jumped] = -1
+        thresholds = np.concatenate([track.thresholds() for track in tracks])
+        chosen = first.copy()
+        residuals_all = np.empty(len(first))
+        effectors_all = np.empty((len(first), 3))
+        states = []
+        for number, track in enumerate(tracks):
+            part = slice(bounds[number], bounds[number + 1])
+            index = chosen[part]
+            state, effectors, residuals = self._solve(track, points, index, starts[number])
+            bad = residuals > thresholds[part]
+            if bad.any():
+                index[bad] = -1
+                state, effectors, residuals = self._solve(track, points, index, state)
+            states.append(state)
+            effectors_all[part], residuals_all[part] = effectors, residuals
+        distances = pair_distances(effectors_all, points)
+        second = gated_assignment(effectors_all, points, thresholds, distances)
+        if np.array_equal(second, chosen):
+            second = chosen
+        changed_tracks = []
+        if second is not chosen:
+            for number, track in enumerate(tracks):
+                part = slice(bounds[number], bounds[number + 1])
+                changed = second[part] != chosen[part]
+                if not changed.any():
+                    continue
+                changed_tracks.append(number)
+                index = second[part].copy()
+                state, effectors, residuals = self._solve(track, points, index, states[number])
+                unreached = (residuals > thresholds[part]) & (changed | ~track.seen)
+                if unreached.any():
+                    index[unreached] = -1
+                    state, effectors, residuals = self._solve(track, points, index, state)
+                chosen[part], states[number] = index, state
+                effectors_all[part], residuals_all[part] = effectors, residuals
+        if changed_tracks:
+            distances = pair_distances(effectors_all, points)
+        confidence = _margins(distances, chosen, thresholds)
+        observed = chosen >= 0
+        taken_points = np.where(observed[:, None], points[np.maximum(chosen, 0)], np.nan)
+        for number, track in enumerate(tracks):
+            part = slice(bounds[number], bounds[number + 1])
+            track.commit(states[number], residuals_all[part], observed[part], taken_points[part])
+        return chosen, confidence, residuals_all, states
+
+    @staticmethod
+    def _solve(track: Track, points: np.ndarray, index: np.ndarray, start
+               ) -> tuple[object, np.ndarray, np.ndarray]:
+        observed = index >= 0
+        targets = np.where(observed[:, None], points[np.maximum(index, 0)], np.nan)
+        state, effectors = track.solve(targets, observed, start)
+        residuals = np.sqrt(((effectors - targets) ** 2).sum(axis=1))
+        return state, effectors, residuals
+
+    def record(self, frame: int, track_indices: list[int], columns: np.ndarray, index: np.ndarray,
+               confidence: np.ndarray, residuals: np.ndarray, states: list) -> None:
+        """Store one frame's result of the tracks ``track_indices`` (their markers concatenated)."""
+        cells = slice(None) if len(track_indices) == len(self.tracks) else np.concatenate(
+            [np.arange(self.offsets[number], self.offsets[number + 1]) for number in track_indices])
+        observed = index >= 0
+        self.assignment[frame, cells] = np.where(observed, columns[np.maximum(index, 0)], -1)
+        self.confidence[frame, cells] = confidence
+        self.residuals[frame, cells] = np.where(observed, residuals, np.nan)
+        for number, state in zip(track_indices, states, strict=True):
+            self.states[number][frame] = state
+
+    def forward(self, start: int, stop: int, report: Callable[[int], None],
+                on_frame: Callable[[int], None] | None = None) -> None:
+        """Track frames ``start..stop-1``, initialising models as they are found."""
+        settings = self.settings
+        last_attempt = -10 ** 9
+        for frame in range(start, stop):
+            report(frame)
+            columns = np.flatnonzero(self.present[frame])
+            points = self.positions[frame, columns]
+            active = [number for number, track in enumerate(self.tracks) if track.active]
+            taken = np.zeros(len(columns), dtype=bool)
+            if active:
+                index, confidence, residuals, states = self.step([self.tracks[number] for number in active], points)
+                self.record(frame, active, columns, index, confidence, residuals, states)
+                taken[index[index >= 0]] = True
+            for number, labels, state in self.scheduled.pop(frame, []):
+                taken |= self._start_with(frame, number, columns, labels, state, taken)
+            waiting = [number for number, track in enumerate(self.tracks)
+                       if not track.active and not any(number == entry[0] for entries in self.scheduled.values()
+                                                      for entry in entries)]
+            if waiting and (not active or frame - last_attempt >= settings.retry_every):
+                last_attempt = frame
+                free = np.flatnonzero(~taken)
+                if len(free) >= 3:
+                    for candidate in initialise_frame(self.tracks, waiting, points[free], settings, self.cut):
+                        self._start(frame, candidate, columns[free], points[free])
+            if on_frame is not None:
+                on_frame(frame)
+
+    def _start_with(self, frame: int, number: int, columns: np.ndarray, labels: np.ndarray, state,
+                    taken: np.ndarray) -> np.ndarray:
+        """Start track ``number`` in ``frame`` with known labels (point column per marker, -1 none) and
+        a starting state; returns the frame's points (mask over ``columns``) it took."""
+        track = self.tracks[number]
+        lookup = {int(column): local for local, column in enumerate(columns)}
+        index = np.array([lookup.get(int(label), -1) if label >= 0 else -1 for label in labels], dtype=np.int64)
+        index[(index >= 0) & taken[np.maximum(index, 0)]] = -1
+        points = self.positions[frame, columns]
+        for _ in range(3):
+            state, effectors, residuals = self._solve(track, points, index, state)
+        observed = index >= 0
+        track.start(state, observed)
+        track.remember(residuals[observed])
+        self.init_frames[number] = frame
+        self.record(frame, [number], columns, index, _margins(pair_distances(effectors, points), index,
+                                                              track.thresholds()), residuals, [state])
+        used = np.zeros(len(columns), dtype=bool)
+        used[index[observed]] = True
+        return used
+
+    def _start(self, frame: int, candidate: Candidate, columns: np.ndarray, points: np.ndarray) -> None:
+        track = self.tracks[candidate.track_index]
+        index = candidate.point_index
+        state, effectors, residuals = self._solve(track, points, index, candidate.state)
+        observed = index >= 0
+        track.start(state, observed)
+        track.remember(residuals[observed])
+        self.init_frames[candidate.track_index] = frame
+        confidence = _margins(pair_distances(effectors, points), index, track.thresholds())
+        self.record(frame, [candidate.track_index], columns, index, confidence, residuals, [state])
+
+    def start_at(self, frame: int, track_index: int, state) -> None:
+        """Start a track from a given state (e.g. a known first posture) and label ``frame``."""
+        track = self.tracks[track_index]
+        track.start(state)
+        columns = np.flatnonzero(self.present[frame])
+        index, confidence, residuals, states = self.step([track], self.positions[frame, columns])
+        self.record(frame, [track_index], columns, index, confidence, residuals, states)
+        self.init_frames[track_index] = frame
+
+    def backward(self, track_index: int, make_track: Callable[[], Track]) -> None:
+        """Label the frames before the track's first initialisation (and before the first appearance of
+        each of its markers) by tracking backwards from there; only samples the forward pass left
+        empty, with points no other marker took, are added."""
+        init = self.init_frames[track_index]
+        if init < 0:
+            return
+        part = self.columns(track_index)
+        labelled = self.assignment[:, part] >= 0
+        first_seen = np.where(labelled.any(axis=0), labelled.argmax(axis=0), init)
+        begin = int(max(init, first_seen.max()))
+        if begin <= 0:
+            return
+        track = make_track()
+        states = self.states[track_index]
+        seeds = [states[frame] for frame in (begin + 1, begin) if frame < len(states)
+                 and np.isfinite(states[frame]).all()]
+        if not seeds:
+            return
+        track.start(seeds[0], labelled[begin] if len(seeds) == 1 else labelled[begin + 1])
+        if len(seeds) == 2:
+            track.commit(seeds[1], np.nan_to_num(self.residuals[begin, part]), labelled[begin])
+        others = np.ones(self.assignment.shape[1], dtype=bool)
+        others[part] = False
+        for frame in range(begin - 1, -1, -1):
+            columns = np.flatnonzero(self.present[frame])
+            foreign = self.assignment[frame, others]
+            free = ~np.isin(columns, foreign[foreign >= 0])
+            own = self.assignment[frame, part]
+            index, confidence, residuals, states = self.step([track], self.positions[frame, columns[free]])
+            taken = np.where(index >= 0, columns[free][np.maximum(index, 0)], -1)
+            if frame < init:
+                self.record(frame, [track_index], columns[free], index, confidence, residuals, states)
+                continue
+            add = (own < 0) & (taken >= 0) & (frame < first_seen) & ~np.isin(taken, own)
+            if add.any():
+                cells = np.arange(part.start, part.stop)[add]
+                self.assignment[frame, cells] = taken[add]
+                self.confidence[frame, cells] = confidence[add]
+                self.residuals[frame, cells] = residuals[add]
+
+    def link(self, track_index: int, track: Track, backward: bool) -> None:
+        """Extend the track's labelled trajectories into continuing free points
+        (:mod:`core.labeling.fragments`), then re-solve the frames that gained samples; a linked sample
+        the model cannot reach below the ceiling threshold is dropped again."""
+        part = self.columns(track_index)
+        added = extend_trajectories(self.positions, self.assignment, np.arange(part.start, part.stop),
+                                    self.settings.link_mm, backward)
+        if not added:
+            return
+        states = self.states[track_index]
+        margins = {(frame, marker): margin for frame, marker, _, margin in added}
+        for frame in sorted({frame for frame, _, _, _ in added}):
+            index = self.assignment[frame, part]
+            new = [marker - part.start for marker in range(part.start, part.stop) if (frame, marker) in margins]
+            if not np.isfinite(states[frame]).all():
+                self.assignment[frame, part.start + np.array(new)] = -1
+                continue
+            state, _, residuals = self._solve(track, self.positions[frame], index, states[frame])
+            refused = [k for k in new if residuals[k] > self.settings.threshold_ceiling_mm]
+            if refused:
+                index = index.copy()
+                index[refused] = -1
+                self.assignment[frame, part] = index
+                state, _, residuals = self._solve(track, self.positions[frame], index, states[frame])
+            states[frame] = state
+            self.residuals[frame, part] = np.where(index >= 0, residuals, np.nan)
+            for k in new:
+                if k not in refused:
+                    self.confidence[frame, part.start + k] = margins[(frame, part.start + k)]
+
+    def rescue(self, track_index: int, track: HandTrack) -> None:
+        """Offline: give a long trajectory of free points (:func:`free_fragments`, at least
+        ``fragment_min_frames``) to the hand marker missing all along it that the IK brings to it below
+        the ceiling threshold in sampled frames of the fragment, when no other candidate marker comes
+        within twice its distance (a fingertip or an abducted thumb the posture estimate had lost,
+        seen far from where it was guessed)."""
+        for _round in range(3):    # a fragment given away can settle another (thumb tip after thumb middle)
+            if not self._rescue_round(track_index, track):
+                break
+
+    def _rescue_round(self, track_index: int, track: HandTrack) -> bool:
+        settings = self.settings
+        part = self.columns(track_index)
+        states = self.states[track_index]
+        fragments = free_fragments(self.positions, self.assignment, settings.link_mm, settings.fragment_min_frames)
+        given = False
+        for first, columns in fragments:
+            frames = np.arange(first, first + len(columns))
+            if not np.isfinite(states[frames]).all():
+                continue
+            missing = (self.assignment[frames, part] < 0).all(axis=0)
+            if not missing.any():
+                continue
+            picks = np.unique(np.linspace(0, len(frames) - 1, min(5, len(frames))).round().astype(int))
+            sample = frames[picks]
+            sample_points = self.positions[sample, columns[picks]]
+            estimates = np.stack([track.effectors(states[frame]) for frame in sample])
+            distance = np.linalg.norm(estimates - sample_points[:, None], axis=2).mean(axis=0)
+            candidates = np.flatnonzero(missing & (distance < settings.rescue_reach_mm))
+            tried = []
+            for marker in candidates[np.argsort(distance[candidates])][:4]:
+                worst = 0.0
+                for frame, pick in zip(sample, picks, strict=True):
+                    index = self.assignment[frame, part].copy()
+                    index[marker] = columns[pick]
+                    state = states[frame]
+                    for _ in range(3):
+                        state, _, residuals = self._solve(track, self.positions[frame], index, state)
+                    worst = max(worst, float(residuals[marker]))
+                    if worst > settings.threshold_ceiling_mm:
+                        break
+                tried.append((worst, int(marker)))
+            reached = sorted(entry for entry in tried if entry[0] <= settings.threshold_ceiling_mm)
+            if not reached or (len(tried) > 1 and sorted(tried)[1][0] < 2.0 * reached[0][0]):
+                continue
+            marker = reached[0][1]
+            for frame, column in zip(frames, columns, strict=True):
+                index = self.assignment[frame, part].copy()
+                index[marker] = column
+                state = states[frame]
+                for _ in range(3):
+                    state, _, residuals = self._solve(track, self.positions[frame], index, state)
+                if residuals[marker] > settings.threshold_ceiling_mm:
+                    continue
+                self.assignment[frame, part] = index
+                states[frame] = state
+                self.residuals[frame, part] = np.where(index >= 0, residuals, np.nan)
+                self.confidence[frame, part.start + marker] = 0.0
+                given = True
+        return given
+
+    def truncate(self, stop: int) -> None:
+        """Keep only the frames before ``stop`` (the calibration window of the pre-pass)."""
+        self.positions, self.present = self.positions[:stop], self.present[:stop]
+        self.assignment, self.confidence = self.assignment[:stop], self.confidence[:stop]
+        self.residuals = self.residuals[:stop]
+        self.states = [states[:stop] for states in self.states]
+
+    def verify_start(self, track_index: int, track: Track) -> None:
+        """Offline: track the first ``verify_frames`` frames after the initialisation again, backwards
+        from their end (where tracking has settled), and keep per frame whichever labelling of the
+        model has the lower eq. 2 cost (mean residual + α · markers left unlabelled): an initial fit
+        that took a neighbouring finger's points is corrected from the later, settled posture."""
+        init = self.init_frames[track_index]
+        end = min(init + self.settings.verify_frames, len(self.positions) - 2)
+        states = self.states[track_index]
+        if init < 0 or end <= init + 1 or not (np.isfinite(states[end]).all() and np.isfinite(states[end + 1]).all()):
+            return
+        part = self.columns(track_index)
+        labelled = self.assignment[:, part] >= 0
+        track.start(states[end + 1], labelled[end + 1])
+        track.commit(states[end], np.nan_to_num(self.residuals[end, part]), labelled[end])
+        others = np.ones(self.assignment.shape[1], dtype=bool)
+        others[part] = False
+        alpha = self.settings.alpha
+
+        def cost(index: np.ndarray, residuals: np.ndarray) -> float:
+            seen = index >= 0
+            return float(residuals[seen].mean() if seen.any() else 0.0) + alpha * float((~seen).sum())
+
+        for frame in range(end - 1, init - 1, -1):
+            columns = np.flatnonzero(self.present[frame])
+            foreign = self.assignment[frame, others]
+            free = columns[~np.isin(columns, foreign[foreign >= 0])]
+            index, confidence, residuals, states_now = self.step([track], self.positions[frame, free])
+            own = self.assignment[frame, part]
+            backward_columns = np.where(index >= 0, free[np.maximum(index, 0)], -1)
+            if np.array_equal(backward_columns, own):
+                continue
+            if cost(index, residuals) < cost(own, np.nan_to_num(self.residuals[frame, part])):
+                self.record(frame, [track_index], free, index, confidence, residuals, states_now)
+
+    def ghost_points(self) -> np.ndarray:
+        ghosts = self.present.copy()
+        frames, markers = np.nonzero(self.assignment >= 0)
+        ghosts[frames, self.assignment[frames, markers]] = False
+        return ghosts
+
+
+@njit(cache=True)
+def _margins(distances: np.ndarray, index: np.ndarray, gate: np.ndarray) -> np.ndarray:
+    """Confidence (K,) mm from the marker-point ``distances (K,N)``: margin between the best and the
+    second-best option (a point, or missing at the marker's ``gate (K,)``) of each marker, 0 when
+    the marker did not take its best option."""
+    rows, columns = distances.shape
+    margins = np.zeros(rows)
+    for i in range(rows):
+        best, second, best_option = gate[i], np.inf, columns       # option ``columns`` = missing
+        for j in range(columns):
+            value = distances[i, j]
+            if value < best:
+                second, best, best_option = best, value, j
+            elif value < second:
+                second = value
+        chosen = index[i] if index[i] >= 0 else columns
+        if chosen == best_option and np.isfinite(second):
+            margins[i] = second - best
+    return margins
+
+
+def _hand_sides(hands: str) -> list[str]:
+    if hands not in HANDS:
+        raise InputError(f"hands must be one of {', '.join(HANDS)}, not '{hands}'")
+    return ["right", "left"] if hands == "both" else [hands]
+
+
+def _objects(objects) -> list[ObjectSpec]:
+    if objects is None:
+        return []
+    if isinstance(objects, (str, Path)):
+        return load_scene_spec(objects)
+    objects = list(objects)
+    if not all(isinstance(spec, ObjectSpec) for spec in objects):
+        raise InputError("objects must be ObjectSpec entries or the path of a scene spec JSON file")
+    return objects
+
+
+def _positions(take: Take) -> np.ndarray:
+    positions = np.asarray(take.marker_positions, dtype=float)
+    if positions.ndim != 3 or positions.shape[0] == 0:
+        raise InputError("the take has no frames; nothing to label")
+    counts = np.isfinite(positions).all(axis=2).sum(axis=1)
+    if not counts.any():
+        raise InputError("every point of the take is missing (all NaN); nothing to label")
+    if counts.max() < 3:
+        raise InputError(f"no frame of the take has 3 or more points (at most {counts.max()}); automatic "
+                         "labelling needs at least 3 to find a model")
+    return positions
+
+
+def label_scene(take: Take, hands: str = "right", layout: str | MarkerLayout = "dense",
+                objects: Sequence[ObjectSpec] | str | Path | None = None, online: bool = False,
+                settings: SceneSettings | None = None,
+                progress: Callable[[float], None] | None = None,
+                cancelled: Callable[[], bool] | None = None,
+                models: dict[str, HandModel] | None = None,
+                initial_states: dict[str, object] | None = None) -> SceneLabeling:
+    """Label the unlabelled points of ``take`` (``marker_positions (F,P,3)`` mm, NaN = no point) with
+    the markers of ``hands`` ("right", "left" or "both") wearing ``layout`` and of rigid ``objects``
+    (specs, or the path of a scene spec JSON file; see :mod:`core.labeling.objects`).
+
+    ``online``: causal tracking only (no backward pass, calibration applied from the end of its
+    window on); ``models``: hand models per side to use instead of the shipped template (they are
+    still calibrated unless ``settings.calibrate`` is False); ``initial_states``: known states in
+    frame 0 per model name (hand θ (26,), object pose (4,4)) instead of the automatic initialisation.
+    Raises :class:`InputError` (empty or all-NaN take, fewer than 3 points, bad spec, no frame where
+    any model initialises) and :class:`CancelledError` when ``cancelled()`` turns true.
+    """
+    settings = settings or SceneSettings()
+    positions = _positions(take)
+    sides = _hand_sides(hands)
+    layout = load_layout(layout) if isinstance(layout, str) else layout
+    specs = _objects(objects)
+    models = dict(models or {})
+    hand_models = {side: models.get(side) or load_template(side) for side in sides}
+    prefix = len(sides) > 1
+    hand_names = {side: [(HAND_PREFIX[side] if prefix else "") + name for name in layout.names] for side in sides}
+    check_unique_names(specs, "scene", [name for names in hand_names.values() for name in names])
+    marker_sets = {side: resolve_layout(hand_models[side], layout) for side in sides}
+    frames = len(positions)
+
+    def make_tracks(current_models: dict[str, HandModel], current_sets: dict[str, MarkerSet]) -> list[Track]:
+        tracks: list[Track] = [HandTrack(side, side, current_models[side], current_sets[side], settings,
+                                         hand_names[side]) for side in sides]
+        tracks += [RigidTrack(spec, settings) for spec in specs]
+        return tracks
+
+    # progress: calibration pre-pass 0..0.15, forward pass 0.15..0.9, backward pass 0.9..1
+    def reporter(low: float, high: float, total: int) -> Callable[[int], None]:
+        every = max(1, total // 100)
+
+        def report(frame: int) -> None:
+            if frame % every == 0:
+                if cancelled is not None and cancelled():
+                    raise CancelledError("automatic labelling cancelled; the take is unchanged")
+                if progress is not None:
+                    progress(low + (high - low) * min(frame, total) / max(total, 1))
+        return report
+
+    calibrations: dict[str, dict] = {}
+    tracks = make_tracks(hand_models, marker_sets)
+    calibrate_online = settings.calibrate and online
+    pre = None
+    if settings.calibrate and not online and sides:
+        pre = _Run(tracks, positions, settings)
+        _seed(pre, tracks, initial_states)
+        window_end = frames
+        report = reporter(0.0, 0.15, frames)
+
+        def stop_when_calibrated(frame: int) -> None:
+            nonlocal window_end
+            inits = [pre.init_frames[i] for i, track in enumerate(tracks) if isinstance(track, HandTrack)]
+            if all(init >= 0 for init in inits) and frame >= max(inits) + settings.calibration_frames - 1:
+                window_end = frame + 1
+                raise _WindowDone
+
+        try:
+            pre.forward(0, frames, report, stop_when_calibrated)
+        except _WindowDone:
+            pass
+        pre.truncate(window_end)
+        for number, track in enumerate(make_tracks(hand_models, marker_sets)[:len(sides)]):
+            pre.verify_start(number, track)
+            pre.link(number, track, backward=True)
+            pre.rescue(number, track)
+        for number, side in enumerate(sides):
+            calibrated = _calibrate(pre, number, hand_models[side], marker_sets[side], layout, window_end)
+            if calibrated is not None:
+                hand_models[side], marker_sets[side], calibrations[side] = calibrated
+        tracks = make_tracks(hand_models, marker_sets)
+    run = _Run(tracks, positions, settings)
+    _seed(run, tracks, initial_states)
+    if pre is not None:
+        # the calibrated models start where, and with the labels that, the pre-pass found (re-running the
+        # initial fit with a model adapted to the window could pick another, self-consistent labelling)
+        for number, init in enumerate(pre.init_frames):
+            if init >= 0 and run.init_frames[number] < 0:
+                run.scheduled.setdefault(init, []).append(
+                    (number, pre.assignment[init, pre.columns(number)].copy(), pre.states[number][init].copy()))
+    on_frame = None
+    if calibrate_online and sides:
+        pending = set(range(len(sides)))
+
+        def on_frame(frame: int) -> None:
+            for number in list(pending):
+                init = run.init_frames[number]
+                if init >= 0 and frame >= init + settings.calibration_frames - 1:
+                    pending.discard(number)
+                    side = sides[number]
+                    calibrated = _calibrate(run, number, hand_models[side], marker_sets[side], layout, frame + 1)
+                    if calibrated is not None:
+                        hand_models[side], marker_sets[side], calibrations[side] = calibrated
+                        tracks[number].set_model(hand_models[side], marker_sets[side])
+    run.forward(0, frames, reporter(0.15 if settings.calibrate and not online else 0.0, 0.9, frames), on_frame)
+    if all(init < 0 for init in run.init_frames):
+        raise InputError("no frame of the take initialises any model (is the layout right, and is each hand or "
+                         "object a separate cluster with most of its markers visible in some frame?)")
+    if not online:
+        report = reporter(0.9, 1.0, len(tracks))
+        for number in range(len(tracks)):
+            report(number)
+            if isinstance(tracks[number], HandTrack):
+                run.verify_start(number, make_tracks(hand_models, marker_sets)[number])
+            run.backward(number, lambda number=number: make_tracks(hand_models, marker_sets)[number])
+    for number in range(len(tracks)):
+        track = make_tracks(hand_models, marker_sets)[number]
+        run.link(number, track, backward=not online)
+        if not online and isinstance(track, HandTrack):
+            run.rescue(number, track)
+    if progress is not None:
+        progress(1.0)
+    return _result(run, tracks, sides, specs, hand_models, marker_sets, calibrations, positions, online)
+
+
+class _WindowDone(Exception):
+    """Internal: the calibration window has been tracked."""
+
+
+def _seed(run: _Run, tracks: list[Track], initial_states: dict[str, object] | None) -> None:
+    for name, state in (initial_states or {}).items():
+        number = next((i for i, track in enumerate(tracks) if track.name == name), None)
+        if number is None:
+            raise InputError(f"initial state for unknown model '{name}'")
+        state = np.asarray(state, dtype=float)
+        expected = (N_PARAMS,) if isinstance(tracks[number], HandTrack) else (4, 4)
+        if state.shape != expected or not np.isfinite(state).all():
+            raise InputError(f"the initial state of '{name}' must be finite with shape {expected}, got {state.shape}")
+        run.start_at(0, number, state)
+
+
+def _calibrate(run: _Run, number: int, model: HandModel, markers: MarkerSet, layout: MarkerLayout,
+               stop: int) -> tuple[HandModel, MarkerSet, dict] | None:
+    """Subject calibration of hand track ``number`` from its labelled frames before ``stop``."""
+    from core.calibration.subject import calibrate_subject
+
+    init = run.init_frames[number]
+    if init < 0:
+        return None
+    part = run.columns(number)
+    assignment = run.assignment[init:stop, part]
+    points = run.positions[init:stop]
+    labelled = np.take_along_axis(points, np.maximum(assignment, 0)[:, :, None], axis=1)
+    labelled = np.where((assignment >= 0)[:, :, None], labelled, np.nan)
+    try:
+        return calibrate_subject(labelled, model, markers, initial_angles=run.states[number][init:stop])
+    except InputError:
+        return None
+
+
+def _result(run: _Run, tracks: list[Track], sides: list[str], specs: list[ObjectSpec],
+            hand_models: dict[str, HandModel], marker_sets: dict[str, MarkerSet], calibrations: dict[str, dict],
+            positions: np.ndarray, online: bool) -> SceneLabeling:
+    names: list[str] = []
+    owner: list[int] = []
+    scene_models: list[SceneModel] = []
+    joint_angles: dict[str, np.ndarray] = {}
+    object_poses: dict[str, np.ndarray] = {}
+    for number, track in enumerate(tracks):
+        names += track.marker_names
+        owner += [number] * track.count
+        if isinstance(track, HandTrack):
+            scene_models.append(SceneModel(track.name, track.kind, run.columns(number), hand_models[track.kind],
+                                           marker_sets[track.kind], None, run.init_frames[number],
+                                           calibrations.get(track.kind, {})))
+            joint_angles[track.name] = run.states[number]
+        else:
+            assert isinstance(track, RigidTrack)
+            scene_models.append(SceneModel(track.name, "object", run.columns(number), None, None, track.spec,
+                                           run.init_frames[number]))
+            object_poses[track.name] = run.states[number]
+    return SceneLabeling(names, np.array(owner, dtype=np.int64), scene_models, run.assignment, run.confidence,
+                         run.residuals, run.ghost_points(), joint_angles, object_poses, positions, online)

@@ -1,0 +1,27 @@
+"""Labelling benchmark: offline labelling + IK frames/s, one hand (dense) and two hands + three rigid
+objects (targets ≥ 1000 and ≥ 300 frames/s on one core).
+
+Run: taskset -c 0 python tests/bench/bench_label.py [frames]
+"""
+
+import json
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+from core.labeling.bench import bench_label  # noqa: E402
+
+
+def main() -> None:
+    frames = int(sys.argv[1]) if len(sys.argv) > 1 else 2000
+    figures = bench_label(frames=frames)
+    print(f"one hand ({figures['layout_one_hand']}, {figures['one_hand_markers']} markers): "
+          f"{figures['frames_per_s_one_hand']:8.0f} frames/s")
+    print(f"scene (2 hands {figures['layout_scene']} + {figures['scene_objects']} objects, "
+          f"{figures['scene_markers']} markers): {figures['frames_per_s_scene']:8.0f} frames/s")
+    print(json.dumps(figures))
+
+
+if __name__ == "__main__":
+    main()
