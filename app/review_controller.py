@@ -912,6 +912,7 @@ class ReviewController(QObject):
         try:
             if kind == "auto-label":
                 document.hand_models.update(result.models)
+                self.window.sessions.save_take_models(document, result.models)
                 document.push(result.command)
                 document.last_report = result.report
                 self.window.statusBar().showMessage(

@@ -20,7 +20,7 @@ from app.document import TakeDocument
 from app.review_controller import AutoLabelSettings
 from core.errors import HandMocapError
 from core.io import Take, load_take
-from core.model import add_layout_folder, best_layout_for, remove_layout_folder
+from core.model import HandModel, add_layout_folder, best_layout_for, remove_layout_folder
 from core.session import OpenTake, Session
 from widgets.session_browser import SessionBrowser, TakeRow
 
@@ -28,6 +28,7 @@ if TYPE_CHECKING:
     from app.main_window import MainWindow
 
 AUTOSAVE_MS = 15_000
+TAKE_MODEL_NAME = "labelling_hand_{side}.npz"   # the hand model auto-label calibrated to the take
 SNAPSHOT_INTERVAL_S = 60.0
 
 
@@ -198,6 +199,13 @@ class SessionController(QObject):
                 model = None
             if model is not None:
                 document.hand_models[model.side] = model
+        for side in ("right", "left"):
+            path = opened.folder / TAKE_MODEL_NAME.format(side=side)
+            if path.exists():
+                try:
+                    document.hand_models[side] = HandModel.load(path)
+                except (HandMocapError, OSError, ValueError, KeyError):
+                    self.window.statusBar().showMessage(f"{path.name} is damaged; the template is used", 10000)
         self.window.add_document(document)
         if automatic and not entry.labelled_source and not opened.review.n_labels:
             self.window.review.start_auto_label(AutoLabelSettings(layout=entry.layout or "dense",
@@ -206,6 +214,17 @@ class SessionController(QObject):
         if opened.replayed or opened.warnings:
             lines = [f"recovered {opened.replayed} edits from the journal"] if opened.replayed else []
             self.window.show_error("Take recovered", "\n".join(lines + opened.warnings))
+
+    def save_take_models(self, document: TakeDocument, models: dict[str, HandModel]) -> None:
+        """Keep the hand models the labelling calibrated to this take's subject in the take's folder, so
+        that drawing and re-solving use them when the take is opened again."""
+        if document.open_take is None or self.session is None or self.session.read_only:
+            return
+        try:
+            for side, model in models.items():
+                model.save(document.open_take.folder / TAKE_MODEL_NAME.format(side=side))
+        except OSError as error:
+            self.window.statusBar().showMessage(f"Cannot keep the calibrated hand model: {error}", 10000)
 
     def set_state(self, take_id: str, state: str) -> None:
         try:

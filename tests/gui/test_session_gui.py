@@ -43,6 +43,7 @@ def test_session_take_edits_survive_a_crash(window, qtbot, raw_file, tmp_path):
     assert not window.messages, window.messages
     assert session.take(take_id).state == "labelled"              # saved after the auto-label
     assert window.sessions.browser.rows()[0].state == "labelled"
+    assert (document.open_take.folder / "labelling_hand_right.npz").exists()   # the subject-calibrated hand
     # an edit goes to the journal at once
     review = document.review
     window.review.select_label(3)
