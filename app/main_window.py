@@ -524,6 +524,7 @@ class MainWindow(QMainWindow):
             return
         document.solve_request = 0
         document.set_result(result)
+        self.review.record_solve(document, result)
         self.statusBar().showMessage(f"{document.title}: {result.method} IK done, mean residual "
                                      f"{result.mean_residual_mm:.2f} mm", 15000)
         if document is self.document:

@@ -53,16 +53,20 @@ from core.batch import (
 )
 from core.errors import HandMocapError
 from core.gaps import FILL_METHODS, FillCheck
+from core.ik import IKResult
 from core.labeling.objects import load_scene_spec, rigid_body_from_points, save_scene_spec
 from core.model import layout_names, marker_positions, skin_vertices
 from core.session import (
     AcceptFills,
     AssignLabel,
     Command,
+    CompoundCommand,
+    DefineHand,
     FrameSpan,
     GapFill,
     MarkGhost,
     RejectFills,
+    SetSolve,
     SwapLabels,
     Unlabel,
     export_bvh,
@@ -864,6 +868,29 @@ class ReviewController(QObject):
                               models=models or None, progress=progress, cancelled=cancelled)
 
         self._start_job("auto-label", task, document=document)
+
+    def record_solve(self, document: TakeDocument, result: IKResult) -> None:
+        """Keep an IK solve of ``document`` in its review as one undoable (and, in a session, journalled
+        and saved) step, defining the hand from the layout's labels first when the review has none."""
+        review = document.ensure_review()
+        if not review.n_labels:
+            return
+        names = list(result.marker_names)
+        number = next((index for index, hand in enumerate(review.hands)
+                       if hand.side == result.hand_side and len(hand.labels) == len(names)
+                       and [review.label_names[label].lower() for label in hand.labels] == [n.lower() for n in names]),
+                      None)
+        steps: list[Command] = []
+        if number is None:
+            steps.append(DefineHand(result.hand_side, result.hand_side, names, document.layout_name))
+            number = len(review.hands)
+        steps.append(SetSolve(number, 0, result.joint_angles, result.residuals_mm))
+        try:
+            document.push(CompoundCommand(steps, f"{result.method} IK solve ({result.hand_side} hand)"))
+        except HandMocapError:
+            return          # the take's labels do not cover the layout: the solve stays on the document
+        if document is self.document:
+            self.refresh(structure=True)
 
     # ------------------------------------------------------------------------------ re-solves
     def queue_resolve(self, span: FrameSpan) -> None:

@@ -188,3 +188,21 @@ def test_two_hands_and_a_rigid_body_from_selected_points(window, qtbot, tmp_path
     # the selected points carry the rigid body's labels in the frame they were picked in
     for number, column in enumerate(columns):
         assert review.label_of_point(frame, column) == review.label_names.index(f"box{number + 1}")
+
+
+def test_ik_solve_is_kept_in_the_review_and_undoable(window, qtbot, tmp_path):
+    take = simulate_take(layout="dense", n_frames=120, seed=3, noise_mm=0.3).take
+    path = tmp_path / "labelled.trc"
+    save_take(take, path)
+    open_and_wait(window, qtbot, path)
+    review = window.document.review
+    assert review.n_labels == 24 and not review.hands          # a labelled take: its columns are the labels
+    with qtbot.waitSignal(window.runner.succeeded, timeout=60_000):
+        window.solve_action.trigger()
+    assert len(review.hands) == 1 and np.isfinite(review.hands[0].joint_angles).all()
+    assert np.nanmean(review.residuals_mm) < 1.0
+    assert "IK solve" in window.review.undo_action.text()
+    window.review.undo()
+    assert not review.hands
+    window.review.redo()
+    assert len(review.hands) == 1
