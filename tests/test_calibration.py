@@ -118,6 +118,46 @@ def test_nonrigid_fit_takes_a_sphere_to_an_ellipsoid_with_a_hole():
     assert fit.landmark_rms_mm[-1] < 1.0 < fit.landmark_rms_mm[0] + 10.0
 
 
+def test_nonrigid_fit_puts_a_point_inside_a_triangle_onto_its_landmark():
+    vertices, faces = _icosphere(2)
+    corners = faces[:4]
+    weights = np.array([[0.2, 0.3, 0.5], [0.6, 0.2, 0.2], [1 / 3, 1 / 3, 1 / 3], [0.1, 0.1, 0.8]])
+    start = np.einsum("lk,lka->la", weights, vertices[corners])
+    targets = start * 1.1 + [2.0, -1.0, 0.5]               # the points move; the vertices near them follow
+    fit = fit_nonrigid(vertices, faces, corners, targets, vertices * 1.1, schedule=FAST, landmark_weights=weights)
+    reached = np.einsum("lk,lka->la", weights, fit.vertices[corners])
+    assert np.linalg.norm(reached - targets, axis=1).max() < 0.5
+    assert fit.landmark_rms_mm[-1] < 0.5
+    # the same corners read as vertex landmarks give another fit (the weights are used)
+    plain = fit_nonrigid(vertices, faces, corners[:, 0], targets, vertices * 1.1, schedule=FAST)
+    assert np.linalg.norm(plain.vertices[corners[:, 0]] - targets, axis=1).max() < 0.5
+    assert np.linalg.norm(np.einsum("lk,lka->la", weights, plain.vertices[corners]) - targets, axis=1).max() > 1.0
+
+
+def test_anatomical_landmarks_refine_the_template_vertices():
+    from core.calibration.align import LANDMARK_REFINE_MM, anatomical_landmarks, anatomical_ray
+
+    template = load_template()
+    corners, weights = anatomical_landmarks(template, LANDMARK_NAMES)
+    assert np.allclose(weights.sum(axis=1), 1.0) and (weights >= -1e-9).all()
+    points = np.einsum("lk,lka->la", weights, template.vertices[corners])
+    stored = template.vertices[[template.landmarks[name] for name in LANDMARK_NAMES]]
+    shift = np.linalg.norm(points - stored, axis=1)
+    assert shift.max() <= LANDMARK_REFINE_MM and shift.max() > 0.5      # the rounding to vertices is removed
+    for name, point in zip(LANDMARK_NAMES, points, strict=True):
+        origin, direction = anatomical_ray(template, name)
+        offset = point - origin
+        assert np.linalg.norm(offset - (offset @ direction) * direction) < 1e-6   # on the defining ray
+        assert offset @ direction > 0
+    # the truth landmarks of a synthetic scan are those points on the posed subject
+    _, truth = synthetic_scan(n_points=2000, holes=0, background_points=10, seed=1)
+    subject = truth["model"]
+    corners, weights = anatomical_landmarks(subject, LANDMARK_NAMES)
+    expected = np.einsum("lk,lka->la", weights, truth["vertices"][corners])
+    assert np.allclose(truth["landmark_points"], expected)
+    assert np.linalg.norm(truth["landmark_points"] - truth["landmarks"], axis=1).max() <= LANDMARK_REFINE_MM
+
+
 def test_fit_can_be_cancelled():
     vertices, faces = _icosphere(1)
     with pytest.raises(CancelledError):

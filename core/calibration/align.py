@@ -22,11 +22,12 @@ from core.ik.kernel import solve_frame_kernel
 from core.model import HandModel, MarkerSet, skin_vertices
 from core.model.hand_model import mesh_vertex_normals
 from core.model.kinematics import ANCESTOR, rotation_from_vector, vector_from_rotation
-from core.model.skeleton import N_PARAMS, Skeleton, default_joint_limits
+from core.model.skeleton import DIGITS, N_PARAMS, Skeleton, default_joint_limits
 
 LANDMARK_WEIGHT = 20          # a landmark counts as this many closest-point pairs
 SAMPLE_VERTICES = 1500        # template vertices used for closest points in the alignment
 IK_DAMPING = 5.0              # mm/rad
+LANDMARK_REFINE_MM = 3.0      # a landmark vertex farther than this from its anatomical surface point is kept as is
 
 
 def scaled_model(model: HandModel, scale: float) -> HandModel:
@@ -61,6 +62,70 @@ def landmark_pairs(model: HandModel, landmarks: dict[str, np.ndarray | None]) ->
     vertices = np.array([model.landmarks[name] for name in names], dtype=np.int64)
     targets = np.array([landmarks[name] for name in names], dtype=np.float64)
     return names, vertices, targets
+
+
+def ray_surface_point(vertices: np.ndarray, faces: np.ndarray, origin: np.ndarray, direction: np.ndarray
+                      ) -> tuple[int, np.ndarray] | None:
+    """First crossing (t > 0) of the ray ``origin + t direction`` with the mesh: ``(face, barycentric (3,))``,
+    or None when the ray misses (Möller–Trumbore, vectorised over the faces)."""
+    a, b, c = vertices[faces[:, 0]], vertices[faces[:, 1]], vertices[faces[:, 2]]
+    e1, e2 = b - a, c - a
+    p = np.cross(direction, e2)
+    det = np.einsum("ij,ij->i", e1, p)
+    safe = np.where(np.abs(det) > 1e-12, det, 1.0)
+    s = origin - a
+    u = np.einsum("ij,ij->i", s, p) / safe
+    q = np.cross(s, e1)
+    v = (q @ direction) / safe
+    t = np.einsum("ij,ij->i", e2, q) / safe
+    hit = (np.abs(det) > 1e-12) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
+    if not np.any(hit):
+        return None
+    face = int(np.flatnonzero(hit)[np.argmin(t[hit])])
+    return face, np.array([1.0 - u[face] - v[face], u[face], v[face]])
+
+
+def anatomical_ray(model: HandModel, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """Origin and unit direction (rest frame, mm) of the ray that defines landmark ``name`` on ``model``
+    (``LANDMARK_DESCRIPTIONS``): dorsal from a knuckle joint, dorsal (+z) from the wrist joint, along the
+    distal bone from the distal joint for a tip."""
+    positions, rotations = model.skeleton.rest_positions, model.skeleton.rest_rotations
+    if name == "wrist":
+        return positions[0], np.array([0.0, 0.0, 1.0])
+    digit_name, joint_name = name.split("_")
+    digit = DIGITS.index(digit_name)
+    if joint_name == "tip":
+        distal = 3 + 3 * digit
+        return positions[distal], rotations[distal][:, 1]
+    names = ("cmc", "mcp", "ip") if digit == 0 else ("mcp", "pip", "dip")
+    joint = 1 + 3 * digit + names.index(joint_name)
+    return positions[joint], -rotations[joint][:, 2]
+
+
+def anatomical_landmarks(model: HandModel, names: list[str] | tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Exact surface points of the landmarks ``names`` on the rest ``model``: corner vertices ``(L,3)`` and
+    barycentric weights ``(L,3)``. A stored landmark is a mesh vertex, i.e. its anatomical point rounded to
+    the mesh (up to half an edge, 1–1.5 mm on the shipped template, enough to shift a relocated joint by
+    as much); the point where the landmark's defining ray leaves the skin removes that rounding. Landmarks
+    whose ray misses or lands more than :data:`LANDMARK_REFINE_MM` from the stored vertex (a template whose
+    landmarks were placed otherwise) keep the vertex."""
+    corners = np.zeros((len(names), 3), dtype=np.int64)
+    weights = np.zeros((len(names), 3))
+    for row, name in enumerate(names):
+        vertex = model.landmarks[name]
+        corners[row], weights[row] = vertex, (1.0, 0.0, 0.0)
+        try:
+            origin, direction = anatomical_ray(model, name)
+        except ValueError:          # not one of LANDMARK_NAMES
+            continue
+        hit = ray_surface_point(model.vertices, model.faces, origin, direction)
+        if hit is None:
+            continue
+        face, barycentric = hit
+        point = barycentric @ model.vertices[model.faces[face]]
+        if np.linalg.norm(point - model.vertices[vertex]) <= LANDMARK_REFINE_MM:
+            corners[row], weights[row] = model.faces[face], barycentric
+    return corners, weights
 
 
 def initial_similarity(model: HandModel, landmark_vertices: np.ndarray, targets: np.ndarray

@@ -254,11 +254,13 @@ def fit_nonrigid(template_vertices: np.ndarray, faces: np.ndarray, landmark_vert
                  landmark_targets: np.ndarray, scan_points: np.ndarray, scan_normals: np.ndarray | None = None,
                  normals_oriented: bool = True, schedule: FitSchedule | None = None,
                  progress: Callable[[float], None] | None = None, cancelled: Callable[[], bool] | None = None,
-                 on_iteration: Callable[[np.ndarray], None] | None = None, tree: cKDTree | None = None
-                 ) -> FitResult:
+                 on_iteration: Callable[[np.ndarray], None] | None = None, tree: cKDTree | None = None,
+                 landmark_weights: np.ndarray | None = None) -> FitResult:
     """Deform the aligned template ``template_vertices (V,3)`` onto ``scan_points (N,3)`` (mm).
 
-    ``landmark_vertices (L,)`` template vertex of each landmark, ``landmark_targets (L,3)`` its scan
+    ``landmark_vertices (L,)`` template vertex of each landmark, or ``(L,3)`` the corners of the triangle
+    holding it with ``landmark_weights (L,3)`` its barycentric coordinates (a point inside a triangle, see
+    :func:`core.calibration.align.anatomical_landmarks`); ``landmark_targets (L,3)`` its scan
     position; ``scan_normals (N,3)`` optional (oriented outwards unless ``normals_oriented`` is False).
     ``on_iteration(vertices)`` is called after every outer iteration (live display); ``cancelled()``
     is checked between iterations and raises :class:`CancelledError`.
@@ -270,12 +272,16 @@ def fit_nonrigid(template_vertices: np.ndarray, faces: np.ndarray, landmark_vert
     landmark_targets = np.asarray(landmark_targets, dtype=np.float64)
     if len(landmark_vertices) == 0 or landmark_targets.shape != (len(landmark_vertices), 3):
         raise InputError("the non-rigid fit needs landmark pairs (L,) and (L,3)")
+    corners = landmark_vertices.reshape(len(landmark_vertices), -1)
+    corner_weights = np.ones_like(corners, dtype=np.float64) if landmark_weights is None \
+        else np.asarray(landmark_weights, dtype=np.float64).reshape(corners.shape)
     laplacian, rows, cols, weights = cotangent_laplacian(rest, faces)
     rest_laplacian = laplacian @ rest
     normal_matrix = (laplacian.T @ laplacian).tocsc()
-    landmark_selector = sparse.coo_matrix((np.ones(len(landmark_vertices)),
-                                           (np.arange(len(landmark_vertices)), landmark_vertices)),
-                                          shape=(len(landmark_vertices), count)).tocsr()
+    landmark_selector = sparse.coo_matrix((corner_weights.ravel(),
+                                           (np.repeat(np.arange(len(corners)), corners.shape[1]), corners.ravel())),
+                                          shape=(len(corners), count)).tocsr()
+    landmark_selector.sum_duplicates()
     landmark_matrix = (landmark_selector.T @ landmark_selector).tocsc()
     landmark_rhs = landmark_selector.T @ landmark_targets
     tree = tree if tree is not None else cKDTree(scan_points)
@@ -320,7 +326,7 @@ def fit_nonrigid(template_vertices: np.ndarray, faces: np.ndarray, landmark_vert
             target_laplacian = np.einsum("vab,vb->va", rotations, rest_laplacian)
             rhs = w_reg * (laplacian.T @ target_laplacian) + w_lm * landmark_rhs + fit_rhs
             deformed = solve(rhs)
-        landmark_rms.append(float(np.sqrt(np.mean(np.sum((deformed[landmark_vertices] - landmark_targets) ** 2,
+        landmark_rms.append(float(np.sqrt(np.mean(np.sum((landmark_selector @ deformed - landmark_targets) ** 2,
                                                          axis=1)))))
         if on_iteration is not None:
             on_iteration(deformed.copy())

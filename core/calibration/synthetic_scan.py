@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from core.calibration.align import anatomical_landmarks
 from core.calibration.scan import Scan
 from core.model import HandModel, load_template, skin_vertices
 from core.model.hand_model import mesh_vertex_normals
@@ -65,12 +66,16 @@ def synthetic_scan(proportions: HandProportions | None = None, theta: np.ndarray
     ``theta`` defaults to the flat calibration pose (global pose zero) with a small seeded posture jitter.
     ``n_points`` surface samples before holes are cut; holes are balls of 8–15 mm radius.
     Returns ``(scan, truth)``; ``truth`` holds ``model`` (the subject's :class:`HandModel`), ``theta (26,)``,
-    ``vertices (V,3)``, ``joints (16,3)``, ``landmarks (20,3)`` (order ``landmark_names``), all in the
-    scan frame (mm), ``labels (N,)`` per scan point (:data:`HAND`, :data:`OUTLIER`, :data:`BACKGROUND`)
+    ``vertices (V,3)``, ``joints (16,3)``, ``landmarks (20,3)`` (order ``landmark_names``: the subject
+    mesh's landmark vertices), ``landmark_points (20,3)`` (the exact anatomical surface points of
+    ``LANDMARK_DESCRIPTIONS``, what a careful operator picks; the vertices are up to half an edge, 1–1.5 mm,
+    off them: see :func:`anatomical_landmarks_from_truth`), all in the scan frame (mm),
+    ``labels (N,)`` per scan point (:data:`HAND`, :data:`OUTLIER`, :data:`BACKGROUND`)
     and ``hole_centres (holes,3)``.
     """
     rng = np.random.default_rng(seed)
     model: HandModel = load_template() if proportions is None else build_template(proportions)
+    landmark_corners, landmark_weights = anatomical_landmarks(model, LANDMARK_NAMES)
     if theta is None:
         theta = np.zeros(N_PARAMS)
         theta[N_GLOBAL:] = rng.normal(0.0, POSTURE_JITTER_RAD, N_PARAMS - N_GLOBAL)
@@ -109,7 +114,14 @@ def synthetic_scan(proportions: HandProportions | None = None, theta: np.ndarray
         "joints": joints,
         "landmark_names": LANDMARK_NAMES,
         "landmarks": vertices[[model.landmarks[name] for name in LANDMARK_NAMES]],
+        "landmark_points": np.einsum("lk,lka->la", landmark_weights, vertices[landmark_corners]),
         "labels": labels[order],
         "hole_centres": hole_centres,
     }
     return scan, truth
+
+
+def anatomical_landmarks_from_truth(truth: dict) -> dict[str, np.ndarray | None]:
+    """The exact anatomical landmark points (mm) of a synthetic scan's ``truth``, name -> (3,)."""
+    return {name: np.array(point) for name, point in zip(truth["landmark_names"], truth["landmark_points"],
+                                                         strict=True)}
