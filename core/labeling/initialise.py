@@ -34,6 +34,12 @@ SCALE_RANGE = (0.75, 1.33)
 """OBB scale factors outside this range reject a (model, cluster) pair (a different object)."""
 
 
+REACQUIRE_POINTS = 16
+"""At most this many points nearest to a lost object's predicted centre are tried for re-acquiring it."""
+AMBIGUOUS_RATIO = 1.5
+"""A re-acquisition is refused when another correspondence of as many markers fits within this factor."""
+
+
 @dataclass
 class Candidate:
     """A model fitted to a cluster: eq. 2 score, state, matched marker count, mean residual (mm)."""
@@ -282,6 +288,80 @@ def fit_object(track: RigidTrack, cluster: np.ndarray, settings: SceneSettings
         if score < best[0]:
             best = (score, pose, count, residual, point_index)
     return best
+
+
+def rigid_correspondences(local: np.ndarray, points: np.ndarray, tolerance_mm: float, min_matched: int = 3
+                          ) -> list[np.ndarray]:
+    """Every injective correspondence of at least ``min_matched`` markers of ``local (K,3)`` to
+    ``points (N,3)`` whose pair distances all agree with the markers' within ``tolerance_mm``; each
+    is the point index per marker (K,), -1 unmatched. Depth-first over the markers with pruning by the
+    distance matrices (cheap for the K ≤ 8 markers of an object and a dozen points)."""
+    count, size = len(local), len(points)
+    if size < min_matched or count < min_matched:
+        return []
+    model = pair_distances(local, local)
+    measured = pair_distances(points, points)
+    agree = np.abs(measured[None, None] - model[:, :, None, None]) < tolerance_mm     # (K,K,N,N)
+    found: list[np.ndarray] = []
+    index = np.full(count, -1, dtype=np.int64)
+    used = np.zeros(size, dtype=bool)
+
+    def descend(marker: int, matched: int) -> None:
+        if marker == count:
+            if matched >= min_matched:
+                found.append(index.copy())
+            return
+        allowed = ~used
+        for other in range(marker):
+            if index[other] >= 0:
+                allowed &= agree[marker, other, :, index[other]]
+        for point in np.flatnonzero(allowed):
+            index[marker], used[point] = point, True
+            descend(marker + 1, matched + 1)
+            index[marker], used[point] = -1, False
+        if matched + count - marker - 1 >= min_matched:
+            descend(marker + 1, matched)
+
+    descend(0, 0)
+    return found
+
+
+def reacquire_object(track: RigidTrack, points: np.ndarray, start: np.ndarray, settings: SceneSettings
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Re-acquire a rigid object from ``points (N,3)`` (the frame's points it may take) near its pose
+    ``start (4,4)``: the correspondence of most markers, then least RMS residual, whose rigid fit
+    reaches each matched point within ``reacquire_fit_mm`` (:func:`rigid_correspondences`). Returns the
+    point index per marker (K,), the pose and the residuals (K,) mm; None when nothing fits or two
+    different correspondences fit about equally well (a symmetric marker set)."""
+    if len(points) < 3 or track.count < 3:
+        return None
+    centre = start[:3, :3] @ track.local.mean(axis=0) + start[:3, 3]
+    distance = np.sqrt(((points - centre) ** 2).sum(axis=1))
+    near = np.flatnonzero(distance < track.search_radius())
+    if len(near) < 3:
+        return None
+    near = near[np.argsort(distance[near])[:REACQUIRE_POINTS]]
+    candidates = points[near]
+    fits = []
+    for index in rigid_correspondences(track.local, candidates, 2.0 * settings.reacquire_fit_mm):
+        observed = index >= 0
+        targets = np.where(observed[:, None], candidates[np.maximum(index, 0)], np.nan)
+        pose, effectors = track.solve(targets, observed, start)
+        residuals = np.sqrt(((effectors - targets) ** 2).sum(axis=1))
+        if residuals[observed].max() <= settings.reacquire_fit_mm:
+            rms = float(np.sqrt((residuals[observed] ** 2).mean()))
+            fits.append((-int(observed.sum()), rms, index, pose, residuals))
+    if not fits:
+        return None
+    fits.sort(key=lambda fit: (fit[0], fit[1]))
+    best = fits[0]
+    for other in fits[1:]:
+        if other[0] != best[0]:
+            break
+        if other[1] < AMBIGUOUS_RATIO * best[1] + 0.05:
+            return None
+    index = np.where(best[2] >= 0, near[np.maximum(best[2], 0)], -1)
+    return index, best[3], best[4]
 
 
 def initialise_frame(tracks: list[Track], candidates_for: list[int], points: np.ndarray,

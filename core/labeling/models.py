@@ -119,7 +119,11 @@ class SceneSettings:
     match; ``retry_every``: frames between initialisation attempts for a model not found yet;
     ``ik_iterations``, ``ik_tolerance``: Gauss-Newton steps per IK solve and the relative energy
     decrease that ends them early; ``calibrate``: subject calibration (Zhao eq. 2) of the hands
-    after initialisation over up to ``calibration_frames`` tracked frames.
+    after initialisation over up to ``calibration_frames`` tracked frames;
+    ``reacquire_fit_mm``: largest residual of a rigid object's marker in a fit that re-acquires the
+    object (a frame where it has fewer than 3 labelled markers, or a labelled marker farther than this
+    from the fit), the pair distances of the tried correspondences agreeing within twice this;
+    ``reacquire_reach_mm``, ``reacquire_growth_mm``: see :meth:`RigidTrack.search_radius`.
     """
 
     gate_mm: float = 20.0
@@ -146,6 +150,9 @@ class SceneSettings:
     ik_tolerance: float = 1e-4
     calibrate: bool = True
     calibration_frames: int = 150
+    reacquire_fit_mm: float = 2.0
+    reacquire_reach_mm: float = 150.0
+    reacquire_growth_mm: float = 2.0
 
 
 class Track(ABC):
@@ -287,22 +294,65 @@ class HandTrack(Track):
         return theta, points
 
 
+COAST_DECAY = 0.9
+"""Per frame without any marker of a rigid object, its predicted translation velocity shrinks by this."""
+
+
 class RigidTrack(Track):
-    """A rigid object tracked by Kabsch on its assigned markers (translation only with 1-2 markers)."""
+    """A rigid object tracked by Kabsch on its assigned markers; with 2 markers the rotation turns the
+    predicted marker axis onto the seen one (the turn about that axis is kept), with 1 translation only."""
 
     def __init__(self, spec: ObjectSpec, settings: SceneSettings):
         super().__init__(spec.name, list(spec.marker_names), settings)
         self.spec = spec
         self.local = np.asarray(spec.marker_positions, dtype=float)
+        #: markers observed in the frames of ``history``; frames since the last fit to 3 or more markers
+        self.counts = [0, 0]
+        self.lost = 0
+        self.extent = float(np.linalg.norm(self.local - self.local.mean(axis=0), axis=1).max())
+
+    def start(self, state, seen: np.ndarray | None = None) -> None:
+        super().start(state, seen)
+        self.counts = [0, int(self.seen.sum())]
+        self.lost = 0
+
+    def commit(self, state, residuals: np.ndarray, seen: np.ndarray, points: np.ndarray | None = None) -> None:
+        super().commit(state, residuals, seen, points)
+        self.counts = [self.counts[-1], int(seen.sum())]
+        self.lost = self.lost + 1 if self.counts[-1] < min(3, self.count) else 0
+
+    def search_radius(self) -> float:
+        """Radius (mm) around the predicted centroid within which points are tried for re-acquisition:
+        the object's extent plus ``reacquire_reach_mm``, growing by ``reacquire_growth_mm`` per frame the
+        object has had fewer than 3 markers (it may have moved away from where it was last fitted)."""
+        settings = self.settings
+        return self.extent + settings.reacquire_reach_mm + settings.reacquire_growth_mm * min(self.lost, 1000)
 
     def predict(self) -> np.ndarray:
+        """Constant velocity; the rotation keeps its angular velocity only when both last poses were
+        fitted to 3 or more markers (with fewer, part of the rotation is unobserved and extrapolating
+        it lets the pose drift), and the translation velocity decays while no marker is seen."""
         if len(self.history) < 2:
             return self.history[-1]
         previous, last = self.history
         predicted = np.eye(4)
-        predicted[:3, :3] = last[:3, :3] @ previous[:3, :3].T @ last[:3, :3]
-        predicted[:3, 3] = 2.0 * last[:3, 3] - previous[:3, 3]
+        if min(self.counts) >= 3:
+            predicted[:3, :3] = last[:3, :3] @ previous[:3, :3].T @ last[:3, :3]
+        else:
+            predicted[:3, :3] = last[:3, :3]
+        velocity = last[:3, 3] - previous[:3, 3]
+        if self.counts[-1] == 0:
+            velocity = COAST_DECAY * velocity
+        predicted[:3, 3] = last[:3, 3] + velocity
         return predicted
+
+    def restart(self, state: np.ndarray, seen: np.ndarray, points: np.ndarray) -> None:
+        """Continue from a re-acquired pose (no velocity: the previous pose was wrong)."""
+        self.history = [state]
+        self.seen = seen.copy()
+        self.counts = [0, int(seen.sum())]
+        self.lost = 0
+        self.points = [np.full((self.count, 3), np.nan), points]
 
     def effectors(self, state: np.ndarray) -> np.ndarray:
         return self.local @ state[:3, :3].T + state[:3, 3]
@@ -315,9 +365,31 @@ class RigidTrack(Track):
             rotation, translation = kabsch_kernel(self.local[observed], targets[observed])
             pose[:3, :3], pose[:3, 3] = rotation, translation
         elif count:
-            moved = self.local[observed] @ start[:3, :3].T
+            if count == 2:
+                # the rotation the two markers determine (all but the turn about their axis, which keeps
+                # the prediction's): the smallest rotation bringing the predicted direction onto the seen one
+                first, second = self.local[observed]
+                seen_first, seen_second = targets[observed]
+                pose[:3, :3] = _aligning_rotation(start[:3, :3] @ (second - first), seen_second - seen_first) \
+                    @ start[:3, :3]
+            moved = self.local[observed] @ pose[:3, :3].T
             pose[:3, 3] = (targets[observed] - moved).mean(axis=0)
         return pose, self.effectors(pose)
+
+
+def _aligning_rotation(source: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """The smallest rotation (3,3) turning the direction of ``source (3,)`` onto that of ``target (3,)``
+    (identity when either is degenerate or they are opposite)."""
+    a_norm, b_norm = np.linalg.norm(source), np.linalg.norm(target)
+    if a_norm < 1e-9 or b_norm < 1e-9:
+        return np.eye(3)
+    a, b = source / a_norm, target / b_norm
+    axis = np.cross(a, b)
+    cosine = float(a @ b)
+    if cosine <= -1.0 + 1e-9:
+        return np.eye(3)
+    cross = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + cross + cross @ cross / (1.0 + cosine)
 
 
 def pose_matrix(rotation: np.ndarray, translation: np.ndarray) -> np.ndarray:

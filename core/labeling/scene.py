@@ -21,7 +21,12 @@ Pipeline of :func:`label_scene`:
    catches markers the prediction missed. A marker whose new point breaks the continuity of its own
    trajectory (farther than ``continuity_mm`` from the extrapolation of its last two points) is
    missing in that frame; a marker missing in the previous frame is accepted only if the IK that
-   includes it reaches it below the strict reappearance threshold. Points no marker took are ghosts.
+   includes it reaches it below the strict reappearance threshold. A rigid object left with fewer
+   than 3 labelled markers, or with a labelled marker its fit misses by more than ``reacquire_fit_mm``,
+   is re-acquired from the points no other model took near its pose: every correspondence of its
+   markers whose distance matrix agrees (:func:`core.labeling.initialise.rigid_correspondences`) is
+   fitted rigidly and the one of most markers and least residual replaces the frame's labels when it
+   is unambiguous and better on eq. 2 (causal: the current frame only). Points no marker took are ghosts.
 4. Offline mode (default): the first ``verify_frames`` frames after each hand's initialisation are
    tracked again backwards and the better labelling per frame (eq. 2) is kept (a wrong initial fit is
    corrected); a backward pass from each model's first initialisation (or the first appearance of its
@@ -46,7 +51,14 @@ from numba import njit
 from core.errors import CancelledError, InputError
 from core.io import Take
 from core.labeling.fragments import extend_trajectories, free_fragments
-from core.labeling.initialise import Candidate, cluster_cut, gated_assignment, initialise_frame, pair_distances
+from core.labeling.initialise import (
+    Candidate,
+    cluster_cut,
+    gated_assignment,
+    initialise_frame,
+    pair_distances,
+    reacquire_object,
+)
 from core.labeling.models import HandTrack, RigidTrack, SceneSettings, Track
 from core.labeling.objects import ObjectSpec, check_unique_names, load_scene_spec
 from core.model import N_PARAMS, HandModel, MarkerLayout, MarkerSet, load_layout, load_template, resolve_layout
@@ -191,6 +203,18 @@ class _Run:
                     state, effectors, residuals = self._solve(track, points, index, state)
                 chosen[part], states[number] = index, state
                 effectors_all[part], residuals_all[part] = effectors, residuals
+        restarted = []
+        for number, track in enumerate(tracks):
+            if isinstance(track, RigidTrack):
+                part = slice(bounds[number], bounds[number + 1])
+                found = self._reacquire(track, points, chosen, part, states[number], residuals_all[part])
+                if found is not None:
+                    index, state, effectors, residuals = found
+                    if np.abs(effectors - effectors_all[part]).max() > settings.continuity_mm:
+                        restarted.append(number)
+                    chosen[part], states[number] = index, state
+                    effectors_all[part], residuals_all[part] = effectors, residuals
+                    changed_tracks.append(number)
         if changed_tracks:
             distances = pair_distances(effectors_all, points)
         confidence = _margins(distances, chosen, thresholds)
@@ -199,7 +223,48 @@ class _Run:
         for number, track in enumerate(tracks):
             part = slice(bounds[number], bounds[number + 1])
             track.commit(states[number], residuals_all[part], observed[part], taken_points[part])
+            if number in restarted:
+                track.restart(states[number], observed[part], taken_points[part])
         return chosen, confidence, residuals_all, states
+
+    def _reacquire(self, track: RigidTrack, points: np.ndarray, chosen: np.ndarray, part: slice, state: np.ndarray,
+                   residuals: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+        """Re-acquisition of a rigid object that has fewer than 3 labelled markers in this frame, or a
+        labelled marker its fit misses by more than ``reacquire_fit_mm`` (lost, or a self-consistent
+        wrong correspondence): the best rigid correspondence among the points no other model took
+        (:func:`reacquire_object`) replaces the frame's labels when it scores better on eq. 2 (RMS
+        residual + α · unlabelled markers). Returns (point index (K,), pose, effectors, residuals) or None."""
+        settings = self.settings
+        own = chosen[part]
+        observed = own >= 0
+        matched = int(observed.sum())
+        if track.count < 3 or (matched >= 3 and residuals[observed].max() <= settings.reacquire_fit_mm):
+            return None
+        others = np.ones(len(chosen), dtype=bool)
+        others[part] = False
+        free = np.ones(len(points), dtype=bool)
+        taken = chosen[others]
+        free[taken[taken >= 0]] = False
+        columns = np.flatnonzero(free)
+        if len(columns) < 3:
+            return None
+        found = reacquire_object(track, points[columns], state, settings)
+        if found is None:
+            return None
+        index, pose, new_residuals = found
+        index = np.where(index >= 0, columns[np.maximum(index, 0)], -1)
+        if np.array_equal(index, own):
+            return None
+        alpha = settings.alpha
+
+        def cost(labels: np.ndarray, values: np.ndarray) -> float:
+            seen = labels >= 0
+            rms = float(np.sqrt((values[seen] ** 2).mean())) if seen.any() else 0.0
+            return rms + alpha * float((~seen).sum())
+
+        if cost(index, new_residuals) >= cost(own, residuals):
+            return None
+        return index, pose, track.effectors(pose), new_residuals
 
     @staticmethod
     def _solve(track: Track, points: np.ndarray, index: np.ndarray, start
