@@ -111,7 +111,6 @@ class MainWindow(QMainWindow):
         self.marker_panel.marker_selected.connect(self._marker_selected)
         self.timeline_dock = self._add_dock("Timeline", self.timeline, Qt.DockWidgetArea.BottomDockWidgetArea)
         self.markers_dock = self._add_dock("Markers", self.marker_panel, Qt.DockWidgetArea.RightDockWidgetArea)
-        self.resizeDocks([self.markers_dock], [470], Qt.Orientation.Horizontal)
         self._build_actions()
         self._build_toolbar()
         self._build_status_bar()
@@ -125,8 +124,8 @@ class MainWindow(QMainWindow):
         self.file_menu.insertAction(self.export_action, self.close_take_action)
         self.file_menu.insertMenu(self.export_action, self.review.export_menu)
         self.view_menu.addAction(self.sessions.dock.toggleViewAction())
-        self.resizeDocks([self.timeline_dock, self.review.tracks_dock], [170, 260], Qt.Orientation.Vertical)
-        self.resizeDocks([self.sessions.dock], [330], Qt.Orientation.Horizontal)
+        self.resizeDocks([self.timeline_dock, self.review.tracks_dock], [140, 190], Qt.Orientation.Vertical)
+        self.resizeDocks([self.sessions.dock, self.markers_dock], [280, 640], Qt.Orientation.Horizontal)
         self._update_enabled()
 
     # ------------------------------------------------------------------------------------ building

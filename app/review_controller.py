@@ -31,6 +31,7 @@ from PySide6.QtWidgets import (
     QLineEdit,
     QMenu,
     QPushButton,
+    QScrollArea,
     QSplitter,
     QToolBar,
     QWidget,
@@ -208,14 +209,18 @@ class ReviewController(QObject):
         splitter = QSplitter(Qt.Orientation.Vertical, window)
         splitter.addWidget(self.gap_list)
         splitter.addWidget(self.preview)
-        splitter.setSizes([640, 240])
+        splitter.setSizes([560, 200])
         self.gap_list.gap_selected.connect(self._gap_selected)
         self.gap_list.method_changed.connect(lambda _gap, method: self.preview.set_selected(method))
         self.gap_list.preview_requested.connect(self._preview_requested)
         self.gap_list.accept_requested.connect(self.accept_fill)
         self.gap_list.reject_requested.connect(self.reject_gap)
         self.gap_list.fill_all_requested.connect(self.fill_all)
-        self.gaps_dock = window._add_dock("Gaps", splitter, area.RightDockWidgetArea)
+        scroller = QScrollArea(window)           # the gap table, check and preview need more height than
+        scroller.setWidgetResizable(True)        # a small screen has: scroll rather than grow the window
+        scroller.setFrameShape(QScrollArea.Shape.NoFrame)
+        scroller.setWidget(splitter)
+        self.gaps_dock = window._add_dock("Gaps", scroller, area.RightDockWidgetArea)
         window.tabifyDockWidget(self.labels_dock, self.gaps_dock)
         self.labels_dock.raise_()
 

@@ -403,6 +403,7 @@ class GapList(QWidget):
         top_layout = QVBoxLayout(top)
         top_layout.setContentsMargins(0, 0, 0, 0)
         top_layout.addLayout(filters)
+        self.table.setMinimumHeight(110)     # about four rows, however little room the dock has
         top_layout.addWidget(self.table)
         top_layout.addLayout(fill_all)
         self.splitter = QSplitter(Qt.Orientation.Vertical, self)
