@@ -39,6 +39,36 @@ PICK_RADIUS_PX = 12.0      # a click this close to a marker's centre selects it
 CLICK_SLOP_PX = 4.0        # a press and release further apart than this is a camera drag, not a click
 
 
+class ClickFilter:
+    """Event filter logic of a 3D view: keeps key presses from VTK (its one-letter commands) and tells a
+    left click (press and release in place) from a camera drag."""
+
+    def __init__(self) -> None:
+        self._press: QPointF | None = None
+
+    def click(self, event: QEvent) -> QPointF | None:
+        """Feed every event of the view; returns the position of a completed click, else None. Key
+        events are marked ignored (the caller returns True for them, see :meth:`is_key`)."""
+        if not isinstance(event, QMouseEvent) or event.button() != Qt.MouseButton.LeftButton:
+            return None
+        if event.type() == QEvent.Type.MouseButtonPress:
+            self._press = event.position()
+        elif event.type() == QEvent.Type.MouseButtonRelease and self._press is not None:
+            moved = event.position() - self._press
+            self._press = None
+            if abs(moved.x()) + abs(moved.y()) <= CLICK_SLOP_PX:
+                return event.position()
+        return None
+
+    @staticmethod
+    def is_key(event: QEvent) -> bool:
+        """A key event, to be kept from VTK."""
+        if event.type() in (QEvent.Type.KeyPress, QEvent.Type.KeyRelease):
+            event.ignore()
+            return True
+        return False
+
+
 def _as_rgb_bytes(colors: np.ndarray) -> np.ndarray:
     """``(N,3)`` floats in [0, 1] to ``(N,3)`` uint8."""
     return np.clip(np.round(np.asarray(colors, dtype=float) * 255.0), 0, 255).astype(np.uint8)
@@ -90,7 +120,7 @@ class HandViewport(QWidget):
         self._plotter = QtInteractor(self, off_screen=off_screen, auto_update=False, multi_samples=4)
         self._plotter.setAcceptDrops(False)       # files dropped on the view go to the window
         self._plotter.installEventFilter(self)
-        self._press_position: QPointF | None = None
+        self._clicks = ClickFilter()
         layout.addWidget(self._plotter)
         self.setMinimumSize(320, 240)
 
@@ -263,18 +293,11 @@ class HandViewport(QWidget):
         """Keep key presses from VTK; turn a left click (press and release in place) into a pick."""
         if watched is not self._plotter:
             return False
-        kind = event.type()
-        if kind in (QEvent.Type.KeyPress, QEvent.Type.KeyRelease):
-            event.ignore()
+        if self._clicks.is_key(event):
             return True
-        if isinstance(event, QMouseEvent) and event.button() == Qt.MouseButton.LeftButton:
-            if kind == QEvent.Type.MouseButtonPress:
-                self._press_position = event.position()
-            elif kind == QEvent.Type.MouseButtonRelease and self._press_position is not None:
-                moved = event.position() - self._press_position
-                self._press_position = None
-                if abs(moved.x()) + abs(moved.y()) <= CLICK_SLOP_PX:
-                    self.marker_clicked.emit(self.marker_at(event.position().x(), event.position().y()))
+        position = self._clicks.click(event)
+        if position is not None:
+            self.marker_clicked.emit(self.marker_at(position.x(), position.y()))
         return False
 
     def marker_at(self, x: float, y: float) -> int:

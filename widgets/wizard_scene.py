@@ -11,11 +11,12 @@ from pathlib import Path
 
 import numpy as np
 import pyvista as pv
-from PySide6.QtCore import QEvent, QObject, QPointF, Qt, Signal
-from PySide6.QtGui import QMouseEvent
+from PySide6.QtCore import QEvent, QObject, Signal
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 from pyvistaqt import QtInteractor
 from vtkmodules.util.numpy_support import vtk_to_numpy
+
+from widgets.viewport import ClickFilter
 
 SKIN_COLOR = (0.91, 0.73, 0.62)
 POINT_COLOR = (0.75, 0.78, 0.82)
@@ -24,7 +25,6 @@ CURRENT_COLOR = (1.00, 0.84, 0.15)
 BACKGROUND_TOP = (0.24, 0.26, 0.30)
 BACKGROUND_BOTTOM = (0.07, 0.08, 0.09)
 PICK_RADIUS_PX = 10.0
-CLICK_SLOP_PX = 4.0
 LANDMARK_RADIUS_MM = 2.5
 
 
@@ -52,7 +52,7 @@ class CalibrationScene(QWidget):
             plotter.enable_terrain_style(mouse_wheel_zooms=True)
         if title:
             plotter.add_text(title, position="upper_left", font_size=10, color="white", name="title")
-        self._press: QPointF | None = None
+        self._clicks = ClickFilter()
         self._points = np.zeros((0, 3))
         self._cloud: pv.PolyData | None = None
         self._surface: pv.PolyData | None = None
@@ -152,18 +152,11 @@ class CalibrationScene(QWidget):
     def eventFilter(self, watched: QObject, event: QEvent) -> bool:
         if watched is not self._plotter:
             return False
-        kind = event.type()
-        if kind in (QEvent.Type.KeyPress, QEvent.Type.KeyRelease):
-            event.ignore()
+        if self._clicks.is_key(event):
             return True
-        if isinstance(event, QMouseEvent) and event.button() == Qt.MouseButton.LeftButton:
-            if kind == QEvent.Type.MouseButtonPress:
-                self._press = event.position()
-            elif kind == QEvent.Type.MouseButtonRelease and self._press is not None:
-                moved = event.position() - self._press
-                self._press = None
-                if abs(moved.x()) + abs(moved.y()) <= CLICK_SLOP_PX:
-                    self.point_picked.emit(self.point_at(event.position().x(), event.position().y()))
+        position = self._clicks.click(event)
+        if position is not None:
+            self.point_picked.emit(self.point_at(position.x(), position.y()))
         return False
 
     def point_at(self, x: float, y: float) -> int:

@@ -23,6 +23,7 @@ from core.model import HandModel, MarkerSet, skin_vertices
 from core.model.hand_model import mesh_vertex_normals
 from core.model.kinematics import ANCESTOR, rotation_from_vector, vector_from_rotation
 from core.model.skeleton import DIGITS, N_PARAMS, Skeleton, default_joint_limits
+from core.model.template_mesh import ray_surface_point
 
 LANDMARK_WEIGHT = 20          # a landmark counts as this many closest-point pairs
 SAMPLE_VERTICES = 1500        # template vertices used for closest points in the alignment
@@ -62,27 +63,6 @@ def landmark_pairs(model: HandModel, landmarks: dict[str, np.ndarray | None]) ->
     vertices = np.array([model.landmarks[name] for name in names], dtype=np.int64)
     targets = np.array([landmarks[name] for name in names], dtype=np.float64)
     return names, vertices, targets
-
-
-def ray_surface_point(vertices: np.ndarray, faces: np.ndarray, origin: np.ndarray, direction: np.ndarray
-                      ) -> tuple[int, np.ndarray] | None:
-    """First crossing (t > 0) of the ray ``origin + t direction`` with the mesh: ``(face, barycentric (3,))``,
-    or None when the ray misses (Möller–Trumbore, vectorised over the faces)."""
-    a, b, c = vertices[faces[:, 0]], vertices[faces[:, 1]], vertices[faces[:, 2]]
-    e1, e2 = b - a, c - a
-    p = np.cross(direction, e2)
-    det = np.einsum("ij,ij->i", e1, p)
-    safe = np.where(np.abs(det) > 1e-12, det, 1.0)
-    s = origin - a
-    u = np.einsum("ij,ij->i", s, p) / safe
-    q = np.cross(s, e1)
-    v = (q @ direction) / safe
-    t = np.einsum("ij,ij->i", e2, q) / safe
-    hit = (np.abs(det) > 1e-12) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
-    if not np.any(hit):
-        return None
-    face = int(np.flatnonzero(hit)[np.argmin(t[hit])])
-    return face, np.array([1.0 - u[face] - v[face], u[face], v[face]])
 
 
 def anatomical_ray(model: HandModel, name: str) -> tuple[np.ndarray, np.ndarray]:

@@ -561,9 +561,10 @@ def _sparse_weights(weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 # --------------------------------------------------------------------------- landmarks
 
 
-def _ray_hit_vertex(vertices: np.ndarray, faces: np.ndarray, origin: np.ndarray,
-                    direction: np.ndarray) -> int:
-    """Vertex nearest to the first intersection of the ray ``origin + t direction`` (t > 0) with the mesh."""
+def ray_surface_point(vertices: np.ndarray, faces: np.ndarray, origin: np.ndarray, direction: np.ndarray
+                      ) -> tuple[int, np.ndarray] | None:
+    """First crossing (t > 0) of the ray ``origin + t direction`` with the mesh: ``(face, barycentric (3,))``,
+    or None when the ray misses (Möller–Trumbore, vectorised over the faces)."""
     a, b, c = vertices[faces[:, 0]], vertices[faces[:, 1]], vertices[faces[:, 2]]
     e1, e2 = b - a, c - a
     p = np.cross(direction, e2)
@@ -575,9 +576,21 @@ def _ray_hit_vertex(vertices: np.ndarray, faces: np.ndarray, origin: np.ndarray,
     v = (q @ direction) / safe
     t = np.einsum("ij,ij->i", e2, q) / safe
     hit = (np.abs(det) > 1e-12) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
-    first = np.flatnonzero(hit)[np.argmin(t[hit])]
-    point = origin + t[first] * direction
-    corners = faces[first]
+    if not np.any(hit):
+        return None
+    face = int(np.flatnonzero(hit)[np.argmin(t[hit])])
+    return face, np.array([1.0 - u[face] - v[face], u[face], v[face]])
+
+
+def _ray_hit_vertex(vertices: np.ndarray, faces: np.ndarray, origin: np.ndarray,
+                    direction: np.ndarray) -> int:
+    """Vertex nearest to the first intersection of the ray ``origin + t direction`` (t > 0) with the mesh."""
+    hit = ray_surface_point(vertices, faces, origin, direction)
+    if hit is None:
+        raise ValueError("a landmark ray misses the template surface")
+    face, barycentric = hit
+    corners = faces[face]
+    point = barycentric @ vertices[corners]
     return int(corners[np.argmin(np.linalg.norm(vertices[corners] - point, axis=1))])
 
 
