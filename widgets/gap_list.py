@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from PySide6.QtCore import QAbstractTableModel, QModelIndex, QObject, QSortFilterProxyModel, Qt, Signal
+from PySide6.QtCore import QModelIndex, QObject, QSortFilterProxyModel, Qt, Signal
 from PySide6.QtGui import QBrush, QColor, QFont, QIcon, QPixmap
 from PySide6.QtWidgets import (
     QAbstractItemView,
@@ -37,7 +37,7 @@ from PySide6.QtWidgets import (
 
 from core.gaps import FILL_METHODS, METHOD_CODES, FillCheck, Gap
 from widgets.marker_lanes import GAP_COLOR, METHOD_COLORS, css
-from widgets.marker_panel import MISSING_TEXT, SORT_ROLE
+from widgets.marker_panel import MISSING_TEXT, SORT_ROLE, ColumnTableModel
 
 GAP_STATES = ("open", "filled", "rejected")
 #: methods in the order the detail panel lists them
@@ -131,8 +131,10 @@ class GapRow:
         return method in self.errors_mm or method not in self.reasons
 
 
-class GapTableModel(QAbstractTableModel):
+class GapTableModel(ColumnTableModel):
     """Rows = :class:`GapRow`; numeric sort through :data:`SORT_ROLE`."""
+
+    columns, column_tips = COLUMNS, COLUMN_TIPS
 
     def __init__(self, parent: QObject | None = None) -> None:
         super().__init__(parent)
@@ -153,17 +155,6 @@ class GapTableModel(QAbstractTableModel):
 
     def rowCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008 - Qt signature
         return 0 if parent.isValid() else len(self.rows)
-
-    def columnCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008 - Qt signature
-        return 0 if parent.isValid() else len(COLUMNS)
-
-    def headerData(self, section: int, orientation: Qt.Orientation,
-                   role: int = Qt.ItemDataRole.DisplayRole) -> str | None:
-        if orientation == Qt.Orientation.Horizontal and role == Qt.ItemDataRole.DisplayRole:
-            return COLUMNS[section]
-        if orientation == Qt.Orientation.Horizontal and role == Qt.ItemDataRole.ToolTipRole:
-            return COLUMN_TIPS[section]
-        return None
 
     def _sort_value(self, row: GapRow, column: int) -> object:
         if column == 0:

@@ -65,8 +65,29 @@ def filtered_table(parent: QWidget, model: QAbstractTableModel, minimum_section:
     return proxy, filter_edit, table
 
 
-class MarkerTableModel(QAbstractTableModel):
+class ColumnTableModel(QAbstractTableModel):
+    """A flat table model with fixed named columns (``columns``) and their header tooltips
+    (``column_tips``); subclasses give the rows (``rowCount``) and the cells (``data``)."""
+
+    columns: tuple[str, ...] = ()
+    column_tips: tuple[str, ...] = ()
+
+    def columnCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008 - Qt signature
+        return 0 if parent.isValid() else len(self.columns)
+
+    def headerData(self, section: int, orientation: Qt.Orientation,
+                   role: int = Qt.ItemDataRole.DisplayRole) -> str | None:
+        if orientation == Qt.Orientation.Horizontal and role == Qt.ItemDataRole.DisplayRole:
+            return self.columns[section]
+        if orientation == Qt.Orientation.Horizontal and role == Qt.ItemDataRole.ToolTipRole:
+            return self.column_tips[section]
+        return None
+
+
+class MarkerTableModel(ColumnTableModel):
     """Rows = markers; the per-frame columns are replaced with :meth:`set_frame_values`."""
+
+    columns, column_tips = COLUMNS, COLUMN_TIPS
 
     def __init__(self, parent: QObject | None = None) -> None:
         super().__init__(parent)
@@ -101,17 +122,6 @@ class MarkerTableModel(QAbstractTableModel):
 
     def rowCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008 - Qt signature
         return 0 if parent.isValid() else len(self._names)
-
-    def columnCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008 - Qt signature
-        return 0 if parent.isValid() else len(COLUMNS)
-
-    def headerData(self, section: int, orientation: Qt.Orientation,
-                   role: int = Qt.ItemDataRole.DisplayRole) -> str | None:
-        if orientation == Qt.Orientation.Horizontal and role == Qt.ItemDataRole.DisplayRole:
-            return COLUMNS[section]
-        if orientation == Qt.Orientation.Horizontal and role == Qt.ItemDataRole.ToolTipRole:
-            return COLUMN_TIPS[section]
-        return None
 
     def _value(self, row: int, column: int) -> float | str:
         if column == 0:

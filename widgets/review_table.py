@@ -9,13 +9,13 @@ The figures come as a :class:`core.session.MarkerStats` (``ReviewTake.marker_sta
 from __future__ import annotations
 
 import numpy as np
-from PySide6.QtCore import QAbstractTableModel, QModelIndex, QObject, Qt, Signal
+from PySide6.QtCore import QModelIndex, QObject, Qt, Signal
 from PySide6.QtGui import QBrush, QColor, QIcon
 from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
 from core.session import MarkerStats, ReviewSettings
 from widgets.marker_lanes import LOW_CONFIDENCE_COLOR
-from widgets.marker_panel import MISSING_TEXT, SORT_ROLE, filtered_table, swatch
+from widgets.marker_panel import MISSING_TEXT, SORT_ROLE, ColumnTableModel, filtered_table, swatch
 
 COLUMNS = ("Marker", "Seen %", "Filled %", "Gaps", "Longest", "Resid.", "Conf.")
 #: what each number column shows (MarkerStats field) and how many decimals
@@ -41,8 +41,10 @@ ERROR_COLOR = QColor(255, 110, 90)
 DIM_COLOR = QColor(140, 140, 140)
 
 
-class ReviewTableModel(QAbstractTableModel):
+class ReviewTableModel(ColumnTableModel):
     """Rows = markers; columns :data:`COLUMNS`. Sorts by :data:`SORT_ROLE` (numbers, missing last)."""
+
+    columns, column_tips = COLUMNS, COLUMN_TIPS
 
     def __init__(self, parent: QObject | None = None) -> None:
         super().__init__(parent)
@@ -84,17 +86,6 @@ class ReviewTableModel(QAbstractTableModel):
 
     def rowCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008 - Qt signature
         return 0 if parent.isValid() else len(self._names)
-
-    def columnCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008 - Qt signature
-        return 0 if parent.isValid() else len(COLUMNS)
-
-    def headerData(self, section: int, orientation: Qt.Orientation,
-                   role: int = Qt.ItemDataRole.DisplayRole) -> str | None:
-        if orientation == Qt.Orientation.Horizontal and role == Qt.ItemDataRole.DisplayRole:
-            return COLUMNS[section]
-        if orientation == Qt.Orientation.Horizontal and role == Qt.ItemDataRole.ToolTipRole:
-            return COLUMN_TIPS[section]
-        return None
 
     def data(self, index: QModelIndex, role: int = Qt.ItemDataRole.DisplayRole) -> object:
         if not index.isValid():

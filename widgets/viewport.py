@@ -69,6 +69,26 @@ class ClickFilter:
         return False
 
 
+def screen_distances(plotter: QtInteractor, points: np.ndarray, x: float, y: float
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """On-screen distance (device pixels) of each of ``points (N,3)`` mm from widget position ``(x, y)``
+    (logical pixels), and its depth (normalised, -1 near to 1 far); the distance is inf for points behind
+    the camera, outside the depth range or NaN. Returns ``(distance (N,), depth (N,))``."""
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    ratio = plotter.devicePixelRatioF()
+    width, height = plotter.width() * ratio, plotter.height() * ratio
+    matrix = plotter.renderer.GetActiveCamera().GetCompositeProjectionTransformMatrix(width / max(height, 1.0), -1, 1)
+    projection = np.array([[matrix.GetElement(row, column) for column in range(4)] for row in range(4)])
+    clip = np.c_[points, np.ones(len(points))] @ projection.T
+    valid = (clip[:, 3] > 1e-9) & np.isfinite(clip).all(axis=1)
+    ndc = clip[:, :3] / np.where(valid, clip[:, 3], 1.0)[:, None]
+    pixel_x = (ndc[:, 0] + 1.0) * 0.5 * width
+    pixel_y = (1.0 - (ndc[:, 1] + 1.0) * 0.5) * height
+    distance = np.hypot(pixel_x - x * ratio, pixel_y - y * ratio)
+    distance = np.where(valid & (np.abs(ndc[:, 2]) <= 1.0), distance, np.inf)
+    return distance, ndc[:, 2]
+
+
 def _as_rgb_bytes(colors: np.ndarray) -> np.ndarray:
     """``(N,3)`` floats in [0, 1] to ``(N,3)`` uint8."""
     return np.clip(np.round(np.asarray(colors, dtype=float) * 255.0), 0, 255).astype(np.uint8)
@@ -303,23 +323,11 @@ class HandViewport(QWidget):
     def marker_at(self, x: float, y: float) -> int:
         """Index of the shown marker nearest to widget position ``(x, y)`` (logical pixels) within
         :data:`PICK_RADIUS_PX`, or -1."""
-        visible = np.flatnonzero(np.isfinite(self._marker_positions).all(axis=1))
-        if not len(visible):
+        if not len(self._marker_positions):
             return -1
-        renderer = self._plotter.renderer
-        ratio = self._plotter.devicePixelRatioF()
-        height = self._plotter.height() * ratio
-        best, best_distance = -1, PICK_RADIUS_PX * ratio
-        for index in visible:
-            renderer.SetWorldPoint(*self._marker_positions[index], 1.0)
-            renderer.WorldToDisplay()
-            display_x, display_y, depth = renderer.GetDisplayPoint()
-            if not 0.0 <= depth <= 1.0:
-                continue
-            distance = float(np.hypot(display_x - x * ratio, (height - display_y) - y * ratio))
-            if distance < best_distance:
-                best, best_distance = int(index), distance
-        return best
+        distance, _ = screen_distances(self._plotter, self._marker_positions, x, y)
+        nearest = int(np.argmin(distance))
+        return nearest if distance[nearest] <= PICK_RADIUS_PX * self._plotter.devicePixelRatioF() else -1
 
     # --------------------------------------------------------------------------------------- access
     @property

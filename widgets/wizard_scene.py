@@ -16,7 +16,7 @@ from PySide6.QtWidgets import QVBoxLayout, QWidget
 from pyvistaqt import QtInteractor
 from vtkmodules.util.numpy_support import vtk_to_numpy
 
-from widgets.viewport import ClickFilter
+from widgets.viewport import ClickFilter, screen_distances
 
 SKIN_COLOR = (0.91, 0.73, 0.62)
 POINT_COLOR = (0.75, 0.78, 0.82)
@@ -164,21 +164,11 @@ class CalibrationScene(QWidget):
         (logical pixels), or -1."""
         if not len(self._points):
             return -1
-        renderer = self._plotter.renderer
-        ratio = self._plotter.devicePixelRatioF()
-        width, height = self._plotter.width() * ratio, self._plotter.height() * ratio
-        matrix = renderer.GetActiveCamera().GetCompositeProjectionTransformMatrix(width / max(height, 1.0), -1, 1)
-        projection = np.array([[matrix.GetElement(r, c) for c in range(4)] for r in range(4)])
-        clip = np.c_[self._points, np.ones(len(self._points))] @ projection.T
-        valid = clip[:, 3] > 1e-9
-        ndc = clip[:, :3] / np.where(valid, clip[:, 3], 1.0)[:, None]
-        pixel_x = (ndc[:, 0] + 1.0) * 0.5 * width
-        pixel_y = (1.0 - (ndc[:, 1] + 1.0) * 0.5) * height
-        distance = np.hypot(pixel_x - x * ratio, pixel_y - y * ratio)
-        near = np.flatnonzero(valid & (distance <= PICK_RADIUS_PX * ratio) & (np.abs(ndc[:, 2]) <= 1.0))
+        distance, depth = screen_distances(self._plotter, self._points, x, y)
+        near = np.flatnonzero(distance <= PICK_RADIUS_PX * self._plotter.devicePixelRatioF())
         if not len(near):
             return -1
-        depth = ndc[near, 2]
+        depth = depth[near]
         front = near[depth <= depth.min() + 0.002]          # the nearest surface layer under the cursor
         return int(front[np.argmin(distance[front])])
 
