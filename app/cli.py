@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 from app import cli_calibrate, cli_layout, cli_review
-from app.cli_common import add_json_flag, print_figures, print_json, progress_printer
+from app.cli_common import add_json_flag, print_figures, print_json, print_summary, progress_printer
 from core.errors import HandMocapError, InputError
 
 #: modules that add their own subcommands (``register(commands, bench_commands, evaluate_commands)``)
@@ -98,9 +98,8 @@ def command_bench_ik(args: argparse.Namespace) -> int:
     from core.evaluation import bench_ik
 
     figures = bench_ik(frames=args.frames or 3000)
-    print(f"layered IK, {figures['markers']} markers: {figures['frames_per_s']:.0f} frames/s")
-    if args.json:
-        print_json(figures)
+    print_summary(f"layered IK, {figures['markers']} markers: {figures['frames_per_s']:.0f} frames/s", figures,
+                  args.json)
     return 0
 
 
@@ -108,9 +107,8 @@ def command_bench_load(args: argparse.Namespace) -> int:
     from core.io.generate import bench_load
 
     figures = bench_load(n_frames=args.frames or 100_000)
-    print(f"read {figures['frames']} frames × {figures['markers']} markers in {figures['seconds']:.3f} s")
-    if args.json:
-        print_json(figures)
+    print_summary(f"read {figures['frames']} frames × {figures['markers']} markers in {figures['seconds']:.3f} s",
+                  figures, args.json)
     return 0
 
 

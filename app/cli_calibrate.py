@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from app.cli_common import add_json_flag, print_figures, print_json, progress_printer
+from app.cli_common import add_json_flag, print_figures, print_summary, progress_printer
 
 
 def command_calibrate(args: argparse.Namespace) -> int:
@@ -37,9 +37,8 @@ def command_bench_calibrate(args: argparse.Namespace) -> int:
     from core.calibration.evaluate import bench_calibrate
 
     figures = bench_calibrate(n_points=args.points)
-    print(f"calibrated a {figures['scan_points']:,}-point scan in {figures['seconds']:.1f} s")
-    if args.json:
-        print_json(figures)
+    print_summary(f"calibrated a {figures['scan_points']:,}-point scan in {figures['seconds']:.1f} s", figures,
+                  args.json)
     return 0
 
 

@@ -21,6 +21,13 @@ def print_figures(figures: dict, as_json: bool) -> None:
         print_json(figures)
 
 
+def print_summary(summary: str, figures: dict, as_json: bool) -> None:
+    """A benchmark's one-line ``summary``; with ``as_json`` the ``figures`` as one JSON object after it."""
+    print(summary)
+    if as_json:
+        print_json(figures)
+
+
 def progress_printer() -> Callable[[float], None]:
     """A progress callback that prints every 10 % to stderr."""
     state = {"last": -1}

@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from app.cli_common import add_json_flag, print_figures, print_json, progress_printer
+from app.cli_common import add_json_flag, print_figures, print_json, print_summary, progress_printer
 from core.errors import InputError
 
 
@@ -80,10 +80,8 @@ def command_bench_label(args: argparse.Namespace) -> int:
     from core.labeling.bench import bench_label
 
     figures = bench_label(frames=args.frames) if args.frames else bench_label()
-    print(f"labelling + IK: one hand {figures['frames_per_s_one_hand']:.0f} frames/s, "
-          f"scene {figures['frames_per_s_scene']:.0f} frames/s")
-    if args.json:
-        print_json(figures)
+    print_summary(f"labelling + IK: one hand {figures['frames_per_s_one_hand']:.0f} frames/s, "
+                  f"scene {figures['frames_per_s_scene']:.0f} frames/s", figures, args.json)
     return 0
 
 
