@@ -578,32 +578,29 @@ class ReviewController(QObject):
         self.window.statusBar().showMessage(command.text, 5000)
         return span
 
-    def assign_label(self, new_label: str) -> FrameSpan | None:
-        """Give ``new_label`` to the selected point over the chosen scope."""
+    def _point_edit(self, command: type, *arguments: str) -> FrameSpan | None:
+        """Run a point command (``AssignLabel``, ``Unlabel``, ``MarkGhost``) on the selected point over
+        the chosen scope; ``arguments`` follow the point (the new label of an assignment)."""
         def make() -> Command:
             frame, column = self._selected_point()
             scope, start, stop = self._scope()
-            return AssignLabel(frame, column, new_label, scope=scope, start=start, stop=stop)
-        span = self.run_edit(make)
+            return command(frame, column, *arguments, scope=scope, start=start, stop=stop)
+        return self.run_edit(make)
+
+    def assign_label(self, new_label: str) -> FrameSpan | None:
+        """Give ``new_label`` to the selected point over the chosen scope."""
+        span = self._point_edit(AssignLabel, new_label)
         if span is not None:
             self.select_label(self.review.label_index(new_label))
         return span
 
     def unlabel(self) -> FrameSpan | None:
         """Remove the label of the selected point over the chosen scope."""
-        def make() -> Command:
-            frame, column = self._selected_point()
-            scope, start, stop = self._scope()
-            return Unlabel(frame, column, scope=scope, start=start, stop=stop)
-        return self.run_edit(make)
+        return self._point_edit(Unlabel)
 
     def mark_ghost(self) -> FrameSpan | None:
         """Mark the selected point as a ghost over the chosen scope."""
-        def make() -> Command:
-            frame, column = self._selected_point()
-            scope, start, stop = self._scope()
-            return MarkGhost(frame, column, scope=scope, start=start, stop=stop)
-        return self.run_edit(make)
+        return self._point_edit(MarkGhost)
 
     def swap_labels(self, other: str) -> FrameSpan | None:
         """Swap the selected label with ``other`` over the marked range (or from here to the end)."""
