@@ -49,7 +49,10 @@ class TakeDocument:
     # ------------------------------------------------------------------------------------ review
     @property
     def is_raw(self) -> bool:
-        """Whether the take's points carry no labels yet (placeholder names such as ``*12``)."""
+        """Whether the take's points carry no labels yet: as the session recorded it, else by its point
+        names (placeholders such as ``*12``)."""
+        if self.open_take is not None:
+            return not self.open_take.entry.labelled_source
         return looks_unlabelled(self.take.marker_names)
 
     def ensure_review(self) -> ReviewTake:
