@@ -32,8 +32,9 @@ def window(qtbot, monkeypatch):
 
 
 def release(widget) -> None:
-    """Delete a top-level widget now, while Qt runs: pyqtgraph items left to the interpreter's final
-    garbage collection can crash it (PySide6 refcount bug), failing an otherwise green run."""
+    """Delete a top-level widget now, while Qt runs: a closed window's 3D views left alive keep the GUI
+    thread busy in later tests (a Cancel then arrives too late), and pyqtgraph items left to the
+    interpreter's final garbage collection can crash it."""
     import gc
 
     from PySide6.QtCore import QCoreApplication, QEvent

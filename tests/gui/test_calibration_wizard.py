@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from conftest import release
 
 from core.calibration.landmarks import landmarks_from_truth, save_landmarks
 from core.calibration.scan import save_ply
@@ -73,6 +74,7 @@ def test_wizard_calibrates_a_scan(qtbot, scan_files, tmp_path):
     assert (tmp_path / "subject.glb").exists()
     assert np.isfinite(model.skeleton.rest_positions).all()
     wizard.close()
+    release(wizard)
 
 
 def test_wizard_shows_bad_scan_and_keeps_landmarks_after_a_failed_alignment(qtbot, scan_files, tmp_path):
@@ -98,6 +100,7 @@ def test_wizard_shows_bad_scan_and_keeps_landmarks_after_a_failed_alignment(qtbo
     wizard.back()
     assert wizard.currentPage() is pages["landmarks"] and state.picked_count() == 20
     wizard.close()
+    release(wizard)
 
 
 def test_a_scan_without_colours_skips_the_clean_page(qtbot, tmp_path):
@@ -116,3 +119,4 @@ def test_a_scan_without_colours_skips_the_clean_page(qtbot, tmp_path):
     wizard.back()
     assert wizard.currentPage() is wizard.pages["scan"]
     wizard.close()
+    release(wizard)
