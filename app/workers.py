@@ -4,11 +4,17 @@ A task is a plain function ``task(progress, cancelled) -> result``. :class:`Task
 time on a QThread; the worker never touches a widget: progress, results and errors come back by
 signal, tagged with the request id the caller got from :meth:`TaskRunner.start`, so the GUI applies
 a result only if it still belongs to the current document.
+
+A worker running Python code holds the interpreter lock for up to the switch interval each time the
+GUI thread asks for it, and the GUI thread asks for it at every call into a Python slot or model; with
+Python's default 5 ms, painting a window during a solve took seconds. :class:`TaskRunner` lowers the
+interval to :data:`GUI_SWITCH_INTERVAL_S`.
 """
 
 from __future__ import annotations
 
 import logging
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -22,6 +28,7 @@ Task = Callable[[Callable[[float], None], Callable[[], bool]], Any]
 
 LOG = logging.getLogger(__name__)
 PROGRESS_INTERVAL_S = 0.05   # a task may report every frame; the GUI hears at most 20 updates a second
+GUI_SWITCH_INTERVAL_S = 0.001  # longest wait of the GUI thread for the interpreter lock held by a worker
 
 
 def one_line(message: str) -> str:
@@ -78,6 +85,7 @@ class TaskRunner(QObject):
         self._thread: QThread | None = None
         self._worker: _Worker | None = None
         self._cancel_event = threading.Event()
+        sys.setswitchinterval(min(sys.getswitchinterval(), GUI_SWITCH_INTERVAL_S))
 
     def is_busy(self) -> bool:
         """Whether a task is running."""

@@ -3,6 +3,7 @@ compare two layouts in synchronised views with their metrics, export placement s
 
 import numpy as np
 import pytest
+from conftest import release
 from PySide6.QtWidgets import QMessageBox
 
 import app.layout_view as layout_view_module
@@ -21,6 +22,7 @@ def view(qtbot, monkeypatch):
     qtbot.addWidget(window)
     yield window
     window.close()
+    release(window)
 
 
 def tiny(window, markers=5):

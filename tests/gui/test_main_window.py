@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from conftest import release
 from PySide6.QtCore import Qt
 
 from app.document import TakeDocument
@@ -160,11 +161,11 @@ def test_each_take_keeps_its_solve_and_frame(window, qtbot, take_file, tmp_path)
 
 def test_cancel_leaves_the_take_unsolved(window, qtbot, long_take):
     window.add_document(TakeDocument(long_take, "long"))
+    # the operator presses Cancel once the progress bar moves, however busy the GUI thread was before
+    window.runner.progressed.connect(lambda *_: window.cancel_action.trigger())
     with qtbot.waitSignal(window.runner.cancelled, timeout=60_000):
         window.solve()
         assert window.runner.is_busy() and window.cancel_action.isEnabled()
-        qtbot.wait(50)
-        window.cancel_action.trigger()
     assert window.document.result is None
     assert not window.runner.is_busy()
     assert window.solve_action.isEnabled()
@@ -194,13 +195,15 @@ def test_closing_while_solving_stops_the_worker(qtbot, long_take):
     from app.main_window import MainWindow
 
     window = MainWindow()
-    qtbot.addWidget(window)
     window.show()
-    window.add_document(TakeDocument(long_take, "long"))
-    window.solve()
-    assert window.runner.is_busy()
-    window.close()
-    assert not window.runner.is_busy()
+    try:
+        window.add_document(TakeDocument(long_take, "long"))
+        window.solve()
+        assert window.runner.is_busy()
+        window.close()
+        assert not window.runner.is_busy()
+    finally:
+        release(window)
 
 
 def test_screenshot_writes_a_png(window, qtbot, take_file, tmp_path):
