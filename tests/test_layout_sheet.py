@@ -99,3 +99,34 @@ def test_a_long_layout_still_fits_the_page(model, tmp_path):
     sheet = placement_sheet(model, long)
     assert len(sheet.rows) == 30 and sheet.subtitle.endswith("…")
     assert save_placement_sheet(sheet, tmp_path / "long.png", dpi=60).exists()
+
+
+def boxes_overlap(a: np.ndarray, b: np.ndarray, half: np.ndarray) -> bool:
+    return bool((np.abs(a - b) < 2.0 * half).all())
+
+
+def test_numbers_overlap_neither_each_other_nor_markers():
+    from core.layout.label_placement import place_labels
+
+    # the thumb-side view of the dense layout: markers along the finger's edge, 1-3 mm apart
+    side = placement_sheet(load_template(), load_layout("dense")).views[1]
+    anchors = side.markers * np.array([0.5, -0.5])                   # page mm at 1:2, y down
+    labelled = side.visible.copy()
+    size, radius = (5.6, 4.6), 2.4
+    labels = place_labels(anchors, labelled, anchors.mean(axis=0), size, radius)
+    assert np.isnan(labels[~labelled]).all() and np.isfinite(labels[labelled]).all()
+    half = np.array(size) / 2.0
+    placed = labels[labelled]
+    for i in range(len(placed)):
+        for j in range(i + 1, len(placed)):
+            assert not boxes_overlap(placed[i], placed[j], half), (i, j)
+    nearest = np.clip(anchors[None], placed[:, None] - half, placed[:, None] + half)
+    assert (np.linalg.norm(nearest - anchors[None], axis=2) > radius).all()
+    assert (np.linalg.norm(placed - anchors[labelled], axis=1) <= 16.0).all()   # near their marker
+
+
+def test_a_lone_marker_is_numbered_straight_outward():
+    from core.layout.label_placement import place_labels
+
+    labels = place_labels(np.array([[10.0, 0.0]]), np.array([True]), np.zeros(2), (5.0, 4.0), 2.0)
+    np.testing.assert_allclose(labels[0], [15.0, 0.0])

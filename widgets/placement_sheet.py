@@ -25,6 +25,7 @@ from PySide6.QtGui import (
 from PySide6.QtWidgets import QApplication
 
 from core.errors import InputError
+from core.layout.label_placement import place_labels
 from core.layout.placement_sheet import PlacementSheet, SheetView, rasterise_view
 
 PAGE_MM = (210.0, 297.0)          # A4 portrait
@@ -36,6 +37,8 @@ TEXT = QColor(20, 20, 20)
 MUTED = QColor(90, 90, 90)
 RULE = QColor(170, 170, 170)
 MARKER_RADIUS_MM = 2.4
+LABEL_SIZE_MM = (5.6, 4.6)        # the white box behind a marker number
+LEADER_FROM_MM = 5.5              # a number further than this from its marker gets a leader line
 PNG_DPI = 200
 SKIN_PIXELS_PER_MM = 12.0     # resolution of the shaded skin image (about 300 dpi on paper)
 
@@ -70,9 +73,10 @@ def _text(painter: QPainter, rect: QRectF, text: str, size_mm: float, bold: bool
     painter.restore()
 
 
-def _paint_view(painter: QPainter, view: SheetView, box: QRectF, scale: float) -> None:
-    """The hand of ``view`` at ``scale`` (page mm per model mm) centred in ``box`` (mm), with numbered
-    markers (hidden ones as dashed rings)."""
+def _paint_view(painter: QPainter, view: SheetView, box: QRectF, scale: float, labelled: np.ndarray) -> None:
+    """The hand of ``view`` at ``scale`` (page mm per model mm) centred in ``box`` (mm), with its markers
+    (hidden ones as dashed rings); the markers with ``labelled (k,)`` True get their number, placed so
+    that numbers overlap neither each other nor a marker (with a leader line when moved away)."""
     xmin, ymin, xmax, ymax = view.bounds
     centre_x = box.center().x() - scale * (xmin + xmax) / 2.0
     centre_y = box.center().y() + scale * (ymin + ymax) / 2.0
@@ -91,9 +95,14 @@ def _paint_view(painter: QPainter, view: SheetView, box: QRectF, scale: float) -
 
     markers = page(view.markers)
     centroid = page(np.array([[(xmin + xmax) / 2.0, (ymin + ymax) / 2.0]]))[0]
+    labels = place_labels(markers, labelled, centroid, LABEL_SIZE_MM, MARKER_RADIUS_MM)
     painter.save()
     painter.setRenderHint(QPainter.RenderHint.Antialiasing, True)
-    for number, (point, visible) in enumerate(zip(markers, view.visible, strict=True), start=1):
+    for point, label in zip(markers, labels, strict=True):          # leader lines under everything else
+        if np.isfinite(label[0]) and np.linalg.norm(label - point) > LEADER_FROM_MM:
+            painter.setPen(QPen(MUTED, 0.25))
+            painter.drawLine(QPointF(*point), QPointF(*label))
+    for number, (point, visible, label) in enumerate(zip(markers, view.visible, labels, strict=True), start=1):
         centre = QPointF(float(point[0]), float(point[1]))
         if visible:
             painter.setPen(QPen(QColor(255, 255, 255), 0.5))
@@ -104,15 +113,15 @@ def _paint_view(painter: QPainter, view: SheetView, box: QRectF, scale: float) -
             painter.setPen(pen)
             painter.setBrush(Qt.BrushStyle.NoBrush)
         painter.drawEllipse(centre, MARKER_RADIUS_MM, MARKER_RADIUS_MM)
-        direction = point - centroid
-        direction = direction / max(float(np.linalg.norm(direction)), 1e-9)
-        label = point + direction * 5.0 + np.array([-2.5, -2.0])
-        halo = QRectF(float(label[0]) - 0.3, float(label[1]) - 0.3, 5.6, 4.6)
+        if not np.isfinite(label[0]):
+            continue
+        width, height = LABEL_SIZE_MM
+        halo = QRectF(float(label[0]) - width / 2.0, float(label[1]) - height / 2.0, width, height)
         painter.setPen(Qt.PenStyle.NoPen)
         painter.setBrush(QColor(255, 255, 255, 215))
         painter.drawRoundedRect(halo, 1.0, 1.0)
-        _text(painter, QRectF(float(label[0]), float(label[1]), 5.0, 4.0), str(number), 3.2, bold=True,
-              color=TEXT if visible else MUTED, flags=Qt.AlignmentFlag.AlignCenter)
+        _text(painter, halo, str(number), 3.2, bold=True, color=TEXT if visible else MUTED,
+              flags=Qt.AlignmentFlag.AlignCenter)
     painter.restore()
     _text(painter, QRectF(box.x(), box.bottom() + 1.0, box.width(), 6.0), view.title, 3.6, bold=True,
           flags=Qt.AlignmentFlag.AlignHCenter | Qt.AlignmentFlag.AlignTop)
@@ -151,9 +160,10 @@ def paint_sheet(painter: QPainter, sheet: PlacementSheet) -> None:
     scale = min((right - left - gap * (len(widths) - 1)) / sum(widths),
                 (views_bottom - views_top) / max(heights))
     x = left + ((right - left) - scale * sum(widths) - gap * (len(widths) - 1)) / 2.0
+    seen = np.any([view.visible for view in sheet.views], axis=0)     # numbered where seen; else everywhere
     for view, view_width in zip(sheet.views, widths, strict=True):
         box = QRectF(x, views_top, scale * view_width, views_bottom - views_top)
-        _paint_view(painter, view, box, scale)
+        _paint_view(painter, view, box, scale, view.visible | ~seen)
         x += scale * view_width + gap
 
     bar_top = views_bottom + 8.0
@@ -162,8 +172,8 @@ def paint_sheet(painter: QPainter, sheet: PlacementSheet) -> None:
     painter.drawLine(QPointF(left, bar_top), QPointF(left + bar, bar_top))
     for tick in (left, left + bar):
         painter.drawLine(QPointF(tick, bar_top - 1.2), QPointF(tick, bar_top + 1.2))
-    _text(painter, QRectF(left + bar + 2, bar_top - 2.2, 120, 5), f"50 mm (drawing scale 1:{1 / scale:.1f}); "
-          "dashed rings: marker hidden in this view", 3.0, color=MUTED)
+    _text(painter, QRectF(left + bar + 2, bar_top - 2.2, right - left - bar - 2, 5), f"50 mm (drawing scale 1:{1 / scale:.1f}); "
+          "dashed rings: hidden in this view, numbered in the other", 3.0, color=MUTED)
 
     top = height - MARGIN_MM - list_height
     columns = (left, left + 9, left + 42)
