@@ -172,8 +172,9 @@ def paint_sheet(painter: QPainter, sheet: PlacementSheet) -> None:
     painter.drawLine(QPointF(left, bar_top), QPointF(left + bar, bar_top))
     for tick in (left, left + bar):
         painter.drawLine(QPointF(tick, bar_top - 1.2), QPointF(tick, bar_top + 1.2))
-    _text(painter, QRectF(left + bar + 2, bar_top - 2.2, right - left - bar - 2, 5), f"50 mm (drawing scale 1:{1 / scale:.1f}); "
-          "dashed rings: hidden in this view, numbered in the other", 3.0, color=MUTED)
+    _text(painter, QRectF(left + bar + 2, bar_top - 2.2, right - left - bar - 2, 5),
+          f"50 mm (drawing scale 1:{1 / scale:.1f}); dashed rings: hidden in this view, numbered in the other",
+          3.0, color=MUTED)
 
     top = height - MARGIN_MM - list_height
     columns = (left, left + 9, left + 42)
