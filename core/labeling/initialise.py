@@ -34,6 +34,11 @@ SCALE_RANGE = (0.75, 1.33)
 """OBB scale factors outside this range reject a (model, cluster) pair (a different object)."""
 
 
+RETRY_RESIDUAL_MM = 2.0
+"""A hand fit whose mean residual (mm) stays above this is tried again from other starting postures."""
+RETRY_COMPONENTS = 2
+RETRY_STDDEVS = 1.5
+"""The other starting postures: ± this many standard deviations along the prior's first components."""
 REACQUIRE_POINTS = 16
 """At most this many points nearest to a lost object's predicted centre are tried for re-acquiring it."""
 AMBIGUOUS_RATIO = 1.5
@@ -205,36 +210,66 @@ def _score(effectors: np.ndarray, cluster: np.ndarray, point_index: np.ndarray, 
     return residual + alpha * unmatched, residual, count
 
 
+def _posture_starts(track: HandTrack) -> list[np.ndarray]:
+    """Finger postures (26,) to start a fit from other than the prior's mean: the mean moved
+    ±:data:`RETRY_STDDEVS` standard deviations along each of the prior's first
+    :data:`RETRY_COMPONENTS` principal components (clipped to the joint limits)."""
+    prior, solver = track.solver.prior, track.solver
+    starts = []
+    for component in range(min(RETRY_COMPONENTS, prior.n_components)):
+        for sign in (1.0, -1.0):
+            theta = track.mean_theta.copy()
+            posture = prior.mean + sign * RETRY_STDDEVS * prior.stddev[component] * prior.components[:, component]
+            theta[6:] = np.clip(posture, solver.angle_lower, solver.angle_upper)
+            starts.append(theta)
+    return starts
+
+
 def fit_hand(track: HandTrack, cluster: np.ndarray, settings: SceneSettings, strays: np.ndarray | None = None
              ) -> tuple[float, np.ndarray, int, float, np.ndarray]:
     """Best eq. 2 fit of a hand to ``cluster (N,3)``: (score, θ, matched, residual, point index (K,)).
     ``strays (S,3)``: points of clusters too small for any model (e.g. an abducted thumb's two markers
     farther than the cut from the hand), offered to unmatched markers by the completion step; point
-    indices ≥ N refer to them."""
+    indices ≥ N refer to them. The fit starts from the prior's mean posture in each PCA alignment; when
+    the best residual stays above :data:`RETRY_RESIDUAL_MM` (a local minimum, e.g. the markers taken
+    one finger over), it starts again from the postures of :func:`_posture_starts`."""
     source = model_points(track)
+    alignments = _alignments(source, cluster, settings.icp_iterations)
+    extended = cluster if strays is None or not len(strays) else np.concatenate([cluster, strays])
     best = (np.inf, track.mean_theta, 0, np.inf, np.full(track.count, -1))
-    for _scale, rotation, translation in _alignments(source, cluster, settings.icp_iterations):
-        start = track.mean_theta.copy()
-        start[3:6] = vector_from_rotation(rotation @ rotation_from_vector(track.mean_theta[3:6]))
-        start[0:3] = rotation @ track.mean_theta[0:3] + translation
-        theta = start
-        point_index = gated_assignment(track.effectors(start), cluster, settings.gate_mm)
-        effectors = None
-        for _ in range(3):
-            if (point_index >= 0).sum() < 3:
-                break
-            targets = np.where((point_index >= 0)[:, None], cluster[np.maximum(point_index, 0)], np.nan)
-            theta, effectors = track.solve(targets, point_index >= 0, theta)
-            point_index = gated_assignment(effectors, cluster, settings.gate_mm)
-        if effectors is None:
-            continue
-        score, residual, count = _score(effectors, cluster, point_index, settings.alpha)
-        extended = cluster if strays is None or not len(strays) else np.concatenate([cluster, strays])
-        theta, effectors, point_index, score, residual, count = _complete(
-            track, extended, len(cluster), theta, effectors, point_index, (score, residual, count), settings)
-        if score < best[0]:
-            best = (score, theta, count, residual, point_index)
+    for postures in ([track.mean_theta], _posture_starts(track)):
+        if best[3] <= RETRY_RESIDUAL_MM:
+            break
+        for posture, (_scale, rotation, translation) in product(postures, alignments):
+            fit = _fit_from(track, cluster, extended, settings, posture, rotation, translation)
+            if fit is not None and fit[0] < best[0]:
+                best = fit
     return best
+
+
+def _fit_from(track: HandTrack, cluster: np.ndarray, extended: np.ndarray, settings: SceneSettings,
+              posture: np.ndarray, rotation: np.ndarray, translation: np.ndarray):
+    """Fit of the hand starting from ``posture (26,)`` moved by the alignment ``rotation``,
+    ``translation``: alternate Hungarian assignment and IK, then complete; the tuple of
+    :func:`fit_hand`, or None when fewer than 3 markers match."""
+    start = posture.copy()
+    start[3:6] = vector_from_rotation(rotation @ rotation_from_vector(posture[3:6]))
+    start[0:3] = rotation @ posture[0:3] + translation
+    theta = start
+    point_index = gated_assignment(track.effectors(start), cluster, settings.gate_mm)
+    effectors = None
+    for _ in range(3):
+        if (point_index >= 0).sum() < 3:
+            break
+        targets = np.where((point_index >= 0)[:, None], cluster[np.maximum(point_index, 0)], np.nan)
+        theta, effectors = track.solve(targets, point_index >= 0, theta)
+        point_index = gated_assignment(effectors, cluster, settings.gate_mm)
+    if effectors is None:
+        return None
+    score, residual, count = _score(effectors, cluster, point_index, settings.alpha)
+    theta, effectors, point_index, score, residual, count = _complete(
+        track, extended, len(cluster), theta, effectors, point_index, (score, residual, count), settings)
+    return score, theta, count, residual, point_index
 
 
 def _complete(track: HandTrack, cluster: np.ndarray, cluster_size: int, theta: np.ndarray, effectors: np.ndarray,
