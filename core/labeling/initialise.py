@@ -196,6 +196,21 @@ def _alignments(source: np.ndarray, target: np.ndarray, iterations: int
     return results
 
 
+def _assign_and_solve(track: Track, cluster: np.ndarray, state, settings: SceneSettings, rounds: int = 3):
+    """Alternate the gated Hungarian assignment of ``cluster (N,3)`` to the track's markers and the
+    track's solve, from ``state``; returns (state, effectors (K,3) or None when fewer than 3 markers
+    ever matched, point index per marker (K,), -1 unmatched)."""
+    point_index = gated_assignment(track.effectors(state), cluster, settings.gate_mm)
+    effectors = None
+    for _ in range(rounds):
+        if (point_index >= 0).sum() < 3:
+            break
+        targets = np.where((point_index >= 0)[:, None], cluster[np.maximum(point_index, 0)], np.nan)
+        state, effectors = track.solve(targets, point_index >= 0, state)
+        point_index = gated_assignment(effectors, cluster, settings.gate_mm)
+    return state, effectors, point_index
+
+
 def _score(effectors: np.ndarray, cluster: np.ndarray, point_index: np.ndarray, alpha: float,
            cluster_size: int | None = None) -> tuple[float, float, int]:
     """Eq. 2 of a fit: (E + αD, E, matched count); the first ``cluster_size`` points of ``cluster`` are
@@ -255,15 +270,7 @@ def _fit_from(track: HandTrack, cluster: np.ndarray, extended: np.ndarray, setti
     start = posture.copy()
     start[3:6] = vector_from_rotation(rotation @ rotation_from_vector(posture[3:6]))
     start[0:3] = rotation @ posture[0:3] + translation
-    theta = start
-    point_index = gated_assignment(track.effectors(start), cluster, settings.gate_mm)
-    effectors = None
-    for _ in range(3):
-        if (point_index >= 0).sum() < 3:
-            break
-        targets = np.where((point_index >= 0)[:, None], cluster[np.maximum(point_index, 0)], np.nan)
-        theta, effectors = track.solve(targets, point_index >= 0, theta)
-        point_index = gated_assignment(effectors, cluster, settings.gate_mm)
+    theta, effectors, point_index = _assign_and_solve(track, cluster, start, settings)
     if effectors is None:
         return None
     score, residual, count = _score(effectors, cluster, point_index, settings.alpha)
@@ -312,13 +319,7 @@ def fit_object(track: RigidTrack, cluster: np.ndarray, settings: SceneSettings
         if not SCALE_RANGE[0] <= scale <= SCALE_RANGE[1]:
             continue
         pose = pose_matrix(rotation, translation + (scale - 1.0) * rotation @ track.local.mean(axis=0))
-        point_index = gated_assignment(track.effectors(pose), cluster, settings.gate_mm)
-        for _ in range(3):
-            if (point_index >= 0).sum() < 3:
-                break
-            targets = np.where((point_index >= 0)[:, None], cluster[np.maximum(point_index, 0)], np.nan)
-            pose, effectors = track.solve(targets, point_index >= 0, pose)
-            point_index = gated_assignment(effectors, cluster, settings.gate_mm)
+        pose, _effectors, point_index = _assign_and_solve(track, cluster, pose, settings)
         score, residual, count = _score(track.effectors(pose), cluster, point_index, settings.alpha)
         if score < best[0]:
             best = (score, pose, count, residual, point_index)
