@@ -174,3 +174,16 @@ def test_trajectory_extension_links_continuations_but_not_ghosts():
     forward_only = np.full((frames, 1), -1)
     forward_only[20:, 0] = 0
     assert extend_trajectories(points, forward_only, np.array([0]), 4.0, backward=False) == []
+
+
+def test_a_fast_free_trajectory_is_one_fragment_from_its_first_sample():
+    """A fingertip seen alone between two gaps, moving 6 mm per frame (0.6 m/s at 100 Hz): more than
+    ``link_mm`` between its first two samples, yet one fragment (that the rescue can give to a marker)."""
+    frames = 26
+    path = np.column_stack([np.linspace(0, 150, frames), 10.0 * np.sin(np.linspace(0, 1, frames)), np.zeros(frames)])
+    points = np.full((frames, 2, 3), np.nan)
+    points[:, 0] = path
+    points[5, 1] = path[5] + [0.0, 30.0, 0.0]                           # a one-frame ghost
+    fragments = free_fragments(points, np.full((frames, 1), -1), 4.0, 20)
+    assert [(first, len(columns)) for first, columns in fragments] == [(0, frames)]
+    assert (fragments[0][1] == 0).all()

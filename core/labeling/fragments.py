@@ -15,6 +15,11 @@ from __future__ import annotations
 
 import numpy as np
 
+FIRST_LINK_FACTOR = 3.0
+"""A free point's second sample is linked within this times ``link_mm`` of its first (no velocity is
+known yet: a fingertip moving 0.5 m/s moves 5 mm per frame at 100 Hz); later samples within ``link_mm``
+of the constant-velocity extrapolation."""
+
 
 def extend_trajectories(points: np.ndarray, assignment: np.ndarray, columns: np.ndarray, link_mm: float,
                         backward: bool = True) -> list[tuple[int, int, int, float]]:
@@ -66,7 +71,8 @@ def free_fragments(points: np.ndarray, assignment: np.ndarray, link_mm: float, m
                    ) -> list[tuple[int, np.ndarray]]:
     """Trajectories of the free points (those no marker took) of ``points (F,P,3)``: each a first frame
     and the point column per frame ``(L,)``, linked frame to frame like :func:`extend_trajectories`
-    (unambiguous constant-velocity continuation within ``link_mm``); only those of at least
+    (unambiguous constant-velocity continuation within ``link_mm``; the second sample within
+    :data:`FIRST_LINK_FACTOR` × ``link_mm`` of the first); only those of at least
     ``min_frames`` frames are returned."""
     frames = len(points)
     present = np.isfinite(points).all(axis=2)
@@ -80,14 +86,16 @@ def free_fragments(points: np.ndarray, assignment: np.ndarray, link_mm: float, m
         used: set[int] = set()
         still_open = []
         for track in open_tracks:
-            predicted = track[3] if track[2] is None else 2.0 * track[3] - track[2]
+            # no velocity yet after one sample: the point may have moved a marker's frame-to-frame distance
+            predicted, gate = (track[3], FIRST_LINK_FACTOR * link_mm) if track[2] is None else \
+                (2.0 * track[3] - track[2], link_mm)
             extended = False
             if len(candidates):
                 distances = np.sqrt(((points[frame, candidates] - predicted) ** 2).sum(axis=1))
                 order = np.argsort(distances)[:2]
                 runner_up = distances[order[1]] if len(order) > 1 else np.inf
                 column = int(candidates[order[0]])
-                if distances[order[0]] <= link_mm and runner_up >= 2.0 * link_mm and column not in used:
+                if distances[order[0]] <= gate and runner_up >= 2.0 * gate and column not in used:
                     used.add(column)
                     track[1].append(column)
                     track[2], track[3] = track[3], points[frame, column]
