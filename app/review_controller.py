@@ -326,6 +326,7 @@ class ReviewController(QObject):
         self.preview.clear()
         self.window.viewport.set_trails([])
         self.window.viewport.set_loose_points(None)
+        self.window.viewport.set_rigid_bodies(None)
         self.update_enabled()
 
     def refresh(self, structure: bool = False) -> None:
@@ -423,6 +424,7 @@ class ReviewController(QObject):
                  for column, label in enumerate(point_label)]
         viewport.set_marker_names(names)
         viewport.set_marker_colors(colors)
+        viewport.set_rigid_bodies(review.rigid_body_segments(frame))
         fills = review.provenance[frame] > 0
         fill_colors = palette[fills] * 0.5 + np.array(FILL_COLOR) * 0.5
         viewport.set_loose_points(review.filled_positions[frame, fills], fill_colors)

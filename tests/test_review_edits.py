@@ -383,12 +383,24 @@ def test_scene_labelling_result_gives_one_track_per_hand(labelled):
         joint_angles = {"right": np.ones((FRAMES, 26)), "left": np.zeros((FRAMES, 26))}
         models = [Model("right", "right", slice(0, 2)), Model("left", "left", slice(2, 4)),
                   Model("box", "object", slice(4, 5))]
+        rigid_bodies = {"box": [2, 3, 4]}
 
     scene = ReviewTake.from_labelling(review.take, Scene(), layout="glove-13")
     assert [(h.name, h.side, h.layout, h.labels.tolist()) for h in scene.hands] == [
         ("right", "right", "glove-13", [0, 1]), ("left", "left", "glove-13", [2, 3])]
     assert (scene.hands[0].joint_angles == 1).all() and scene.hand_of_label(4) == -1
     assert scene.hand_of_label(3) == 1
+    # a rigid body is drawn as a line between every two of its labels seen in the frame
+    assert scene.rigid_bodies == {"box": [2, 3, 4]}
+    positions = scene.labelled_positions()
+    frame = int(np.flatnonzero(np.isfinite(positions[:, 2:5]).all(axis=(1, 2)))[0])
+    segments = scene.rigid_body_segments(frame)
+    assert segments.shape == (3, 2, 3)
+    np.testing.assert_array_equal(segments[0], positions[frame, [2, 3]])
+    UndoStack(scene).push(Unlabel(label="box_1", scope="range", start=0, stop=10))   # one marker hidden
+    assert scene.rigid_body_segments(5).shape == (1, 2, 3) and len(scene.rigid_body_segments(10)) == 3
+    with pytest.raises(InputError, match="rigid body 'box'"):
+        ReviewTake(**{**scene.__dict__, "rigid_bodies": {"box": [7]}, "_cache": {}})
 
 
 def test_undo_keeps_only_what_changed(labelled):

@@ -22,6 +22,7 @@ from core.session import (
     ApplyLabelling,
     AssignLabel,
     GapFill,
+    LabellingArrays,
     ReviewTake,
     Session,
     SetSolve,
@@ -176,6 +177,27 @@ def test_journal_replays_edits_after_a_crash_and_save_keeps_history(tmp_path, ra
     third.undo()  # the auto-label
     assert third.review.n_labels == 0
     assert Session.open(tmp_path / "session").take(entry.id).state == "labelled"
+
+
+def test_rigid_bodies_of_a_labelling_survive_replay_save_and_undo(tmp_path, raw):
+    path, result = raw
+    session = Session.create(tmp_path / "session")
+    entry = session.add_take(path)
+    opened = session.open_take(entry.id)
+    arrays = LabellingArrays(list(result.marker_names), result.assignment, result.confidence, result.residuals_mm,
+                             result.ghost_points, [], rigid_bodies={"cup": [2, 3, 4]})
+    opened.push(ApplyLabelling(arrays))
+    assert opened.review.rigid_bodies == {"cup": [2, 3, 4]}
+    replayed = Session.open(tmp_path / "session").open_take(entry.id)       # the process "died" unsaved
+    assert replayed.replayed == 1 and replayed.review.rigid_bodies == {"cup": [2, 3, 4]}
+    replayed.save()
+    replayed.close()
+    reopened = Session.open(tmp_path / "session").open_take(entry.id)
+    assert reopened.replayed == 0 and reopened.review.rigid_bodies == {"cup": [2, 3, 4]}
+    reopened.undo()
+    assert reopened.review.rigid_bodies == {} and reopened.review.n_labels == 0
+    reopened.redo()
+    assert reopened.review.rigid_bodies == {"cup": [2, 3, 4]}
 
 
 def test_crash_between_snapshot_and_journal_restart_does_not_apply_twice(tmp_path, raw):

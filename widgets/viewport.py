@@ -26,6 +26,7 @@ SKIN_COLOR = (0.91, 0.73, 0.62)
 MARKER_COLOR = (0.55, 0.80, 1.00)
 SELECTED_MARKER_COLOR = (1.00, 0.86, 0.20)
 EFFECTOR_COLOR = (1.00, 0.55, 0.10)
+RIGID_BODY_COLOR = (0.55, 0.85, 1.00)   # lines between the markers of one rigid object
 BACKGROUND_TOP = (0.24, 0.26, 0.30)
 BACKGROUND_BOTTOM = (0.07, 0.08, 0.09)
 GRID_COLOR = (0.42, 0.45, 0.50)
@@ -94,6 +95,17 @@ def _as_rgb_bytes(colors: np.ndarray) -> np.ndarray:
     return np.clip(np.round(np.asarray(colors, dtype=float) * 255.0), 0, 255).astype(np.uint8)
 
 
+def _segments(starts: np.ndarray, ends: np.ndarray) -> pv.PolyData:
+    """Line segments from ``starts (S,3)`` to ``ends (S,3)`` mm as poly data (empty when S = 0)."""
+    count = len(starts)
+    if not count:
+        return pv.PolyData()
+    points = np.empty((2 * count, 3))
+    points[0::2], points[1::2] = starts, ends
+    cells = np.column_stack([np.full(count, 2), np.arange(0, 2 * count, 2), np.arange(1, 2 * count, 2)])
+    return pv.PolyData(points, lines=cells.ravel())
+
+
 def _grid_lines(center_xy: np.ndarray, half_extent: float, spacing: float, height: float) -> pv.PolyData:
     """Square grid of lines in the plane ``z = height`` centred (snapped to ``spacing``) on ``center_xy``."""
     center = np.round(np.asarray(center_xy, dtype=float) / spacing) * spacing
@@ -104,13 +116,9 @@ def _grid_lines(center_xy: np.ndarray, half_extent: float, spacing: float, heigh
     for tick in ticks:
         starts += [(center[0] + tick, center[1] + low), (center[0] + low, center[1] + tick)]
         ends += [(center[0] + tick, center[1] + high), (center[0] + high, center[1] + tick)]
-    n_lines = len(starts)
-    points = np.empty((2 * n_lines, 3))
-    points[0::2, :2] = starts
-    points[1::2, :2] = ends
-    points[:, 2] = height
-    cells = np.column_stack([np.full(n_lines, 2), np.arange(0, 2 * n_lines, 2), np.arange(1, 2 * n_lines, 2)])
-    return pv.PolyData(points, lines=cells.ravel())
+    starts, ends = np.asarray(starts, dtype=float), np.asarray(ends, dtype=float)
+    plane = np.full((len(starts), 1), float(height))
+    return _segments(np.hstack([starts, plane]), np.hstack([ends, plane]))
 
 
 def _nice_spacing(extent: float) -> float:
@@ -164,6 +172,7 @@ class HandViewport(QWidget):
         self._build_mesh()
         self._build_markers()
         self._build_effectors()
+        self._build_rigid_bodies()
         self._build_labels()
         self._build_trails()
         self.frame_bounds(np.array([[-100.0, -100.0, 0.0], [100.0, 100.0, 200.0]]))
@@ -272,6 +281,17 @@ class HandViewport(QWidget):
         self._residual_actor.prop.line_width = 2.0
         self._residual_actor.prop.lighting = False
         self._plotter.add_actor(self._residual_actor, name="residual-lines", reset_camera=False)
+
+    def _build_rigid_bodies(self) -> None:
+        self._rigid_lines = pv.PolyData()
+        mapper = vtkPolyDataMapper()
+        mapper.SetInputData(self._rigid_lines)
+        mapper.ScalarVisibilityOff()
+        actor = pv.Actor(mapper=mapper)
+        actor.prop.color = RIGID_BODY_COLOR
+        actor.prop.line_width = 2.5
+        actor.prop.lighting = False
+        self._plotter.add_actor(actor, name="rigid-bodies", reset_camera=False)
 
     def _build_trails(self) -> None:
         self._trail_data = pv.PolyData()
@@ -535,17 +555,19 @@ class HandViewport(QWidget):
         else:
             targets = np.asarray(targets, dtype=float).reshape(count, 3)
             paired = shown & np.isfinite(targets).all(axis=1)
-        starts, ends = effectors[paired], targets[paired]
-        n_lines = len(starts)
-        if n_lines:
-            points = np.empty((2 * n_lines, 3))
-            points[0::2], points[1::2] = starts, ends
-            cells = np.column_stack([np.full(n_lines, 2), np.arange(0, 2 * n_lines, 2),
-                                     np.arange(1, 2 * n_lines, 2)]).ravel()
-            self._residual_lines.ShallowCopy(pv.PolyData(points, lines=cells))
-        else:
-            self._residual_lines.ShallowCopy(pv.PolyData())
+        self._residual_lines.ShallowCopy(_segments(effectors[paired], targets[paired]))
         self._residual_lines.Modified()
+
+    def set_rigid_bodies(self, segments: np.ndarray | None) -> None:
+        """Draw rigid objects as lines between their labelled markers: ``segments (S, 2, 3)`` mm (start
+        and end of each line); None or empty clears them."""
+        segments = np.zeros((0, 2, 3)) if segments is None else np.asarray(segments, dtype=float).reshape(-1, 2, 3)
+        self._rigid_lines.ShallowCopy(_segments(segments[:, 0], segments[:, 1]))
+        self._rigid_lines.Modified()
+
+    def rigid_body_segment_count(self) -> int:
+        """Number of rigid-body lines drawn."""
+        return self._rigid_lines.GetNumberOfCells()
 
     def set_effectors_visible(self, visible: bool) -> None:
         """Show or hide effectors and residual lines."""

@@ -81,7 +81,7 @@ def auto_label(take: Take, layout: str | MarkerLayout = "dense", hands: str = "r
     seconds = time.perf_counter() - started
     tracks = hand_tracks(result, layout.name)
     arrays = LabellingArrays(list(result.marker_names), result.assignment, result.confidence, result.residuals_mm,
-                             result.ghost_points, tracks)
+                             result.ghost_points, tracks, rigid_bodies=result.rigid_bodies)
     description = f"auto-label ({hands} hand{'s' if hands == 'both' else ''}, {layout.name})"
     command = ApplyLabelling(arrays, hands=tracks, description=description)
     calibrated = {model.kind: model.hand_model for model in result.models

@@ -125,6 +125,12 @@ class SceneLabeling:
     def model(self, name: str) -> SceneModel:
         return next(model for model in self.models if model.name == name)
 
+    @property
+    def rigid_bodies(self) -> dict[str, list[int]]:
+        """The marker indices (into ``marker_names``) of each rigid object, by object name."""
+        indices = np.arange(len(self.marker_names))
+        return {model.name: indices[model.markers].tolist() for model in self.models if model.kind == "object"}
+
 
 class _Run:
     """Forward/backward tracking of a set of tracks over a take's points; fills the result arrays."""

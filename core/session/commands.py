@@ -32,7 +32,7 @@ from __future__ import annotations
 import base64
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, ClassVar, NamedTuple, Protocol
 
 import numpy as np
@@ -578,7 +578,8 @@ class SetSolve(Command):
 @dataclass
 class LabellingArrays:
     """A labelling result as plain arrays (what :class:`ApplyLabelling` stores): see
-    :meth:`ReviewTake.from_labelling`. ``hands``: :class:`~core.session.review.HandTrack` list."""
+    :meth:`ReviewTake.from_labelling`. ``hands``: :class:`~core.session.review.HandTrack` list;
+    ``rigid_bodies``: ``{object name: [label index]}``."""
 
     marker_names: list[str]
     assignment: np.ndarray
@@ -588,6 +589,7 @@ class LabellingArrays:
     hands: list
     filled_positions: np.ndarray | None = None
     provenance: np.ndarray | None = None
+    rigid_bodies: dict[str, list[int]] = field(default_factory=dict)
 
 
 class ApplyLabelling(Command):
@@ -624,7 +626,8 @@ class ApplyLabelling(Command):
         self._applied = LabellingArrays(list(review.label_names), review.assignment.copy(), review.confidence.copy(),
                                         review.residuals_mm.copy(), review.ghost.copy(),
                                         [hand.copy() for hand in review.hands],
-                                        review.filled_positions.copy(), review.provenance.copy())
+                                        review.filled_positions.copy(), review.provenance.copy(),
+                                        {name: list(labels) for name, labels in review.rigid_bodies.items()})
 
     def params(self, blobs: BlobStore | None = None) -> dict[str, Any]:
         applied = getattr(self, "_applied", None)
@@ -633,6 +636,7 @@ class ApplyLabelling(Command):
         return {"description": self.description, "marker_names": applied.marker_names,
                 "hands": [hand.meta() | {"joint_angles": encode_array(hand.joint_angles, blobs)}
                           for hand in applied.hands],
+                "rigid_bodies": applied.rigid_bodies,
                 **{name: None if getattr(applied, name) is None else encode_array(getattr(applied, name), blobs)
                    for name in ("assignment", "confidence", "residuals_mm", "ghost_points", "filled_positions",
                                 "provenance")}}
@@ -649,7 +653,9 @@ class ApplyLabelling(Command):
                 *(decode_array(params[name], blobs) for name in ("assignment", "confidence", "residuals_mm",
                                                                  "ghost_points")),
                 hands, *(None if params.get(name) is None else decode_array(params[name], blobs)
-                         for name in ("filled_positions", "provenance")))
+                         for name in ("filled_positions", "provenance")),
+                {str(name): [int(label) for label in labels]
+                 for name, labels in params.get("rigid_bodies", {}).items()})
         except (KeyError, TypeError) as error:
             raise InputError(f"malformed labelling record ({error})") from None
         return cls(arrays, hands=hands, description=str(params.get("description", "auto-label")))

@@ -11,7 +11,8 @@ and, per label (M labels, e.g. the layout's markers, ``R_``/``L_`` prefixed for 
 * ``confidence (F, M)`` mm: labelling margin between the best and the second-best option (NaN unknown);
 * ``residuals_mm (F, M)``: distance from the solved model effector to the label's position (NaN none);
 * ``ghost (F, P)`` bool: raw points judged spurious (by the labeller or by hand);
-* ``hands``: one :class:`HandTrack` per solved hand with its labels and ``joint_angles (F, 26)``.
+* ``hands``: one :class:`HandTrack` per solved hand with its labels and ``joint_angles (F, 26)``;
+* ``rigid_bodies``: the labels of each rigid object labelled with the take, ``{name: [label index]}``.
 
 Invariants kept by every command: ``provenance == 0`` exactly where ``assignment >= 0``; a fill
 (codes 1..5, finite ``filled_positions``) only where ``assignment == -1``; a point column is taken by
@@ -180,6 +181,7 @@ class ReviewTake:
     residuals_mm: np.ndarray
     ghost: np.ndarray
     hands: list[HandTrack] = field(default_factory=list)
+    rigid_bodies: dict[str, list[int]] = field(default_factory=dict)
     settings: ReviewSettings = field(default_factory=ReviewSettings)
     version: int = 0
     _cache: dict[str, Any] = field(default_factory=dict, repr=False)
@@ -211,6 +213,10 @@ class ReviewTake:
                                  f"for a take of {frames}")
             if len(hand.labels) and (hand.labels.min() < 0 or hand.labels.max() >= count):
                 raise InputError(f"hand '{hand.name}' refers to labels outside 0..{count - 1}")
+        self.rigid_bodies = {str(name): [int(label) for label in labels] for name, labels in self.rigid_bodies.items()}
+        for name, labels in self.rigid_bodies.items():
+            if any(not 0 <= label < count for label in labels):
+                raise InputError(f"rigid body '{name}' refers to labels outside 0..{count - 1}")
 
     # --- construction -------------------------------------------------------------------------------
 
@@ -277,8 +283,9 @@ class ReviewTake:
         to it) or a dict ``{hand name: (F, 26)}`` with the labels of each hand given by ``hands`` (a
         list of :class:`HandTrack`), a ``result.hands`` list, or ``result.models`` whose hand models
         (``kind`` "right"/"left") have a ``markers`` slice (``core.labeling.SceneLabeling``; rigid
-        objects' markers are plain labels). Optional ``filled_positions (F, M, 3)`` and
-        ``provenance (F, M)`` are kept as accepted fills.
+        objects' markers are plain labels, grouped by ``result.rigid_bodies`` ``{name: [label index]}``
+        when given). Optional ``filled_positions (F, M, 3)`` and ``provenance (F, M)`` are kept as
+        accepted fills.
         """
         review = cls.unlabelled(take, [])
         review.replace_with_labelling(result, hands, side, layout)
@@ -314,6 +321,7 @@ class ReviewTake:
                     markers = model.markers
                     labels = np.arange(count)[markers] if isinstance(markers, slice) else np.asarray(markers)
                     track_list.append(HandTrack(model.name, model.kind, layout, labels, angles[model.name]))
+        rigid_bodies = getattr(result, "rigid_bodies", None) or {}
         if not track_list and angles is not None and not isinstance(angles, dict):
             track_list = [HandTrack(side, side, layout, np.arange(count), np.asarray(angles, dtype=float))]
         elif isinstance(angles, dict):
@@ -331,6 +339,7 @@ class ReviewTake:
         self.residuals_mm = residuals
         self.ghost = ghost & ~self._taken_points(assignment)
         self.hands = track_list
+        self.rigid_bodies = dict(rigid_bodies)
         self.__post_init__()
         self.changed()
 
@@ -411,6 +420,17 @@ class ReviewTake:
             return cached
         positions = np.where((self.provenance > 0)[:, :, None], self.filled_positions, self.measured_positions())
         return self._store("labelled", positions)
+
+    def rigid_body_segments(self, frame: int) -> np.ndarray:
+        """Lines ``(S, 2, 3)`` mm between every two labels of each rigid body that both have a
+        position in ``frame`` (measured or filled): how the object is drawn."""
+        positions = self.labelled_positions()[frame]
+        segments = []
+        for labels in self.rigid_bodies.values():
+            present = np.array([label for label in labels if np.isfinite(positions[label]).all()], dtype=np.int64)
+            first, second = np.triu_indices(len(present), k=1)
+            segments.append(np.stack([positions[present[first]], positions[present[second]]], axis=1))
+        return np.concatenate(segments) if segments else np.zeros((0, 2, 3))
 
     def labelled_take(self, include_fills: bool = True) -> Take:
         """A :class:`Take` with one column per label (measured points, plus fills when asked)."""
@@ -645,6 +665,7 @@ class ReviewTake:
         label names and hands included (for commands that change the labels themselves)."""
         if whole:
             return {"whole": True, "label_names": list(self.label_names), "hands": [h.copy() for h in self.hands],
+                    "rigid_bodies": {name: list(labels) for name, labels in self.rigid_bodies.items()},
                     **{name: getattr(self, name).copy() for name in FRAME_ARRAYS}}
         saved: dict[str, Any] = {name: getattr(self, name)[start:stop].copy() for name in FRAME_ARRAYS}
         saved.update({f"hand{index}": hand.joint_angles[start:stop].copy() for index, hand in enumerate(self.hands)})
@@ -673,6 +694,7 @@ class ReviewTake:
         if saved.get("whole"):
             self.label_names = list(saved["label_names"])
             self.hands = [hand.copy() for hand in saved["hands"]]
+            self.rigid_bodies = {name: list(labels) for name, labels in saved.get("rigid_bodies", {}).items()}
             for name in FRAME_ARRAYS:
                 setattr(self, name, saved[name].copy())
         else:
@@ -701,7 +723,8 @@ class ReviewTake:
 
     def same_state(self, other: ReviewTake) -> bool:
         """True when labels, hands and every array equal ``other``'s exactly (NaN equal to NaN)."""
-        if self.label_names != other.label_names or [h.meta() for h in self.hands] != [h.meta() for h in other.hands]:
+        if (self.label_names != other.label_names or self.rigid_bodies != other.rigid_bodies
+                or [h.meta() for h in self.hands] != [h.meta() for h in other.hands]):
             return False
         mine, theirs = self.state_arrays(), other.state_arrays()
         return mine.keys() == theirs.keys() and all(

@@ -115,6 +115,7 @@ def snapshot_bytes(review: ReviewTake, stack: UndoStack | None, journal_seq: int
     meta = {
         "format": SNAPSHOT_FORMAT, "version": SNAPSHOT_VERSION, "journal_seq": int(journal_seq),
         "label_names": review.label_names, "hands": [hand.meta() for hand in review.hands],
+        "rigid_bodies": review.rigid_bodies,
         "settings": asdict(review.settings),
         "take": {"frames": review.n_frames, "points": review.n_points, "source": review.take.source_path},
         "history": history,
@@ -143,6 +144,7 @@ def _step_json(command: Command, key: str, arrays: dict[str, np.ndarray], blobs:
             arrays[prefix + name] = saved[name]
         step["label_names"] = saved["label_names"]
         step["hands"] = [hand.meta() for hand in saved["hands"]]
+        step["rigid_bodies"] = saved.get("rigid_bodies", {})
         for index, hand in enumerate(saved["hands"]):
             arrays[f"{prefix}hand{index}"] = hand.joint_angles
     else:
@@ -170,6 +172,7 @@ def _restore_step(step: dict[str, Any], key: str, arrays: dict[str, np.ndarray],
         saved["label_names"] = list(step["label_names"])
         saved["hands"] = [HandTrack(h["name"], h["side"], h.get("layout"), np.asarray(h["labels"], np.int64),
                                     arrays[f"{prefix}hand{index}"]) for index, h in enumerate(step["hands"])]
+        saved["rigid_bodies"] = dict(step.get("rigid_bodies", {}))
     else:
         saved = {name: arrays[prefix + name] for name in step.get("keys", [])}
     command.set_saved_state(FrameSpan(*step["span"]), saved, str(step.get("text", "")))
@@ -198,6 +201,7 @@ def load_snapshot(path: str | os.PathLike[str], take: Take) -> tuple[ReviewTake,
         hands = [HandTrack(h["name"], h["side"], h.get("layout"), np.asarray(h["labels"], np.int64),
                            arrays[f"hand{index}"]) for index, h in enumerate(meta["hands"])]
         review = ReviewTake(take=take, label_names=list(meta["label_names"]), hands=hands,
+                            rigid_bodies=dict(meta.get("rigid_bodies", {})),
                             settings=ReviewSettings(**meta.get("settings", {})),
                             **{key: arrays[key] for key in FRAME_ARRAYS})
         blobs = DictBlobs(arrays, "blob")

@@ -188,6 +188,12 @@ def test_two_hands_and_a_rigid_body_from_selected_points(window, qtbot, tmp_path
     # the selected points carry the rigid body's labels in the frame they were picked in
     for number, column in enumerate(columns):
         assert review.label_of_point(frame, column) == review.label_names.index(f"box{number + 1}")
+    # the box is drawn as lines between its four markers
+    assert list(review.rigid_bodies) == ["box"] and len(review.rigid_bodies["box"]) == 4
+    window.timeline.set_frame(frame)
+    assert window.viewport.rigid_body_segment_count() == 6
+    window.review.undo_action.trigger()                                  # undo the auto-label
+    assert window.document.review.rigid_bodies == {} and window.viewport.rigid_body_segment_count() == 0
 
 
 def test_ik_solve_is_kept_in_the_review_and_undoable(window, qtbot, tmp_path):
