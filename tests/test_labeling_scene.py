@@ -119,6 +119,20 @@ def test_late_start_offline_backward_pass_and_online_causality():
     assert np.array_equal(prefix.assignment, online.assignment[:120])
 
 
+def test_online_rescue_labels_a_lost_fingertip_from_causal_evidence_only():
+    """glove-13, seed 2: the middle fingertip reappears where the posture estimate does not reach it.
+    Online, its free trajectory is given to it once 20 frames of it fit, from then on; labelling a
+    prefix of the take gives the same labels (nothing depends on later frames)."""
+    simulated = _one_hand("glove-13", seed=2)
+    take, truth = simulated.take, simulated.truth["point_marker"]
+    online = label_scene(take, "right", "glove-13", online=True)
+    accuracy = labelling_accuracy(online, truth)
+    assert accuracy["correct_share"] >= 0.985 and accuracy["wrong_share"] == 0.0, accuracy
+    shorter = Take(take.marker_names, take.marker_positions[:200], take.frame_rate)
+    prefix = label_scene(shorter, "right", "glove-13", online=True)
+    assert np.array_equal(prefix.assignment, online.assignment[:200])
+
+
 def test_cancel_and_progress():
     simulated = _one_hand("glove-13", frames=60)
     reported = []

@@ -33,7 +33,9 @@ Pipeline of :func:`label_scene`:
    last marker) down to frame 0 labels the frames before it; labelled trajectories are extended into
    continuing free points (:mod:`core.labeling.fragments`; forward only in online mode); long
    trajectories of free points are given to the one hand marker the IK brings onto them
-   (:meth:`_Run.rescue`). Online mode is causal only.
+   (:meth:`_Run.rescue`). Online mode is causal only: trajectories are extended forward, and a free
+   trajectory is given to a marker from its ``fragment_min_frames``-th frame on, on the evidence of
+   those frames alone.
 
 Measured coordinates are never changed: :meth:`SceneLabeling.labelled_positions` returns the input
 points rearranged per marker.
@@ -434,17 +436,19 @@ class _Run:
                 if k not in refused:
                     self.confidence[frame, part.start + k] = margins[(frame, part.start + k)]
 
-    def rescue(self, track_index: int, track: HandTrack) -> None:
-        """Offline: give a long trajectory of free points (:func:`free_fragments`, at least
+    def rescue(self, track_index: int, track: HandTrack, causal: bool = False) -> None:
+        """Give a long trajectory of free points (:func:`free_fragments`, at least
         ``fragment_min_frames``) to the hand marker missing all along it that the IK brings to it below
         the ceiling threshold in sampled frames of the fragment, when no other candidate marker comes
         within twice its distance (a fingertip or an abducted thumb the posture estimate had lost,
-        seen far from where it was guessed)."""
+        seen far from where it was guessed). ``causal`` (online mode): the evidence is the fragment's
+        first ``fragment_min_frames`` frames only, and the marker takes the fragment from the last of
+        them on, so that no label depends on later frames."""
         for _round in range(3):    # a fragment given away can settle another (thumb tip after thumb middle)
-            if not self._rescue_round(track_index, track):
+            if not self._rescue_round(track_index, track, causal):
                 break
 
-    def _rescue_round(self, track_index: int, track: HandTrack) -> bool:
+    def _rescue_round(self, track_index: int, track: HandTrack, causal: bool) -> bool:
         settings = self.settings
         part = self.columns(track_index)
         states = self.states[track_index]
@@ -452,12 +456,13 @@ class _Run:
         given = False
         for first, columns in fragments:
             frames = np.arange(first, first + len(columns))
-            if not np.isfinite(states[frames]).all():
+            evidence = settings.fragment_min_frames if causal else len(frames)
+            if not np.isfinite(states[frames[:evidence]]).all():
                 continue
-            missing = (self.assignment[frames, part] < 0).all(axis=0)
+            missing = (self.assignment[frames[:evidence], part] < 0).all(axis=0)
             if not missing.any():
                 continue
-            picks = np.unique(np.linspace(0, len(frames) - 1, min(5, len(frames))).round().astype(int))
+            picks = np.unique(np.linspace(0, evidence - 1, min(5, evidence)).round().astype(int))
             sample = frames[picks]
             sample_points = self.positions[sample, columns[picks]]
             estimates = np.stack([track.effectors(states[frame]) for frame in sample])
@@ -480,8 +485,11 @@ class _Run:
             if not reached or (len(tried) > 1 and sorted(tried)[1][0] < 2.0 * reached[0][0]):
                 continue
             marker = reached[0][1]
-            for frame, column in zip(frames, columns, strict=True):
+            start = evidence - 1 if causal else 0
+            for frame, column in zip(frames[start:], columns[start:], strict=True):
                 index = self.assignment[frame, part].copy()
+                if index[marker] >= 0 or not np.isfinite(states[frame]).all():   # found again; hand lost
+                    continue
                 index[marker] = column
                 state = states[frame]
                 for _ in range(3):
@@ -711,8 +719,8 @@ def label_scene(take: Take, hands: str = "right", layout: str | MarkerLayout = "
     for number in range(len(tracks)):
         track = make_tracks(hand_models, marker_sets)[number]
         run.link(number, track, backward=not online)
-        if not online and isinstance(track, HandTrack):
-            run.rescue(number, track)
+        if isinstance(track, HandTrack):
+            run.rescue(number, track, causal=online)
     if progress is not None:
         progress(1.0)
     return _result(run, tracks, sides, specs, hand_models, marker_sets, calibrations, positions, online)
