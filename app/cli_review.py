@@ -88,9 +88,9 @@ def command_bench_label(args: argparse.Namespace) -> int:
 def command_evaluate_label(args: argparse.Namespace) -> int:
     from core.labeling.evaluate import evaluate_labelling, evaluate_real_recording
 
-    figures: dict = {}
+    figures: dict = {"online": args.online}
     if not args.real_only:
-        synthetic = evaluate_labelling(seeds=tuple(range(1, args.seeds + 1)), frames=args.frames)
+        synthetic = evaluate_labelling(seeds=tuple(range(1, args.seeds + 1)), frames=args.frames, online=args.online)
         for case, summary in synthetic["summary"].items():
             key = case.replace("-", "").replace("/", "_")
             figures[f"{key}_correct_share"] = summary["correct_share"]
@@ -98,7 +98,7 @@ def command_evaluate_label(args: argparse.Namespace) -> int:
             figures[f"{key}_longest_swap_frames"] = summary["longest_swap_frames"]
         figures["synthetic_all_meet_targets"] = all(s["all_meet_targets"] for s in synthetic["summary"].values())
     try:
-        real = evaluate_real_recording()
+        real = evaluate_real_recording(online=args.online)
     except InputError as error:
         print(f"real recording skipped: {error}", file=sys.stderr)
     else:
@@ -156,6 +156,7 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     evaluate_label.add_argument("--frames", type=int, default=2000, help="frames per simulated take (default 2000)")
     evaluate_label.add_argument("--seeds", type=int, default=3, help="seeds per layout (default 3)")
     evaluate_label.add_argument("--real-only", action="store_true", help="only the real recording")
+    evaluate_label.add_argument("--online", action="store_true", help="label in online (causal) mode")
     add_json_flag(evaluate_label)
     evaluate_label.set_defaults(handler=command_evaluate_label)
 

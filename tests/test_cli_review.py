@@ -67,3 +67,12 @@ def test_label_take_with_no_points(tmp_path, capsys):
     save_take(empty, path)
     assert main(["label", str(path), "--layout", "dense", "--out", str(tmp_path / "o.c3d"), "--quiet"]) == 2
     assert "handmocap: error:" in capsys.readouterr().err
+
+
+def test_evaluate_label_online_prints_figures(capsys):
+    assert main(["evaluate", "label", "--frames", "300", "--seeds", "1", "--online", "--json"]) == 0
+    figures = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert figures["online"] is True
+    for case in ("dense_one_hand", "dense_scene", "glove13_one_hand", "glove13_scene"):
+        assert figures[f"{case}_correct_share"] >= 0.99, figures
+        assert figures[f"{case}_longest_swap_frames"] <= 10, figures

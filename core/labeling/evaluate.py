@@ -44,11 +44,11 @@ def _rounded(accuracy: dict) -> dict:
 
 def evaluate_labelling(layouts: Sequence[str] = ("dense", "glove-13"), seeds: Sequence[int] = (1, 2, 3),
                        frames: int = 2000, scene: bool = True, scene_objects: int = 2,
-                       settings: SceneSettings | None = None) -> dict:
+                       settings: SceneSettings | None = None, online: bool = False) -> dict:
     """Label simulated takes (one right hand) and, with ``scene``, two-hand scenes with
-    ``scene_objects`` rigid objects, per layout and seed; returns ``{"runs": [...], "summary": {...}}``
-    with each run's accuracy, time and whether it meets the targets, and the pooled figures per
-    layout and case."""
+    ``scene_objects`` rigid objects, per layout and seed (``online``: in online mode); returns
+    ``{"runs": [...], "summary": {...}}`` with each run's accuracy, time and whether it meets the
+    targets, and the pooled figures per layout and case."""
     from core.simulate import simulate_scene, simulate_take
 
     runs = []
@@ -60,12 +60,12 @@ def evaluate_labelling(layouts: Sequence[str] = ("dense", "glove-13"), seeds: Se
                     simulated = simulate_take(layout=layout, n_frames=frames, seed=seed, noise_mm=0.3,
                                               ghost_rate=0.05, occlusion=True, unlabelled=True)
                     start = time.perf_counter()
-                    result = label_scene(simulated.take, "right", layout, settings=settings)
+                    result = label_scene(simulated.take, "right", layout, settings=settings, online=online)
                 else:
                     simulated = simulate_scene(layout=layout, n_frames=frames, seed=seed, n_objects=scene_objects)
                     start = time.perf_counter()
                     result = label_scene(simulated.take, "both", layout, objects=simulated.objects,
-                                         settings=settings)
+                                         settings=settings, online=online)
                 seconds = time.perf_counter() - start
                 accuracy = labelling_accuracy(result, simulated.truth["point_marker"])
                 runs.append({"layout": layout, "seed": int(seed), "case": case, "frames": frames,
@@ -114,15 +114,17 @@ def unlabelled_real_take(path: str | Path = REAL_RECORDING, frames: int | None =
 
 
 def evaluate_real_recording(path: str | Path = REAL_RECORDING, frames: int | None = None, layout: str = "glove-13",
-                            compare_uncalibrated: bool = True, settings: SceneSettings | None = None) -> dict:
-    """Label the stripped, shuffled real recording with ``layout`` on the right hand (module docstring)."""
+                            compare_uncalibrated: bool = True, settings: SceneSettings | None = None,
+                            online: bool = False) -> dict:
+    """Label the stripped, shuffled real recording with ``layout`` on the right hand (module docstring;
+    ``online``: in online mode)."""
     from core.model import load_layout, marker_columns
 
     take, point_marker, recording_names = unlabelled_real_take(path, frames)
     hand_names = load_layout(layout).names
     recording_to_layout = marker_columns(hand_names, recording_names)      # per recording marker: layout index
     start = time.perf_counter()
-    result = label_scene(take, "right", layout, settings=settings)
+    result = label_scene(take, "right", layout, settings=settings, online=online)
     seconds = time.perf_counter() - start
     truth = np.where(point_marker >= 0, recording_to_layout[np.maximum(point_marker, 0)], -1)
     other = (point_marker >= 0) & (truth < 0)                                   # arm, back, pillow markers
@@ -147,7 +149,7 @@ def evaluate_real_recording(path: str | Path = REAL_RECORDING, frames: int | Non
               "calibration": result.models[0].calibration}
     if compare_uncalibrated:
         base = settings or SceneSettings()
-        plain = label_scene(take, "right", layout,
+        plain = label_scene(take, "right", layout, online=online,
                             settings=SceneSettings(**{**base.__dict__, "calibrate": False}))
         report["mean_ik_residual_uncalibrated_mm"] = round(float(np.nanmean(plain.residuals_mm)), 4)
     report["meets_targets"] = (report["hand_samples_correct_share"] >= 0.995
