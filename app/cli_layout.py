@@ -153,7 +153,8 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     evaluate_layout.add_argument("--json", action="store_true", help="print one JSON object as the last line")
     evaluate_layout.set_defaults(handler=command_layout_evaluate)
 
-    sheet = layout_commands.add_parser("sheet", help="printable placement sheet (A4 PNG or PDF)")
+    sheet = layout_commands.add_parser(
+        "sheet", help="printable placement sheet (A4 PNG, or PDF with a second page at 1:1)")
     sheet.add_argument("layout", help="layout JSON file or shipped layout name")
     sheet.add_argument("--side", choices=["right", "left"], default="right")
     sheet.add_argument("--out", required=True, metavar="SHEET.png|SHEET.pdf")

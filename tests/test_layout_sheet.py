@@ -130,3 +130,21 @@ def test_a_lone_marker_is_numbered_straight_outward():
 
     labels = place_labels(np.array([[10.0, 0.0]]), np.array([True]), np.zeros(2), (5.0, 4.0), 2.0)
     np.testing.assert_allclose(labels[0], [15.0, 0.0])
+
+
+def test_pdf_adds_the_back_of_the_hand_at_full_scale(tmp_path, sheet):
+    import re
+
+    from widgets.placement_sheet import render_sheet_image, save_placement_sheet
+
+    pdf = save_placement_sheet(sheet, tmp_path / "sheet.pdf").read_bytes()
+    assert len(re.findall(rb"/Type\s*/Page\b(?!s)", pdf)) == 2
+    dpi = 100
+    image = render_sheet_image(sheet, dpi=dpi, full_scale=True)
+    pixels = np.frombuffer(image.constBits(), np.uint8).reshape(image.height(), image.width(), 4)
+    blue, green, red = (pixels[..., channel].astype(int) for channel in range(3))
+    skin = (red - blue > 12) & (red >= green) & (green >= blue)           # shaded skin, not paper or ink
+    rows = np.flatnonzero(skin.any(axis=1))
+    back = sheet.views[0]
+    drawn_mm = (rows[-1] - rows[0] + 1) * 25.4 / dpi
+    assert drawn_mm == pytest.approx(back.bounds[3] - back.bounds[1], abs=1.5)     # 1:1 on paper

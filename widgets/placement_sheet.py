@@ -195,8 +195,33 @@ def paint_sheet(painter: QPainter, sheet: PlacementSheet) -> None:
           2.6, color=MUTED)
 
 
-def render_sheet_image(sheet: PlacementSheet, dpi: int = PNG_DPI) -> QImage:
-    """``sheet`` as an A4 image at ``dpi``."""
+def paint_full_scale_page(painter: QPainter, sheet: PlacementSheet) -> None:
+    """Paint the back view of ``sheet`` at 1:1 on an A4 page (``painter`` maps millimetres), with a
+    50 mm bar to check the print scale: a template to hold the subject's hand against."""
+    width, height = PAGE_MM
+    left, right = MARGIN_MM, width - MARGIN_MM
+    view = sheet.views[0]
+    seen = np.any([each.visible for each in sheet.views], axis=0)
+    painter.fillRect(QRectF(0, 0, width, height), QColor(255, 255, 255))
+    _text(painter, QRectF(left, MARGIN_MM - 4, right - left, 8), f"{sheet.title} — {view.title.lower()}, 1:1",
+          5.0, bold=True)
+    _text(painter, QRectF(left, MARGIN_MM + 3.5, right - left, 5),
+          "Print at 100 % (no \"fit to page\"): the bar at the bottom must measure 50 mm.", 3.0, color=MUTED)
+    view_height = view.bounds[3] - view.bounds[1]
+    box = QRectF(left, MARGIN_MM + 11, right - left, view_height)
+    _paint_view(painter, view, box, 1.0, view.visible | ~seen)
+    bar_top = height - MARGIN_MM - 4
+    painter.setPen(QPen(TEXT, 0.4))
+    painter.drawLine(QPointF(left, bar_top), QPointF(left + 50.0, bar_top))
+    for tick in range(6):
+        painter.drawLine(QPointF(left + 10.0 * tick, bar_top - (1.6 if tick % 5 == 0 else 0.9)),
+                         QPointF(left + 10.0 * tick, bar_top + (1.6 if tick % 5 == 0 else 0.9)))
+    _text(painter, QRectF(left + 53, bar_top - 2.2, right - left - 53, 5),
+          "50 mm; numbers as on the first page", 3.0, color=MUTED)
+
+
+def render_sheet_image(sheet: PlacementSheet, dpi: int = PNG_DPI, full_scale: bool = False) -> QImage:
+    """``sheet`` as an A4 image at ``dpi``: the overview page, or with ``full_scale`` the 1:1 page."""
     ensure_gui_application()
     per_mm = dpi / 25.4
     image = QImage(round(PAGE_MM[0] * per_mm), round(PAGE_MM[1] * per_mm), QImage.Format.Format_RGB32)
@@ -206,13 +231,14 @@ def render_sheet_image(sheet: PlacementSheet, dpi: int = PNG_DPI) -> QImage:
     painter = QPainter(image)
     painter.setRenderHint(QPainter.RenderHint.TextAntialiasing, True)
     painter.scale(per_mm, per_mm)
-    paint_sheet(painter, sheet)
+    (paint_full_scale_page if full_scale else paint_sheet)(painter, sheet)
     painter.end()
     return image
 
 
 def save_placement_sheet(sheet: PlacementSheet, path: str | Path, dpi: int = PNG_DPI) -> Path:
-    """Write ``sheet`` to ``path``: ``.png`` (A4 at ``dpi``) or ``.pdf`` (A4, vector). Returns the path;
+    """Write ``sheet`` to ``path``: ``.png`` (the overview page, A4 at ``dpi``) or ``.pdf`` (A4, vector: the
+    overview and the back of the hand at 1:1). Returns the path;
     :class:`InputError` for another suffix or an unwritable path."""
     path = Path(path)
     suffix = path.suffix.lower()
@@ -238,6 +264,8 @@ def save_placement_sheet(sheet: PlacementSheet, path: str | Path, dpi: int = PNG
         per_mm = writer.resolution() / 25.4
         painter.scale(per_mm, per_mm)
         paint_sheet(painter, sheet)
+        writer.newPage()
+        paint_full_scale_page(painter, sheet)
         painter.end()
         if not temporary.exists():
             raise InputError(f"{path}: could not write the PDF")
