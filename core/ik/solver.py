@@ -125,6 +125,7 @@ class IKSolver:
         self.angle_lower, self.angle_upper = lower[6:].copy(), upper[6:].copy()
         self._lower, self._upper = lower, upper
         self._marker_digit_segment = self._digit_segments(markers)
+        self._prior_weight_cache: dict[bytes, np.ndarray] = {}
         self._setup_spaces()
         self.reset()
 
@@ -163,13 +164,34 @@ class IKSolver:
         self._global_free = True
 
     def _prior_weights(self, observed: np.ndarray) -> np.ndarray:
-        """√ω₄ on the four parameters of every digit whose three segments are not all observed."""
-        weights = np.zeros(20)
-        seen = set(self._marker_digit_segment[observed].tolist())
-        for digit in range(5):
-            if not all(1 + 3 * digit + segment in seen for segment in range(3)):
-                weights[4 * digit:4 * digit + 4] = self.settings.prior_weight
+        """√ω₄ on the four parameters of every digit whose three segments are not all observed (cached
+        per observation pattern)."""
+        key = observed.tobytes()
+        weights = self._prior_weight_cache.get(key)
+        if weights is None:
+            weights = np.zeros(20)
+            seen = set(self._marker_digit_segment[observed].tolist())
+            for digit in range(5):
+                if not all(1 + 3 * digit + segment in seen for segment in range(3)):
+                    weights[4 * digit:4 * digit + 4] = self.settings.prior_weight
+            self._prior_weight_cache[key] = weights
         return weights
+
+    def refine(self, start: np.ndarray, targets: np.ndarray, observed: np.ndarray
+               ) -> tuple[np.ndarray, float, np.ndarray]:
+        """The refinement step of layered IK alone, warm-started: full IK from ``start (26,)`` with the
+        soft posture prior on the digits not fully observed, global pose free. ``targets (M,3)`` mm
+        (finite; read where ``observed (M,)``). Returns θ (26,), the energy and the effectors (M,3) mm."""
+        self._global_free = True
+        prior = (self._prior_matrix, self.prior.mean, self._prior_weights(observed))
+        return self._run("full", start, targets, observed, prior)
+
+    def solve_from_alignment(self, targets: np.ndarray, observed: np.ndarray
+                             ) -> tuple[np.ndarray, float, np.ndarray]:
+        """This solver's method from a rigid alignment of the mean posture to the targets (no warm
+        start), global pose free; arguments and result as :meth:`refine`."""
+        self._global_free = True
+        return self._solve_from(self.initial_pose(targets, observed), targets, observed)
 
     def initial_pose(self, targets: np.ndarray, observed: np.ndarray) -> np.ndarray:
         """Global pose by rigid alignment of the markers at the mean posture to the observed targets."""

@@ -260,7 +260,6 @@ class HandTrack(Track):
         self.model, self.markers = model, markers
         self.solver = IKSolver(model, markers, settings=IKSettings(max_iterations=self.settings.ik_iterations,
                                                                    tolerance=self.settings.ik_tolerance))
-        self._prior_cache: dict[bytes, np.ndarray] = {}
         self.mean_theta = np.zeros(N_PARAMS)
         self.mean_theta[6:] = np.clip(self.solver.prior.mean, self.solver.angle_lower, self.solver.angle_upper)
 
@@ -278,17 +277,10 @@ class HandTrack(Track):
         """θ (26,) and effectors (K,3) mm for ``targets (K,3)`` where ``observed (K,)``."""
         if not observed.any():
             return start, self.effectors(start)
-        solver = self.solver
         clean = np.where(observed[:, None], targets, 0.0)
-        solver._global_free = True
-        key = observed.tobytes()
-        weights = self._prior_cache.get(key)
-        if weights is None:
-            weights = self._prior_cache.setdefault(key, solver._prior_weights(observed))
-        prior = (solver._prior_matrix, solver.prior.mean, weights)
-        theta, energy, points = solver._run("full", start, clean, observed, prior)
+        theta, energy, points = self.solver.refine(start, clean, observed)
         if energy > LOST_TRACK_MM ** 2 * observed.sum():
-            restart = solver._solve_from(solver.initial_pose(clean, observed), clean, observed)
+            restart = self.solver.solve_from_alignment(clean, observed)
             if restart[1] < energy:
                 theta, energy, points = restart
         return theta, points
