@@ -46,6 +46,13 @@ def raw(tmp_path):
     return path, result
 
 
+def _new_session_take(tmp_path, path):
+    """A new session at ``tmp_path/session`` with the raw take ``path`` added and opened."""
+    session = Session.create(tmp_path / "session")
+    entry = session.add_take(path)
+    return session, entry, session.open_take(entry.id)
+
+
 def _edits(session_take):
     """A fixed series of operations on an open take (returns the reviews' states after each)."""
     states = []
@@ -147,9 +154,7 @@ def test_labelled_source_opens_with_its_columns_as_labels(tmp_path):
 
 def test_journal_replays_edits_after_a_crash_and_save_keeps_history(tmp_path, raw):
     path, result = raw
-    session = Session.create(tmp_path / "session")
-    entry = session.add_take(path)
-    opened = session.open_take(entry.id)
+    session, entry, opened = _new_session_take(tmp_path, path)
     assert opened.review.n_labels == 0 and opened.replayed == 0
     opened.push(ApplyLabelling(result))
     states = _edits(opened)
@@ -181,9 +186,7 @@ def test_journal_replays_edits_after_a_crash_and_save_keeps_history(tmp_path, ra
 
 def test_rigid_bodies_of_a_labelling_survive_replay_save_and_undo(tmp_path, raw):
     path, result = raw
-    session = Session.create(tmp_path / "session")
-    entry = session.add_take(path)
-    opened = session.open_take(entry.id)
+    session, entry, opened = _new_session_take(tmp_path, path)
     arrays = LabellingArrays(list(result.marker_names), result.assignment, result.confidence, result.residuals_mm,
                              result.ghost_points, [], rigid_bodies={"cup": [2, 3, 4]})
     opened.push(ApplyLabelling(arrays))
@@ -202,9 +205,7 @@ def test_rigid_bodies_of_a_labelling_survive_replay_save_and_undo(tmp_path, raw)
 
 def test_crash_between_snapshot_and_journal_restart_does_not_apply_twice(tmp_path, raw):
     path, result = raw
-    session = Session.create(tmp_path / "session")
-    entry = session.add_take(path)
-    opened = session.open_take(entry.id)
+    session, entry, opened = _new_session_take(tmp_path, path)
     opened.push(ApplyLabelling(result))
     opened.push(Unlabel(label="M3", scope="range", start=0, stop=50))
     journal = (opened.folder / JOURNAL_NAME).read_bytes()
@@ -223,9 +224,7 @@ def test_crash_between_snapshot_and_journal_restart_does_not_apply_twice(tmp_pat
 
 def test_torn_and_damaged_journal_lines(tmp_path, raw):
     path, result = raw
-    session = Session.create(tmp_path / "session")
-    entry = session.add_take(path)
-    opened = session.open_take(entry.id)
+    session, entry, opened = _new_session_take(tmp_path, path)
     opened.push(ApplyLabelling(result))
     opened.push(Unlabel(label="M3", scope="range", start=0, stop=50))
     expected = copy.deepcopy(opened.review)
@@ -450,9 +449,7 @@ def test_read_only_session_folder(tmp_path, raw):
 
 def test_journal_write_failure_reverts_the_edit(tmp_path, raw):
     path, result = raw
-    session = Session.create(tmp_path / "session")
-    entry = session.add_take(path)
-    opened = session.open_take(entry.id)
+    session, entry, opened = _new_session_take(tmp_path, path)
     opened.push(ApplyLabelling(result))
     before = copy.deepcopy(opened.review)
     opened.journal.close()
@@ -513,9 +510,7 @@ def test_labelled_take_with_a_layout_gets_its_hand_and_names_decide_labelled(tmp
 
 def test_an_edit_that_cannot_be_replayed_keeps_the_ones_before(tmp_path, raw):
     path, result = raw
-    session = Session.create(tmp_path / "session")
-    entry = session.add_take(path)
-    opened = session.open_take(entry.id)
+    session, entry, opened = _new_session_take(tmp_path, path)
     opened.push(ApplyLabelling(result))
     opened.push(Unlabel(label="M1", scope="take"))
     expected = copy.deepcopy(opened.review)
@@ -535,9 +530,7 @@ def test_an_edit_that_cannot_be_replayed_keeps_the_ones_before(tmp_path, raw):
 
 def test_autosave_close_and_exports_in_the_manifest(tmp_path, raw):
     path, result = raw
-    session = Session.create(tmp_path / "session")
-    entry = session.add_take(path)
-    opened = session.open_take(entry.id)
+    session, entry, opened = _new_session_take(tmp_path, path)
     assert not opened.is_modified() and not opened.autosave_due(0.0)
     opened.push(ApplyLabelling(result))
     assert opened.is_modified() and opened.autosave_due(0.0) and not opened.autosave_due(3600.0)
