@@ -7,7 +7,7 @@ playback never create actors.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -47,26 +47,21 @@ class ClickFilter:
     def __init__(self) -> None:
         self._press: QPointF | None = None
 
-    def click(self, event: QEvent) -> QPointF | None:
-        """Feed every event of the view; returns the position of a completed click, else None. Key
-        events are marked ignored (the caller returns True for them, see :meth:`is_key`)."""
+    def filter(self, event: QEvent, on_click: Callable[[float, float], None]) -> bool:
+        """Feed every event of the view: calls ``on_click(x, y)`` (logical pixels) on a completed click;
+        returns True for key events, which the caller's event filter must stop."""
+        if event.type() in (QEvent.Type.KeyPress, QEvent.Type.KeyRelease):
+            event.ignore()
+            return True
         if not isinstance(event, QMouseEvent) or event.button() != Qt.MouseButton.LeftButton:
-            return None
+            return False
         if event.type() == QEvent.Type.MouseButtonPress:
             self._press = event.position()
         elif event.type() == QEvent.Type.MouseButtonRelease and self._press is not None:
             moved = event.position() - self._press
             self._press = None
             if abs(moved.x()) + abs(moved.y()) <= CLICK_SLOP_PX:
-                return event.position()
-        return None
-
-    @staticmethod
-    def is_key(event: QEvent) -> bool:
-        """A key event, to be kept from VTK."""
-        if event.type() in (QEvent.Type.KeyPress, QEvent.Type.KeyRelease):
-            event.ignore()
-            return True
+                on_click(event.position().x(), event.position().y())
         return False
 
 
@@ -331,14 +326,8 @@ class HandViewport(QWidget):
     # ------------------------------------------------------------------------------------- events
     def eventFilter(self, watched: QObject, event: QEvent) -> bool:
         """Keep key presses from VTK; turn a left click (press and release in place) into a pick."""
-        if watched is not self._plotter:
-            return False
-        if self._clicks.is_key(event):
-            return True
-        position = self._clicks.click(event)
-        if position is not None:
-            self.marker_clicked.emit(self.marker_at(position.x(), position.y()))
-        return False
+        return watched is self._plotter and self._clicks.filter(
+            event, lambda x, y: self.marker_clicked.emit(self.marker_at(x, y)))
 
     def marker_at(self, x: float, y: float) -> int:
         """Index of the shown marker nearest to widget position ``(x, y)`` (logical pixels) within

@@ -150,14 +150,9 @@ class CalibrationScene(QWidget):
 
     # ------------------------------------------------------------------------------------ picking
     def eventFilter(self, watched: QObject, event: QEvent) -> bool:
-        if watched is not self._plotter:
-            return False
-        if self._clicks.is_key(event):
-            return True
-        position = self._clicks.click(event)
-        if position is not None:
-            self.point_picked.emit(self.point_at(position.x(), position.y()))
-        return False
+        """Keep key presses from VTK; turn a left click (press and release in place) into a pick."""
+        return watched is self._plotter and self._clicks.filter(
+            event, lambda x, y: self.point_picked.emit(self.point_at(x, y)))
 
     def point_at(self, x: float, y: float) -> int:
         """Index of the front-most shown point within :data:`PICK_RADIUS_PX` of widget position ``(x, y)``
