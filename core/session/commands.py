@@ -38,7 +38,7 @@ from typing import Any, ClassVar, NamedTuple, Protocol
 import numpy as np
 
 from core.errors import InputError
-from core.session.review import FILL_CODES, MEASURED, MISSING, ReviewTake, frame_text
+from core.session.review import FILL_CODES, MEASURED, MISSING, ReviewTake, copy_rigid_bodies, frame_text
 
 SCOPES = ("fragment", "range", "take")
 INLINE_ARRAY_LIMIT = 4096  # arrays with more elements go to the blob store when there is one
@@ -627,7 +627,7 @@ class ApplyLabelling(Command):
                                         review.residuals_mm.copy(), review.ghost.copy(),
                                         [hand.copy() for hand in review.hands],
                                         review.filled_positions.copy(), review.provenance.copy(),
-                                        {name: list(labels) for name, labels in review.rigid_bodies.items()})
+                                        copy_rigid_bodies(review.rigid_bodies))
 
     def params(self, blobs: BlobStore | None = None) -> dict[str, Any]:
         applied = getattr(self, "_applied", None)
@@ -654,8 +654,7 @@ class ApplyLabelling(Command):
                                                                  "ghost_points")),
                 hands, *(None if params.get(name) is None else decode_array(params[name], blobs)
                          for name in ("filled_positions", "provenance")),
-                {str(name): [int(label) for label in labels]
-                 for name, labels in params.get("rigid_bodies", {}).items()})
+                copy_rigid_bodies(params.get("rigid_bodies", {})))
         except (KeyError, TypeError) as error:
             raise InputError(f"malformed labelling record ({error})") from None
         return cls(arrays, hands=hands, description=str(params.get("description", "auto-label")))

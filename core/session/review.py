@@ -104,6 +104,11 @@ class HandTrack:
         return {"name": self.name, "side": self.side, "layout": self.layout, "labels": self.labels.tolist()}
 
 
+def copy_rigid_bodies(groups: dict) -> dict[str, list[int]]:
+    """A copy of ``{rigid body name: [label index]}`` with plain ``str`` names and ``int`` indices."""
+    return {str(name): [int(label) for label in labels] for name, labels in groups.items()}
+
+
 @dataclass(frozen=True)
 class MarkerStats:
     """Per-label statistics for the marker table, each ``(M,)``.
@@ -213,7 +218,7 @@ class ReviewTake:
                                  f"for a take of {frames}")
             if len(hand.labels) and (hand.labels.min() < 0 or hand.labels.max() >= count):
                 raise InputError(f"hand '{hand.name}' refers to labels outside 0..{count - 1}")
-        self.rigid_bodies = {str(name): [int(label) for label in labels] for name, labels in self.rigid_bodies.items()}
+        self.rigid_bodies = copy_rigid_bodies(self.rigid_bodies)
         for name, labels in self.rigid_bodies.items():
             if any(not 0 <= label < count for label in labels):
                 raise InputError(f"rigid body '{name}' refers to labels outside 0..{count - 1}")
@@ -321,7 +326,6 @@ class ReviewTake:
                     markers = model.markers
                     labels = np.arange(count)[markers] if isinstance(markers, slice) else np.asarray(markers)
                     track_list.append(HandTrack(model.name, model.kind, layout, labels, angles[model.name]))
-        rigid_bodies = getattr(result, "rigid_bodies", None) or {}
         if not track_list and angles is not None and not isinstance(angles, dict):
             track_list = [HandTrack(side, side, layout, np.arange(count), np.asarray(angles, dtype=float))]
         elif isinstance(angles, dict):
@@ -339,7 +343,7 @@ class ReviewTake:
         self.residuals_mm = residuals
         self.ghost = ghost & ~self._taken_points(assignment)
         self.hands = track_list
-        self.rigid_bodies = dict(rigid_bodies)
+        self.rigid_bodies = copy_rigid_bodies(getattr(result, "rigid_bodies", None) or {})
         self.__post_init__()
         self.changed()
 
@@ -665,7 +669,7 @@ class ReviewTake:
         label names and hands included (for commands that change the labels themselves)."""
         if whole:
             return {"whole": True, "label_names": list(self.label_names), "hands": [h.copy() for h in self.hands],
-                    "rigid_bodies": {name: list(labels) for name, labels in self.rigid_bodies.items()},
+                    "rigid_bodies": copy_rigid_bodies(self.rigid_bodies),
                     **{name: getattr(self, name).copy() for name in FRAME_ARRAYS}}
         saved: dict[str, Any] = {name: getattr(self, name)[start:stop].copy() for name in FRAME_ARRAYS}
         saved.update({f"hand{index}": hand.joint_angles[start:stop].copy() for index, hand in enumerate(self.hands)})
@@ -694,7 +698,7 @@ class ReviewTake:
         if saved.get("whole"):
             self.label_names = list(saved["label_names"])
             self.hands = [hand.copy() for hand in saved["hands"]]
-            self.rigid_bodies = {name: list(labels) for name, labels in saved.get("rigid_bodies", {}).items()}
+            self.rigid_bodies = copy_rigid_bodies(saved.get("rigid_bodies", {}))
             for name in FRAME_ARRAYS:
                 setattr(self, name, saved[name].copy())
         else:

@@ -25,7 +25,7 @@ import numpy as np
 from core.errors import InputError
 from core.io import Take
 from core.session.commands import Command, CompoundCommand, FrameSpan, UndoStack, command_from_json
-from core.session.review import FRAME_ARRAYS, HandTrack, ReviewSettings, ReviewTake
+from core.session.review import FRAME_ARRAYS, HandTrack, ReviewSettings, ReviewTake, copy_rigid_bodies
 
 SNAPSHOT_FORMAT = "handmocap-review"
 SNAPSHOT_VERSION = 1
@@ -172,7 +172,7 @@ def _restore_step(step: dict[str, Any], key: str, arrays: dict[str, np.ndarray],
         saved["label_names"] = list(step["label_names"])
         saved["hands"] = [HandTrack(h["name"], h["side"], h.get("layout"), np.asarray(h["labels"], np.int64),
                                     arrays[f"{prefix}hand{index}"]) for index, h in enumerate(step["hands"])]
-        saved["rigid_bodies"] = dict(step.get("rigid_bodies", {}))
+        saved["rigid_bodies"] = copy_rigid_bodies(step.get("rigid_bodies", {}))
     else:
         saved = {name: arrays[prefix + name] for name in step.get("keys", [])}
     command.set_saved_state(FrameSpan(*step["span"]), saved, str(step.get("text", "")))
