@@ -53,6 +53,7 @@ from numba import njit
 from core.errors import CancelledError, InputError
 from core.io import Take
 from core.labeling.fragments import extend_trajectories, free_fragments
+from core.labeling.health import HealthWarning
 from core.labeling.initialise import (
     Candidate,
     cluster_cut,
@@ -97,7 +98,8 @@ class SceneLabeling:
     ``residuals_mm (F,M)`` distance from the solved marker to its point (NaN missing);
     ``ghost_points (F,P)`` True for a measured point no marker took; ``joint_angles`` per hand name
     ``(F,26)``; ``object_poses`` per object name ``(F,4,4)`` (NaN where not tracked); ``points``:
-    the input ``(F,P,3)`` mm.
+    the input ``(F,P,3)`` mm; ``noise_mm`` the marker noise σ per axis estimated on the take (mm, None
+    when it could not be estimated); ``health`` the doubts the operator should check.
     """
 
     marker_names: list[str]
@@ -111,6 +113,8 @@ class SceneLabeling:
     object_poses: dict[str, np.ndarray]
     points: np.ndarray
     online: bool = False
+    noise_mm: float | None = None
+    health: list[HealthWarning] = field(default_factory=list)
 
     def labelled_positions(self) -> np.ndarray:
         """``(F,M,3)`` mm: the input point each marker took, unchanged; NaN where missing."""
