@@ -92,9 +92,10 @@ def evaluate_labelling(layouts: Sequence[str] = ("dense", "glove-13"), seeds: Se
 
 
 def unlabelled_real_take(path: str | Path = REAL_RECORDING, frames: int | None = None, ghost_rate: float = 0.05,
-                         seed: int = 0):
+                         seed: int = 0, noise_mm: float = 0.0):
     """The recording with its labels stripped: per-frame shuffled points plus ghosts in ``ghost_rate``
-    of the frames. Returns ``(take, point_marker (F,P) index into the recording's markers (-1 ghost),
+    of the frames, and Gaussian noise of ``noise_mm`` per axis added to every point. Returns ``(take,
+    point_marker (F,P) index into the recording's markers (-1 ghost),
     recording marker names)``."""
     from core.io import Take, load_take
     from core.simulate.take import _ghosts, _shuffled_points
@@ -107,6 +108,7 @@ def unlabelled_real_take(path: str | Path = REAL_RECORDING, frames: int | None =
     rng = np.random.default_rng([seed, 3])
     ghosts = _ghosts(positions, ghost_rate, rng)
     observed = np.concatenate([positions, ghosts], axis=1)
+    observed = observed + rng.normal(0.0, noise_mm, observed.shape) if noise_mm > 0 else observed
     points, point_marker = _shuffled_points(observed, positions.shape[1], rng)
     take = Take(marker_names=[f"point_{index:03d}" for index in range(points.shape[1])], marker_positions=points,
                 frame_rate=recording.frame_rate, first_frame=recording.first_frame, vendor=recording.vendor)

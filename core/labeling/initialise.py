@@ -16,7 +16,7 @@ hand is not far from the mean posture of the prior.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from itertools import product
 
 import numpy as np
@@ -41,6 +41,8 @@ RETRY_STDDEVS = 1.5
 """The other starting postures: ± this many standard deviations along the prior's first components."""
 REACQUIRE_POINTS = 16
 """At most this many points nearest to a lost object's predicted centre are tried for re-acquiring it."""
+HAND_HYPOTHESES = 4
+"""At most this many different labellings of a hand fitted to a cluster are kept as hypotheses."""
 AMBIGUOUS_RATIO = 1.5
 """A re-acquisition is refused when another correspondence of as many markers fits within this factor."""
 
@@ -56,6 +58,8 @@ class Candidate:
     matched: int
     residual_mm: float
     point_index: np.ndarray   # (K,) index into the frame's points, -1 unmatched
+    #: other fits of the same track to the same cluster, as (state, point index (K,)), best first
+    alternatives: list[tuple[object, np.ndarray]] = field(default_factory=list)
 
 
 def model_points(track: Track) -> np.ndarray:
@@ -241,25 +245,32 @@ def _posture_starts(track: HandTrack) -> list[np.ndarray]:
 
 
 def fit_hand(track: HandTrack, cluster: np.ndarray, settings: SceneSettings, strays: np.ndarray | None = None
-             ) -> tuple[float, np.ndarray, int, float, np.ndarray]:
-    """Best eq. 2 fit of a hand to ``cluster (N,3)``: (score, θ, matched, residual, point index (K,)).
-    ``strays (S,3)``: points of clusters too small for any model (e.g. an abducted thumb's two markers
-    farther than the cut from the hand), offered to unmatched markers by the completion step; point
-    indices ≥ N refer to them. The fit starts from the prior's mean posture in each PCA alignment; when
-    the best residual stays above :data:`RETRY_RESIDUAL_MM` (a local minimum, e.g. the markers taken
-    one finger over), it starts again from the postures of :func:`_posture_starts`."""
+             ) -> list[tuple[float, np.ndarray, int, float, np.ndarray]]:
+    """Eq. 2 fits of a hand to ``cluster (N,3)``, best first: (score, θ, matched, residual, point index
+    (K,)), at most :data:`HAND_HYPOTHESES` with different labellings (the runners-up are hypotheses the
+    labeller tracks over a window before it decides: a finger shift or a flipped hand fits a single
+    frame almost as well). ``strays (S,3)``: points of clusters too small for any model (e.g. an
+    abducted thumb's two markers farther than the cut from the hand), offered to unmatched markers by
+    the completion step; point indices ≥ N refer to them. The fit starts from the prior's mean posture
+    in each PCA alignment; when the best residual stays above :data:`RETRY_RESIDUAL_MM` (a local
+    minimum, e.g. the markers taken one finger over), it starts again from the postures of
+    :func:`_posture_starts`. Empty when nothing fits."""
     source = model_points(track)
     alignments = _alignments(source, cluster, settings.icp_iterations)
     extended = cluster if strays is None or not len(strays) else np.concatenate([cluster, strays])
-    best = (np.inf, track.mean_theta, 0, np.inf, np.full(track.count, -1))
+    fits: list[tuple[float, np.ndarray, int, float, np.ndarray]] = []
     for postures in ([track.mean_theta], _posture_starts(track)):
-        if best[3] <= RETRY_RESIDUAL_MM:
+        if fits and min(fits, key=lambda fit: fit[0])[3] <= RETRY_RESIDUAL_MM:
             break
         for posture, (_scale, rotation, translation) in product(postures, alignments):
             fit = _fit_from(track, cluster, extended, settings, posture, rotation, translation)
-            if fit is not None and fit[0] < best[0]:
-                best = fit
-    return best
+            if fit is not None and np.isfinite(fit[0]):
+                fits.append(fit)
+    distinct: list[tuple[float, np.ndarray, int, float, np.ndarray]] = []
+    for fit in sorted(fits, key=lambda fit: fit[0]):
+        if not any(np.array_equal(fit[4], kept[4]) for kept in distinct):
+            distinct.append(fit)
+    return distinct[:HAND_HYPOTHESES]
 
 
 def _fit_from(track: HandTrack, cluster: np.ndarray, extended: np.ndarray, settings: SceneSettings,
@@ -416,18 +427,20 @@ def initialise_frame(tracks: list[Track], candidates_for: list[int], points: np.
             cluster = points[members]
             if len(cluster) < max(3, int(np.ceil(settings.init_min_share * track.count))):
                 continue
+            least = max(3, int(np.ceil(settings.init_min_share * track.count)))
             if isinstance(track, HandTrack):
-                score, state, matched, residual, point_index = fit_hand(track, cluster, settings, points[strays])
+                fits = fit_hand(track, cluster, settings, points[strays])
             else:
-                score, state, matched, residual, point_index = fit_object(track, cluster, settings)
-            if not np.isfinite(score) or residual > settings.init_max_residual_mm:
-                continue
-            if matched < max(3, int(np.ceil(settings.init_min_share * track.count))):
+                fits = [fit_object(track, cluster, settings)]
+            fits = [fit for fit in fits if np.isfinite(fit[0]) and fit[3] <= settings.init_max_residual_mm
+                    and fit[2] >= least]
+            if not fits:
                 continue
             reachable = np.concatenate([members, strays])
-            global_index = np.where(point_index >= 0, reachable[np.maximum(point_index, 0)], -1)
+            labelled = [(fit[1], np.where(fit[4] >= 0, reachable[np.maximum(fit[4], 0)], -1)) for fit in fits]
+            score, state, matched, residual, _ = fits[0]
             candidates.append(Candidate(track_index, cluster_index, score, state, matched, residual,
-                                        global_index))
+                                        labelled[0][1], labelled[1:]))
     accepted: list[Candidate] = []
     used_tracks: set[int] = set()
     used_clusters: set[int] = set()

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numba import njit
@@ -19,6 +19,7 @@ from numba import njit
 from core.ik import IKSettings, IKSolver
 from core.ik.solver import LOST_TRACK_MM
 from core.labeling.objects import ObjectSpec
+from core.labeling.take_statistics import SECOND_DIFFERENCE_VARIANCE, TakeStatistics
 from core.model import N_PARAMS, HandModel, MarkerSet, marker_positions
 
 
@@ -123,7 +124,11 @@ class SceneSettings:
     ``reacquire_fit_mm``: largest residual of a rigid object's marker in a fit that re-acquires the
     object (a frame where it has fewer than 3 labelled markers, or a labelled marker farther than this
     from the fit), the pair distances of the tried correspondences agreeing within twice this;
-    ``reacquire_reach_mm``, ``reacquire_growth_mm``: see :meth:`RigidTrack.search_radius`.
+    ``reacquire_reach_mm``, ``reacquire_growth_mm``: see :meth:`RigidTrack.search_radius`;
+    ``hypothesis_frames``: frames over which competing initial fits of a hand are tracked before one is
+    kept (offline);
+    ``self_tuning``: derive the millimetre gates from the noise and speed measured on the take
+    (:meth:`adapted`), the values here being their floors.
     """
 
     gate_mm: float = 20.0
@@ -145,6 +150,7 @@ class SceneSettings:
     link_mm: float = 4.0
     fragment_min_frames: int = 20
     verify_frames: int = 100
+    hypothesis_frames: int = 50
     rescue_reach_mm: float = 150.0
     ik_iterations: int = 10
     ik_tolerance: float = 1e-4
@@ -153,6 +159,47 @@ class SceneSettings:
     reacquire_fit_mm: float = 2.0
     reacquire_reach_mm: float = 150.0
     reacquire_growth_mm: float = 2.0
+    self_tuning: bool = True
+
+    def adapted(self, statistics: TakeStatistics) -> SceneSettings:
+        """These settings with the millimetre gates raised to what the take's measured ``statistics`` need
+        (unchanged when nothing could be measured, or when the take is as quiet and slow as the floors
+        assume). With σ the noise per axis, ``noise_radius`` = 4.03 σ bounds 99.9 % of a point's 3D
+        noise (χ with 3 degrees of freedom), and ``noise_extrapolation`` = 4.03 √6 σ the noise part of
+        a constant-velocity extrapolation error:
+
+        - IK residual floors and ceiling (``threshold_floor_mm``, ``reappear_floor_mm``,
+          ``threshold_ceiling_mm``, ``reacquire_fit_mm``, ``init_max_residual_mm``) grow by the noise
+          radius: a marker cannot fit its point better than the point's own noise;
+        - ``continuity_mm``: at least 1.25 × the 99.9th percentile of the extrapolation error measured
+          on linked raw points (noise plus the true acceleration of the fastest markers);
+        - ``link_mm``: at least the noise part of the extrapolation error (its floor covers the motion);
+        - ``gate_mm``, ``reappear_gate_mm``: at least twice the continuity gate.
+        """
+        if not self.self_tuning or not statistics.measured:
+            return self
+        noise_radius = CHI3_999 * statistics.noise_mm
+        noise_extrapolation = noise_radius * np.sqrt(SECOND_DIFFERENCE_VARIANCE)
+        continuity = max(self.continuity_mm, CONTINUITY_MARGIN * statistics.extrapolation_mm)
+        gate = max(self.gate_mm, 2.0 * continuity)
+        return replace(
+            self,
+            threshold_floor_mm=max(self.threshold_floor_mm, noise_radius),
+            reappear_floor_mm=max(self.reappear_floor_mm, noise_radius),
+            threshold_ceiling_mm=max(self.threshold_ceiling_mm, self.threshold_ceiling_mm - self.threshold_floor_mm
+                                     + 2.0 * noise_radius),
+            reacquire_fit_mm=max(self.reacquire_fit_mm, noise_radius),
+            init_max_residual_mm=max(self.init_max_residual_mm, 2.0 * noise_radius),
+            continuity_mm=continuity,
+            link_mm=max(self.link_mm, noise_extrapolation),
+            gate_mm=gate,
+            reappear_gate_mm=max(self.reappear_gate_mm, gate))
+
+
+CHI3_999 = 4.03
+"""99.9th percentile of the norm of a 3D vector of unit Gaussian components (χ, 3 degrees of freedom)."""
+CONTINUITY_MARGIN = 1.25
+"""The continuity gate is this times the 99.9th percentile of the measured extrapolation error."""
 
 
 class Track(ABC):

@@ -64,9 +64,11 @@ from core.labeling.initialise import (
 )
 from core.labeling.models import HandTrack, RigidTrack, SceneSettings, Track
 from core.labeling.objects import ObjectSpec, check_unique_names, load_scene_spec
+from core.labeling.sides import SideDecision, decide_sides
+from core.labeling.take_statistics import measure_take
 from core.model import N_PARAMS, HandModel, MarkerLayout, MarkerSet, load_layout, load_template, resolve_layout
 
-HANDS = ("right", "left", "both")
+HANDS = ("auto", "right", "left", "both")
 HAND_PREFIX = {"right": "R_", "left": "L_"}
 
 
@@ -99,7 +101,8 @@ class SceneLabeling:
     ``ghost_points (F,P)`` True for a measured point no marker took; ``joint_angles`` per hand name
     ``(F,26)``; ``object_poses`` per object name ``(F,4,4)`` (NaN where not tracked); ``points``:
     the input ``(F,P,3)`` mm; ``noise_mm`` the marker noise σ per axis estimated on the take (mm, None
-    when it could not be estimated); ``health`` the doubts the operator should check.
+    when it could not be estimated); ``health`` the doubts the operator should check; ``side_decision``
+    how ``hands="auto"`` decided the sides (None when they were given).
     """
 
     marker_names: list[str]
@@ -115,6 +118,7 @@ class SceneLabeling:
     online: bool = False
     noise_mm: float | None = None
     health: list[HealthWarning] = field(default_factory=list)
+    side_decision: SideDecision | None = None
 
     def labelled_positions(self) -> np.ndarray:
         """``(F,M,3)`` mm: the input point each marker took, unchanged; NaN where missing."""
@@ -141,8 +145,12 @@ class SceneLabeling:
 class _Run:
     """Forward/backward tracking of a set of tracks over a take's points; fills the result arrays."""
 
-    def __init__(self, tracks: list[Track], positions: np.ndarray, settings: SceneSettings):
+    def __init__(self, tracks: list[Track], positions: np.ndarray, settings: SceneSettings,
+                 make_track: Callable[[int], Track] | None = None):
         self.tracks, self.positions, self.settings = tracks, positions, settings
+        #: a fresh copy of track ``number``; when given, an initial fit with runner-up hypotheses is
+        #: decided by tracking each over ``settings.hypothesis_frames`` frames (:meth:`_window_cost`)
+        self.make_track = make_track
         frames = len(positions)
         self.offsets = np.cumsum([0] + [track.count for track in tracks])
         marker_count = int(self.offsets[-1])
@@ -351,14 +359,23 @@ class _Run:
 
     def _start(self, frame: int, candidate: Candidate, columns: np.ndarray, points: np.ndarray) -> None:
         track = self.tracks[candidate.track_index]
-        index = candidate.point_index
-        state, effectors, residuals = self._solve(track, points, index, candidate.state)
+        index, state = candidate.point_index, candidate.state
+        if candidate.alternatives and self.make_track is not None:
+            hypotheses = [(candidate.state, candidate.point_index), *candidate.alternatives]
+            costs = [self._window_cost(frame, candidate.track_index, _columns_of(labels, columns), start)
+                     for start, labels in hypotheses]
+            state, index = hypotheses[int(np.argmin(costs))]
+        state, effectors, residuals = self._solve(track, points, index, state)
         observed = index >= 0
         track.start(state, observed)
         track.remember(residuals[observed])
         self.init_frames[candidate.track_index] = frame
         confidence = _margins(pair_distances(effectors, points), index, track.thresholds())
         self.record(frame, [candidate.track_index], columns, index, confidence, residuals, [state])
+
+    def _window_cost(self, frame: int, number: int, labels: np.ndarray, state) -> float:
+        assert self.make_track is not None
+        return window_cost(self.make_track(number), self.positions, frame, labels, state, self.settings)
 
     def start_at(self, frame: int, track_index: int, state) -> None:
         """Start a track from a given state (e.g. a known first posture) and label ``frame``."""
@@ -555,6 +572,25 @@ class _Run:
         return ghosts
 
 
+def _columns_of(index: np.ndarray, columns: np.ndarray) -> np.ndarray:
+    """Point index per marker (K,) into a frame's ``columns`` → point column per marker, -1 kept."""
+    return np.where(index >= 0, columns[np.maximum(index, 0)], -1)
+
+
+def window_cost(track: Track, positions: np.ndarray, frame: int, labels: np.ndarray, state,
+                settings: SceneSettings) -> float:
+    """Mean eq. 2 cost per frame (mean residual mm + α · markers unlabelled) of ``track`` (fresh) started
+    in ``frame`` of ``positions (F,P,3)`` with ``labels (K,)`` (point columns, -1 none) and ``state``,
+    tracked alone over the next ``settings.hypothesis_frames`` frames: how well a hypothesis holds up."""
+    stop = min(frame + settings.hypothesis_frames, len(positions))
+    trial = _Run([track], positions[frame:stop], settings)
+    trial.scheduled[0] = [(0, labels, state)]
+    trial.forward(0, stop - frame, lambda _frame: None)
+    labelled = trial.assignment >= 0
+    residuals = np.where(labelled, trial.residuals, 0.0).sum(axis=1) / np.maximum(labelled.sum(axis=1), 1)
+    return float((residuals + settings.alpha * (~labelled).sum(axis=1)).mean())
+
+
 @njit(cache=True)
 def _margins(distances: np.ndarray, index: np.ndarray, gate: np.ndarray) -> np.ndarray:
     """Confidence (K,) mm from the marker-point ``distances (K,N)``: margin between the best and the
@@ -577,7 +613,7 @@ def _margins(distances: np.ndarray, index: np.ndarray, gate: np.ndarray) -> np.n
 
 
 def _hand_sides(hands: str) -> list[str]:
-    if hands not in HANDS:
+    if hands not in HANDS or hands == "auto":
         raise InputError(f"hands must be one of {', '.join(HANDS)}, not '{hands}'")
     return ["right", "left"] if hands == "both" else [hands]
 
@@ -606,7 +642,7 @@ def _positions(take: Take) -> np.ndarray:
     return positions
 
 
-def label_scene(take: Take, hands: str = "right", layout: str | MarkerLayout = "dense",
+def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout = "dense",
                 objects: Sequence[ObjectSpec] | str | Path | None = None, online: bool = False,
                 settings: SceneSettings | None = None,
                 progress: Callable[[float], None] | None = None,
@@ -614,7 +650,8 @@ def label_scene(take: Take, hands: str = "right", layout: str | MarkerLayout = "
                 models: dict[str, HandModel] | None = None,
                 initial_states: dict[str, object] | None = None) -> SceneLabeling:
     """Label the unlabelled points of ``take`` (``marker_positions (F,P,3)`` mm, NaN = no point) with
-    the markers of ``hands`` ("right", "left" or "both") wearing ``layout`` and of rigid ``objects``
+    the markers of ``hands`` ("auto": decided from the markers, see :mod:`core.labeling.sides`; "right",
+    "left" or "both") wearing ``layout`` and of rigid ``objects``
     (specs, or the path of a scene spec JSON file; see :mod:`core.labeling.objects`).
 
     ``online``: causal tracking only (no backward pass, calibration applied from the end of its
@@ -626,10 +663,13 @@ def label_scene(take: Take, hands: str = "right", layout: str | MarkerLayout = "
     """
     settings = settings or SceneSettings()
     positions = _positions(take)
-    sides = _hand_sides(hands)
+    statistics = measure_take(positions)
+    settings = settings.adapted(statistics)
     layout = load_layout(layout) if isinstance(layout, str) else layout
     specs = _objects(objects)
     models = dict(models or {})
+    decision = _decide_sides(positions, layout, settings, models, specs) if hands == "auto" else None
+    sides = decision.sides if decision is not None else _hand_sides(hands)
     hand_models = {side: models.get(side) or load_template(side) for side in sides}
     prefix = len(sides) > 1
     hand_names = {side: [(HAND_PREFIX[side] if prefix else "") + name for name in layout.names] for side in sides}
@@ -660,7 +700,7 @@ def label_scene(take: Take, hands: str = "right", layout: str | MarkerLayout = "
     calibrate_online = settings.calibrate and online
     pre = None
     if settings.calibrate and not online and sides:
-        pre = _Run(tracks, positions, settings)
+        pre = _Run(tracks, positions, settings, lambda number: make_tracks(hand_models, marker_sets)[number])
         _seed(pre, tracks, initial_states)
         window_end = frames
         report = reporter(0.0, 0.15, frames)
@@ -686,7 +726,8 @@ def label_scene(take: Take, hands: str = "right", layout: str | MarkerLayout = "
             if calibrated is not None:
                 hand_models[side], marker_sets[side], calibrations[side] = calibrated
         tracks = make_tracks(hand_models, marker_sets)
-    run = _Run(tracks, positions, settings)
+    run = _Run(tracks, positions, settings,
+               None if online else lambda number: make_tracks(hand_models, marker_sets)[number])
     _seed(run, tracks, initial_states)
     if pre is not None:
         # the calibrated models start where, and with the labels that, the pre-pass found (re-running the
@@ -727,7 +768,25 @@ def label_scene(take: Take, hands: str = "right", layout: str | MarkerLayout = "
             run.rescue(number, track, causal=online)
     if progress is not None:
         progress(1.0)
-    return _result(run, tracks, sides, specs, hand_models, marker_sets, calibrations, positions, online)
+    result = _result(run, tracks, sides, specs, hand_models, marker_sets, calibrations, positions, online)
+    result.noise_mm = statistics.noise_mm if statistics.measured else None
+    result.side_decision = decision
+    return result
+
+
+def _decide_sides(positions: np.ndarray, layout: MarkerLayout, settings: SceneSettings,
+                  models: dict[str, HandModel], specs: list[ObjectSpec]) -> SideDecision:
+    """``hands="auto"``: which hands the take shows (:func:`core.labeling.sides.decide_sides`)."""
+    hand_models = {side: models.get(side) or load_template(side) for side in ("right", "left")}
+    marker_sets = {side: resolve_layout(model, layout) for side, model in hand_models.items()}
+
+    def make_track(side: str) -> HandTrack:
+        return HandTrack(side, side, hand_models[side], marker_sets[side], settings)
+
+    cut = cluster_cut([make_track("right"), *(RigidTrack(spec, settings) for spec in specs)], settings)
+    return decide_sides(positions, make_track, settings, cut,
+                        lambda track, frame, labels, state: window_cost(track, positions, frame, labels, state,
+                                                                        settings))
 
 
 class _WindowDone(Exception):

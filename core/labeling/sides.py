@@ -1,0 +1,83 @@
+"""Which hands a take shows (``hands="auto"``): right, left or both, decided from the markers.
+
+A single frame cannot tell a hand from its mirror image well (a right model fits a left hand's
+back-of-hand markers with a low residual by taking the fingers in reverse order), but the fingers'
+motion can: flexion bends them towards the palm, which the mirrored fit can only follow by leaving
+its joint limits. So, from the first frame where a hand fits a cluster, every hand-sized cluster is
+fitted with both models, the best fits of each are tracked over the next
+``settings.hypothesis_frames`` frames, and each cluster gets the side whose tracked fit costs less
+(mean eq. 2 cost per frame). Two hand clusters are one right and one left hand (the pairing of least
+total cost). The margin between the two sides' costs is kept: a small one is reported to the operator.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from core.errors import InputError
+from core.labeling.initialise import clusters_of, fit_hand
+from core.labeling.models import HandTrack, SceneSettings
+
+SIDE_MARGIN = 0.5
+"""A side decided by a cost margin (mm-equivalent of eq. 2 per frame) below this is reported as
+uncertain: half a millimetre of mean residual, or half a marker lost per frame."""
+
+
+@dataclass(frozen=True)
+class SideDecision:
+    """``sides``: the hands found ("right", "left" or both, in that order); ``frame`` where it was decided;
+    ``margins`` per side: the other side's tracked cost minus this side's (mm-equivalent, larger is surer)."""
+
+    sides: list[str]
+    frame: int
+    margins: dict[str, float]
+
+    @property
+    def uncertain(self) -> list[str]:
+        return [side for side, margin in self.margins.items() if margin < SIDE_MARGIN]
+
+
+def decide_sides(positions: np.ndarray, make_track: Callable[[str], HandTrack], settings: SceneSettings,
+                 cut_mm: float, cost: Callable[[HandTrack, int, np.ndarray, np.ndarray], float]) -> SideDecision:
+    """Decide the hands of ``positions (F,P,3)`` mm (module docstring). ``make_track(side)`` gives a fresh
+    track of that side; ``cost(track, frame, labels (K,) point columns, θ)`` the tracked cost of a start.
+    Raises :class:`InputError` when no frame holds a cluster either hand fits."""
+    present = np.isfinite(positions).all(axis=2)
+    probes = {side: make_track(side) for side in ("right", "left")}
+    least = max(3, int(np.ceil(settings.init_min_share * probes["right"].count)))
+    for frame in range(0, len(positions), max(settings.retry_every, 1)):
+        columns = np.flatnonzero(present[frame])
+        if len(columns) < least:
+            continue
+        points = positions[frame, columns]
+        costs: list[dict[str, float]] = []
+        for members in clusters_of(points, cut_mm):
+            if len(members) < least:
+                continue
+            per_side = {}
+            for side, probe in probes.items():
+                fits = [fit for fit in fit_hand(probe, points[members], settings)
+                        if fit[3] <= settings.init_max_residual_mm and fit[2] >= least]
+                if fits:
+                    per_side[side] = min(cost(make_track(side), frame,
+                                              np.where(fit[4] >= 0, columns[members][np.maximum(fit[4], 0)], -1),
+                                              fit[1]) for fit in fits)
+            if per_side:
+                costs.append({side: per_side.get(side, np.inf) for side in probes})
+        if not costs:
+            continue
+        costs.sort(key=lambda entry: min(entry.values()))
+        if len(costs) == 1:
+            best = min(costs[0], key=costs[0].get)
+            other = "left" if best == "right" else "right"
+            return SideDecision([best], frame, {best: costs[0][other] - costs[0][best]})
+        first, second = costs[0], costs[1]
+        straight = first["right"] + second["left"]
+        crossed = first["left"] + second["right"]
+        margin = float(abs(straight - crossed))
+        return SideDecision(["right", "left"], frame, {"right": margin, "left": margin})
+    raise InputError("no frame of the take initialises a hand: no cluster of points fits a left or right hand "
+                     "with this layout (is the layout right, and is most of the hand visible in some frame?)")
