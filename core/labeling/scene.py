@@ -53,7 +53,7 @@ from numba import njit
 from core.errors import CancelledError, InputError
 from core.io import Take
 from core.labeling.fragments import extend_trajectories, free_fragments
-from core.labeling.health import HealthWarning
+from core.labeling.health import HealthWarning, assess_labelling
 from core.labeling.initialise import (
     Candidate,
     cluster_cut,
@@ -771,6 +771,7 @@ def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout = "d
     result = _result(run, tracks, sides, specs, hand_models, marker_sets, calibrations, positions, online)
     result.noise_mm = statistics.noise_mm if statistics.measured else None
     result.side_decision = decision
+    result.health = assess_labelling(result, take.frame_rate)
     return result
 
 
