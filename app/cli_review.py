@@ -85,9 +85,43 @@ def command_bench_label(args: argparse.Namespace) -> int:
     return 0
 
 
+def _evaluate_conditions(args: argparse.Namespace) -> int:
+    """``evaluate label`` with ``--sweep``, ``--full`` or a condition (noise, occlusion, mirror, hands)."""
+    from core.labeling.robustness import HELD_OUT_SEEDS, SWEEP, Condition, evaluate_condition, evaluate_long_take
+    from core.labeling.robustness import format_sweep as format_table
+
+    figures: dict = {}
+    seeds = tuple(range(HELD_OUT_SEEDS[0], HELD_OUT_SEEDS[0] + args.seeds))
+    if args.sweep or args.noise is not None or args.occlude or args.mirror or args.hands:
+        conditions = SWEEP if args.sweep else (Condition(0.3 if args.noise is None else args.noise, args.occlude,
+                                                         args.mirror, args.hands or "right"),)
+        results = [evaluate_condition(condition, seeds=seeds, frames=args.frames, real=not args.synthetic_only)
+                   for condition in conditions]
+        print(f"held-out seeds {seeds[0]}-{seeds[-1]}, {args.frames} simulated frames, real recording: "
+              "frames 1-1500 with the noise added")
+        print(format_table(results))
+        figures["conditions"] = [{key: result[key] for key in ("condition", "summary")} for result in results]
+    if args.full:
+        long_take = evaluate_long_take(seed=seeds[0], noise_mm=args.noise or 0.0)
+        for part in ("whole", "first_half", "second_half"):
+            entry = long_take[part]
+            print(f"real recording, {part.replace('_', ' ')} ({entry['frames']} frames): "
+                  f"{100 * entry['correct_share']:.3f} % correct, {100 * entry['wrong_share']:.3f} % wrong, "
+                  f"longest swap {entry['longest_swap_frames']}, mean residual {entry['mean_residual_mm']} mm")
+        print(f"whole take at least as good as its halves: {long_take['whole_at_least_halves']}")
+        figures["long_take"] = long_take
+    if args.json:
+        print_json(figures)
+    return 0
+
+
 def command_evaluate_label(args: argparse.Namespace) -> int:
     from core.labeling.evaluate import evaluate_labelling, evaluate_real_recording
 
+    if args.sweep or args.full or args.noise is not None or args.occlude or args.mirror or args.hands:
+        if args.online:
+            raise InputError("--online applies to the default evaluation, not to --sweep, --full or a condition")
+        return _evaluate_conditions(args)
     figures: dict = {"online": args.online}
     if not args.real_only:
         synthetic = evaluate_labelling(seeds=tuple(range(1, args.seeds + 1)), frames=args.frames, online=args.online)
@@ -157,6 +191,20 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     evaluate_label.add_argument("--seeds", type=int, default=3, help="seeds per layout (default 3)")
     evaluate_label.add_argument("--real-only", action="store_true", help="only the real recording")
     evaluate_label.add_argument("--online", action="store_true", help="label in online (causal) mode")
+    evaluate_label.add_argument("--noise", type=float, metavar="MM", help="condition: Gaussian noise per axis "
+                                "(simulated takes, and added to the real recording); held-out seeds from 101")
+    evaluate_label.add_argument("--occlude", type=float, default=0.0, metavar="SHARE",
+                                help="condition: also hide this share of the hand samples in runs of 5-30 frames")
+    evaluate_label.add_argument("--mirror", action="store_true",
+                                help="condition: a left hand (simulated; the real recording mirrored)")
+    evaluate_label.add_argument("--hands", choices=["auto", "right", "left", "both"],
+                                help="condition: what the labeller is told (default right)")
+    evaluate_label.add_argument("--sweep", action="store_true",
+                                help="every condition of the robustness sweep, as a table")
+    evaluate_label.add_argument("--full", action="store_true",
+                                help="the whole real recording against its two halves labelled alone")
+    evaluate_label.add_argument("--synthetic-only", action="store_true",
+                                help="conditions: simulated takes only (not the real recording)")
     add_json_flag(evaluate_label)
     evaluate_label.set_defaults(handler=command_evaluate_label)
 
