@@ -108,7 +108,9 @@ def _evaluate_conditions(args: argparse.Namespace) -> int:
             print(f"real recording, {part.replace('_', ' ')} ({entry['frames']} frames): "
                   f"{100 * entry['correct_share']:.3f} % correct, {100 * entry['wrong_share']:.3f} % wrong, "
                   f"longest swap {entry['longest_swap_frames']}, mean residual {entry['mean_residual_mm']} mm")
-        print(f"whole take at least as good as its halves: {long_take['whole_at_least_halves']}")
+        print(f"whole take {100 * long_take['whole']['correct_share']:.3f} % against its halves labelled alone "
+              f"{100 * long_take['halves_pooled_correct_share']:.3f} %: "
+              f"{'at least as good' if long_take['whole_at_least_halves'] else 'worse'}")
         figures["long_take"] = long_take
     if args.json:
         print_json(figures)

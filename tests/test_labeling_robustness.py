@@ -81,9 +81,10 @@ def test_hidden_runs_hide_the_requested_share_of_hand_samples():
     scene = simulate_scene(layout="glove-13", n_frames=300, seed=108, hands="right", n_objects=0)
     truth = scene.truth["point_marker"]
     before = np.isfinite(scene.take.marker_positions).all(axis=2) & (truth >= 0)
-    hidden = hide_runs(scene.take, truth, 0.1, np.random.default_rng(0))
+    hidden, kept = hide_runs(scene.take, truth, 0.1, np.random.default_rng(0))
     after = np.isfinite(hidden.marker_positions).all(axis=2) & (truth >= 0)
     assert 0.07 <= 1 - after.sum() / before.sum() <= 0.13
+    assert ((kept >= 0) == after).all()          # the truth no longer holds the hidden points
     assert (np.isfinite(hidden.marker_positions).all(axis=2) | ~np.isfinite(scene.take.marker_positions).all(axis=2)
             | (truth >= 0)).all()              # only hand points were hidden
 

@@ -69,8 +69,9 @@ def _windows(values: np.ndarray, size: int) -> np.ndarray:
     count = int(np.ceil(len(values) / size))
     padded = np.full(count * size, np.nan)
     padded[:len(values)] = values
-    with np.errstate(invalid="ignore"):
-        return np.nanmean(padded.reshape(count, size), axis=1) if count else np.zeros(0)
+    blocks = padded.reshape(count, size)
+    finite = np.isfinite(blocks).sum(axis=1)
+    return np.where(finite > 0, np.nansum(blocks, axis=1) / np.maximum(finite, 1), np.nan)
 
 
 def assess_labelling(result: SceneLabeling, frame_rate: float) -> list[HealthWarning]:
@@ -107,9 +108,10 @@ def assess_labelling(result: SceneLabeling, frame_rate: float) -> list[HealthWar
                 "low_labelled_share", model.name, first * size, min(frames, (last + 1) * size) - 1,
                 f"the {model.name} hand labels {100 * float(np.nanmean(shares[first:last + 1])):.0f} % of its markers "
                 f"here against {100 * typical:.0f} % elsewhere"))
-        residuals = np.nanmean(np.where(result.assignment[:, model.markers] >= 0,
-                                        result.residuals_mm[:, model.markers], np.nan), axis=1) \
-            if np.isfinite(result.residuals_mm[:, model.markers]).any() else np.full(frames, np.nan)
+        labelled_residuals = np.where(result.assignment[:, model.markers] >= 0, result.residuals_mm[:, model.markers],
+                                      np.nan)
+        counts = np.isfinite(labelled_residuals).sum(axis=1)
+        residuals = np.where(counts > 0, np.nansum(labelled_residuals, axis=1) / np.maximum(counts, 1), np.nan)
         windows = _windows(residuals, size)
         if np.isfinite(windows).any():
             typical_residual = float(np.nanmedian(windows))
