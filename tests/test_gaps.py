@@ -171,7 +171,7 @@ def test_check_gap_hides_a_stretch_next_to_the_gap_and_recommends():
     check = check_gap(take, gap)
     assert check.test_start + gap.length + 10 <= gap.start or check.test_start - 10 >= gap.end
     assert abs(check.test_start - gap.start) < 3 * gap.length
-    assert set(check.errors_mm) == {"linear", "spline", "pattern", "rigid"} and "model" in check.reasons
+    assert set(check.errors_mm) == {"linear", "spline", "pattern", "rigid", "pca"} and "model" in check.reasons
     assert check.errors_mm["rigid"] < 1e-6
     assert recommend(take, gap) == "rigid"
 

@@ -1,7 +1,7 @@
 """Gap list: the gaps of a take (marker, first frame, length, recommended fill, state) and, for the
 selected gap, the fill-check error of each method — model (minimum-acceleration joint interpolation),
-linear, spline, pattern (with a donor choice) and rigid body — with Preview, Accept and Reject, plus
-"fill all gaps up to N frames with the recommended method".
+PCA (marker intercorrelations), linear, spline, pattern (with a donor choice) and rigid body — with
+Preview, Accept and Reject, plus "fill all gaps up to N frames with the recommended method".
 
 The widget shows plain :class:`GapRow` data (:meth:`GapRow.from_gap` converts :class:`core.gaps.Gap`
 and :class:`core.gaps.FillCheck`) and asks for work by signal; it fills nothing itself. Frames are
@@ -41,11 +41,14 @@ from widgets.marker_panel import MISSING_TEXT, SORT_ROLE, ColumnTableModel
 
 GAP_STATES = ("open", "filled", "rejected")
 #: methods in the order the detail panel lists them
-METHOD_ORDER = ("model", "linear", "spline", "pattern", "rigid")
-METHOD_TITLES = {"model": "Model", "linear": "Linear", "spline": "Spline", "pattern": "Pattern", "rigid": "Rigid body"}
+METHOD_ORDER = ("model", "pca", "linear", "spline", "pattern", "rigid")
+METHOD_TITLES = {"model": "Model", "pca": "PCA", "linear": "Linear", "spline": "Spline", "pattern": "Pattern",
+                 "rigid": "Rigid body"}
 METHOD_TIPS = {
     "model": "Hand model: joint angles interpolated through the gap with minimum angular acceleration,\n"
              "markers placed by forward kinematics (the papers' method)",
+    "pca": "Marker intercorrelations: the gap follows the other markers through the principal components\n"
+           "of their coordinated motion around the gap (Gløersen & Federolf 2016)",
     "linear": "Straight line between the samples on each side",
     "spline": "Cubic spline through the samples on each side",
     "pattern": "Copies the motion of a donor marker observed through the gap, blended to the gap's ends",
@@ -56,8 +59,8 @@ COLUMN_TIPS = (
     "Marker with the gap",
     "First missing frame (the file's frame numbers)",
     "Missing frames",
-    "Method with the lowest error in the fill check",
-    "Fill-check error of the recommended method: a known stretch of the same length next to the gap is\n"
+    "Method that fills the hidden stretches of the fill check best (mean and worst-frame error)",
+    "Fill-check error of the recommended method: known stretches of the same length near the gap are\n"
     "hidden and filled, and the mean distance to the measured samples reported (mm)",
     "open: not filled yet; filled (method); rejected: left as a gap on purpose",
 )
@@ -542,7 +545,7 @@ class GapList(QWidget):
                 text, tip = "n/a", "observed on one side only"
             elif error is not None:
                 text = f"{error:.2f} mm"
-                tip = f"{METHOD_TITLES[method]}: mean error {error:.2f} mm on the hidden stretch"
+                tip = f"{METHOD_TITLES[method]}: mean error {error:.2f} mm on the hidden stretches"
             elif not row.checked:
                 text, tip = "…", "the fill check has not run yet"
             else:

@@ -4,7 +4,7 @@ QTM's trajectory info. Clicking a lane emits the frame, the marker and the stret
 under the click; hovering shows the marker, the frame and that stretch.
 
 State codes ``(F,M)`` int8 follow the provenance codes of :mod:`core.gaps` (-1 missing, 0 measured,
-1..5 filled by ``METHOD_CODES``) and add :data:`LOW_CONFIDENCE` and :data:`EDITED` (measured samples
+1..6 filled by ``METHOD_CODES``) and add :data:`LOW_CONFIDENCE` and :data:`EDITED` (measured samples
 the labelling is unsure about, and samples the operator edited) and :data:`NO_DATA` (before a marker's
 first or after its last sample: nothing to show). :func:`lane_states` builds them from provenance
 and masks; :func:`lanes_from_review` from :meth:`core.session.ReviewTake.lane_states` and provenance.
@@ -47,8 +47,8 @@ from core.session import (
 NO_DATA = -2                  # before the first or after the last sample of the marker
 GAP = MISSING                 # -1: no sample (not filled)
 OBSERVED = 0                  # measured, labelled
-LOW_CONFIDENCE = 6            # measured, but the label is uncertain
-EDITED = 7                    # changed by the operator
+LOW_CONFIDENCE = 7            # measured, but the label is uncertain
+EDITED = 8                    # changed by the operator
 STATE_CODES = (NO_DATA, GAP, OBSERVED, *(METHOD_CODES[m] for m in FILL_METHODS), LOW_CONFIDENCE, EDITED)
 
 BACKGROUND = (30, 32, 36)     # the timeline's plot background
@@ -66,15 +66,18 @@ METHOD_COLORS: dict[str, tuple[int, int, int]] = {
     "pattern": (178, 118, 240),
     "rigid": (236, 112, 198),
     "model": (84, 206, 120),
+    "pca": (196, 214, 72),
 }
 STATE_COLORS: dict[int, tuple[int, int, int]] = {
     NO_DATA: NO_DATA_COLOR, GAP: GAP_COLOR, OBSERVED: OBSERVED_COLOR,
     **{METHOD_CODES[m]: METHOD_COLORS[m] for m in FILL_METHODS},
     LOW_CONFIDENCE: LOW_CONFIDENCE_COLOR, EDITED: EDITED_COLOR,
 }
+#: how a lane's tooltip names a fill method, when not by its code name
+FILL_NAMES = {"rigid": "rigid body", "pca": "PCA"}
 STATE_NAMES: dict[int, str] = {
     NO_DATA: "no data", GAP: "gap", OBSERVED: "observed",
-    **{METHOD_CODES[m]: f"filled ({'rigid body' if m == 'rigid' else m})" for m in FILL_METHODS},
+    **{METHOD_CODES[m]: f"filled ({FILL_NAMES.get(m, m)})" for m in FILL_METHODS},
     LOW_CONFIDENCE: "low confidence", EDITED: "edited",
 }
 MIN_LANE_PX = 14.0            # lanes never get thinner: more markers than fit scroll vertically
@@ -84,14 +87,14 @@ SCROLL_LANES = 3              # lanes per wheel step (Shift+wheel, or the wheel 
 
 def state_ranks(states: np.ndarray) -> np.ndarray:
     """Importance rank ``(F,M)`` uint8 of each state code, for the screen columns that hold several
-    frames (higher wins): no data 0 < observed 2 < fills 3..7 < edited 8 < low confidence 9 < gap 10.
+    frames (higher wins): no data 0 < observed 2 < fills 3..8 < edited 9 < low confidence 10 < gap 11.
 
     Byte arithmetic instead of a table look-up (five times faster on 100k × 60): ``code + 2`` as a
-    byte gives no data 0, gap 1, observed 2, fills 3..7, low confidence 8, edited 9; then low
-    confidence and edited swap and the gap goes to the top."""
+    byte gives no data 0, gap 1, observed 2, fills 3..8, low confidence 9, edited 10; then low
+    confidence and edited swap (9 ^ 3 = 10) and the gap goes to the top."""
     ranks = np.asarray(states, dtype=np.int8).view(np.uint8) + np.uint8(2)
-    ranks ^= ((ranks >> 1) == 4).view(np.uint8)
-    ranks[ranks == 1] = 10
+    ranks ^= ((ranks - np.uint8(9)) < 2).view(np.uint8) * np.uint8(3)
+    ranks[ranks == 1] = 11
     return ranks
 
 
@@ -108,7 +111,7 @@ _FROM_REVIEW = {LANE_NONE: NO_DATA, LANE_OBSERVED: OBSERVED, LANE_GAP: GAP, LANE
 def lane_states(provenance: np.ndarray, low_confidence: np.ndarray | None = None,
                 edited: np.ndarray | None = None, no_data_outside: bool = True) -> np.ndarray:
     """Lane state codes ``(F,M)`` int8 from the provenance ``(F,M)`` of :func:`core.gaps.fill_all` (-1
-    missing, 0 measured, 1..5 filled), ``low_confidence (F,M)`` bool (marks measured samples only) and
+    missing, 0 measured, 1..6 filled), ``low_confidence (F,M)`` bool (marks measured samples only) and
     ``edited (F,M)`` bool (marks every sample that is not missing). With ``no_data_outside``, missing
     frames before a marker's first and after its last sample are :data:`NO_DATA`, not gaps (as
     :meth:`core.session.ReviewTake.lane_states` does)."""

@@ -1,4 +1,5 @@
-"""Gaps in marker trajectories: detection, fills (linear, spline, pattern, rigid body, model), fill check."""
+"""Gaps in marker trajectories: detection, fills (linear, spline, pattern, rigid body, model,
+PCA marker intercorrelation), fill check."""
 
 from core.gaps.check import (
     FILL_METHODS,
@@ -21,10 +22,11 @@ from core.gaps.fills import (
     fill_spline,
     minimum_acceleration_interpolation,
 )
+from core.gaps.pca import fill_pca
 
 __all__ = [
     "FILL_METHODS", "METHOD_CODES", "MISSING", "FillCheck", "Gap", "ModelContext", "check_gap",
-    "evaluate_gap_fill", "fill_all", "fill_gap", "fill_linear", "fill_model", "fill_pattern", "fill_rigid",
-    "format_gap_fill_table",
-    "fill_spline", "find_gaps", "minimum_acceleration_interpolation", "recommend",
+    "evaluate_gap_fill", "fill_all", "fill_gap", "fill_linear", "fill_model", "fill_pattern", "fill_pca",
+    "fill_rigid", "fill_spline", "find_gaps", "format_gap_fill_table", "minimum_acceleration_interpolation",
+    "recommend",
 ]

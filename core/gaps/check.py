@@ -1,7 +1,7 @@
-"""Filling gaps of a take: donor choice, fill check (hide a known stretch, measure each method), fill-all.
+"""Filling gaps of a take: donor choice, fill check (hide known stretches, measure each method), fill-all.
 
 Provenance codes per (frame, marker): 0 measured, 1 linear, 2 spline, 3 pattern, 4 rigid body,
-5 model, -1 still missing. Measured samples are never changed; donors are always measured samples.
+5 model, 6 PCA, -1 still missing. Measured samples are never changed; donors are always measured samples.
 """
 
 from __future__ import annotations
@@ -21,17 +21,20 @@ from core.gaps.fills import (
     fill_rigid,
     fill_spline,
 )
+from core.gaps.pca import fill_pca
 from core.ik import IKResult, match_layout, solve_positions, solve_take
 from core.io import Take
 from core.model import HandModel, MarkerLayout, MarkerSet, load_template, resolve_layout
 from core.prior import load_default_prior
 
-FILL_METHODS = ("linear", "spline", "pattern", "rigid", "model")
-METHOD_CODES = {"linear": 1, "spline": 2, "pattern": 3, "rigid": 4, "model": 5}
+FILL_METHODS = ("linear", "spline", "pattern", "rigid", "model", "pca")
+METHOD_CODES = {"linear": 1, "spline": 2, "pattern": 3, "rigid": 4, "model": 5, "pca": 6}
 MEASURED = 0
 MISSING = -1
 #: order tried by ``fill_all(method="auto")`` when no stretch near a gap can be hidden to check the fills
-FALLBACK_ORDER = ("model", "spline", "linear")
+FALLBACK_ORDER = ("pca", "model", "spline", "linear")
+#: known stretches the fill check hides on each side of a gap, when there is room
+STRETCHES_PER_SIDE = 2
 #: frames of IK solved on each side of a gap for a model fill without precomputed joint angles
 IK_PAD = 30
 #: frames on each side of a gap over which a donor's distance to the gap marker must stay steady
@@ -98,7 +101,8 @@ def fill_gap(positions: np.ndarray, marker: int, start: int, length: int, method
     ``positions (F, M, 3)`` mm are the take's measured positions (the gap samples are ignored). Pattern
     and rigid fills choose their donors with :func:`choose_donors`. The model fill needs ``context``
     and uses ``joint_angles (F, 26)`` when given (IK solved with the gap missing), else solves IK over
-    ``IK_PAD`` frames on each side with the gap hidden. Raises InputError when the method cannot apply.
+    ``IK_PAD`` frames on each side with the gap hidden. The PCA fill uses every other column of
+    ``positions`` (:func:`core.gaps.pca.fill_pca`). Raises InputError when the method cannot apply.
     """
     trajectory = positions[:, marker]
     if method == "linear":
@@ -120,55 +124,88 @@ def fill_gap(positions: np.ndarray, marker: int, start: int, length: int, method
         window[start - first:start - first + length, index] = np.nan
         angles = context.solve(window) if joint_angles is None else joint_angles[first:last]
         return fill_model(window, start - first, length, index, angles, context.model, context.markers)
+    if method == "pca":
+        return fill_pca(positions, marker, start, length)
     raise InputError(f"unknown fill method '{method}' (use {', '.join(FILL_METHODS)})")
 
 
 @dataclass
 class FillCheck:
-    """Fill check of one gap: mean error (mm) of each applicable method on a hidden known stretch of the
-    same length starting at frame ``test_start``, and why the other methods did not apply."""
+    """Fill check of one gap: each applicable method fills hidden known stretches of the same length
+    starting at frames ``test_starts`` (the nearest first, ``test_start``); ``errors_mm`` is its mean
+    3D error over the stretches' frames, ``worst_mm`` its largest error in any frame (mm);
+    ``reasons`` says why the other methods did not apply."""
 
     gap: Gap
-    test_start: int
+    test_starts: tuple[int, ...]
     errors_mm: dict[str, float] = field(default_factory=dict)
+    worst_mm: dict[str, float] = field(default_factory=dict)
     reasons: dict[str, str] = field(default_factory=dict)
 
+    @property
+    def test_start(self) -> int:
+        """First frame of the hidden stretch nearest to the gap."""
+        return self.test_starts[0]
+
+    def score_mm(self, method: str) -> float:
+        """Ranking score of ``method`` (mm): the mean of its mean and its worst-frame error."""
+        return 0.5 * (self.errors_mm[method] + self.worst_mm.get(method, self.errors_mm[method]))
+
     def ranking(self) -> list[str]:
-        """Applicable methods, lowest error first."""
-        return sorted(self.errors_mm, key=self.errors_mm.get)
+        """Applicable methods, lowest score first (:meth:`score_mm`)."""
+        return sorted(self.errors_mm, key=self.score_mm)
 
 
-def _test_stretch(observed: np.ndarray, gap: Gap, margin: int) -> int:
-    """Start of the observed stretch of ``gap.length`` frames, with ``margin`` observed frames on each
-    side, nearest to the gap; InputError when there is none."""
+def _test_stretches(observed: np.ndarray, gap: Gap, margin: int, per_side: int = STRETCHES_PER_SIDE) -> list[int]:
+    """Starts of up to ``per_side`` observed stretches of ``gap.length`` frames before the gap and as many
+    after it, each with ``margin`` observed frames on each side, the nearest first and not overlapping;
+    InputError when there is none."""
     size = gap.length + 2 * margin
     counts = np.convolve(observed.astype(np.int64), np.ones(size, dtype=np.int64), mode="valid")
     starts = np.flatnonzero(counts == size) + margin
     if not starts.size:
         raise InputError(f"fill check of '{gap.name}' needs {size} consecutive observed frames near the gap; "
                          "there are none")
-    return int(starts[np.argmin(np.abs(starts - gap.start))])
+    chosen: list[int] = []
+    for side in (starts[starts < gap.start][::-1], starts[starts >= gap.end]):
+        taken: list[int] = []
+        for start in side.tolist():
+            if all(abs(start - other) >= gap.length for other in taken):
+                taken.append(start)
+                if len(taken) == per_side:
+                    break
+        chosen += taken
+    return sorted(chosen, key=lambda start: abs(start - gap.start))
 
 
 def check_gap(take: Take, gap: Gap, context: ModelContext | None = None,
               methods: tuple[str, ...] = FILL_METHODS, margin: int = SPLINE_CONTEXT) -> FillCheck:
-    """Hide a measured stretch of ``gap.length`` frames next to the gap (``margin`` observed frames on each
-    side), fill it with each method and report the mean 3D error in mm. The model fill solves its IK
-    with the stretch hidden."""
+    """Hide measured stretches of ``gap.length`` frames near the gap (up to :data:`STRETCHES_PER_SIDE` on
+    each side, ``margin`` observed frames around each), fill each with every method and report the mean
+    and worst-frame 3D error in mm. The model fill solves its IK with the stretch hidden; a method that
+    fails on any stretch is not applicable."""
     positions = take.marker_positions
-    test_start = _test_stretch(~take.missing_mask[:, gap.marker], gap, margin)
-    test_end = test_start + gap.length
-    hidden = positions.copy()
-    hidden[test_start:test_end, gap.marker] = np.nan
-    truth = positions[test_start:test_end, gap.marker]
-    check = FillCheck(gap, test_start)
-    for method in methods:
-        try:
-            values = fill_gap(hidden, gap.marker, test_start, gap.length, method, context)
-        except InputError as error:
-            check.reasons[method] = str(error)
-            continue
-        check.errors_mm[method] = float(np.linalg.norm(values - truth, axis=1).mean())
+    starts = _test_stretches(~take.missing_mask[:, gap.marker], gap, margin)
+    check = FillCheck(gap, tuple(starts))
+    errors: dict[str, list[np.ndarray]] = {method: [] for method in methods}
+    for start in starts:
+        hidden = positions.copy()
+        hidden[start:start + gap.length, gap.marker] = np.nan
+        truth = positions[start:start + gap.length, gap.marker]
+        for method in methods:
+            if method in check.reasons:
+                continue
+            try:
+                values = fill_gap(hidden, gap.marker, start, gap.length, method, context)
+            except InputError as error:
+                check.reasons[method] = str(error)
+                continue
+            errors[method].append(np.linalg.norm(values - truth, axis=1))
+    for method, per_stretch in errors.items():
+        if method not in check.reasons:
+            frames = np.concatenate(per_stretch)
+            check.errors_mm[method] = float(frames.mean())
+            check.worst_mm[method] = float(frames.max())
     return check
 
 

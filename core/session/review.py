@@ -5,7 +5,7 @@ and, per label (M labels, e.g. the layout's markers, ``R_``/``L_`` prefixed for 
 
 * ``assignment (F, M)`` int64: the raw point column each label takes in each frame, -1 for none;
 * ``provenance (F, M)`` int8: :data:`MEASURED` 0 (assigned point), 1 linear, 2 spline, 3 pattern,
-  4 rigid body, 5 model fill (``core.gaps.METHOD_CODES``), :data:`MISSING` -1;
+  4 rigid body, 5 model fill, 6 PCA fill (``core.gaps.METHOD_CODES``), :data:`MISSING` -1;
 * ``filled_positions (F, M, 3)`` mm: accepted fills, NaN elsewhere;
 * ``edited (F, M)`` bool: samples changed by hand (assign, swap, unlabel, ghost);
 * ``confidence (F, M)`` mm: labelling margin between the best and the second-best option (NaN unknown);
@@ -15,7 +15,7 @@ and, per label (M labels, e.g. the layout's markers, ``R_``/``L_`` prefixed for 
 * ``rigid_bodies``: the labels of each rigid object labelled with the take, ``{name: [label index]}``.
 
 Invariants kept by every command: ``provenance == 0`` exactly where ``assignment >= 0``; a fill
-(codes 1..5, finite ``filled_positions``) only where ``assignment == -1``; a point column is taken by
+(codes 1..6, finite ``filled_positions``) only where ``assignment == -1``; a point column is taken by
 at most one label per frame; a point taken by a label is not a ghost.
 
 Derived views (cached until the next change): :meth:`ReviewTake.labelled_positions`,
@@ -38,7 +38,7 @@ MEASURED = 0
 MISSING = -1
 #: provenance code -> name (``core.gaps.METHOD_CODES`` plus measured and missing)
 PROVENANCE_NAMES = {-1: "missing", 0: "measured", 1: "linear", 2: "spline", 3: "pattern", 4: "rigid",
-                    5: "model"}
+                    5: "model", 6: "pca"}
 FILL_CODES = {name: code for code, name in PROVENANCE_NAMES.items() if code > 0}
 
 # Timeline lane states (``lane_states``), in increasing priority within a sample.

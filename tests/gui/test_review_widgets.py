@@ -336,8 +336,8 @@ def select_row(qtbot, widget: GapList, index: int) -> None:
 def test_gap_rows_match_core(checked_rows):
     inner = next(row for row in checked_rows if row.marker == 1)
     assert (inner.start, inner.length, inner.at_take_edge) == (150, 20, False)
-    assert set(inner.errors_mm) == {"linear", "spline", "pattern", "rigid"}
-    assert "model" in inner.reasons and inner.recommended in ("pattern", "rigid")
+    assert set(inner.errors_mm) == {"linear", "spline", "pattern", "rigid", "pca"}
+    assert "model" in inner.reasons and inner.recommended in ("pattern", "rigid", "pca")
     edge = next(row for row in checked_rows if row.marker == 3)
     assert edge.at_take_edge and not edge.checked
 

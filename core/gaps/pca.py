@@ -1,0 +1,112 @@
+"""PCA marker-intercorrelation gap fill (Gløersen & Federolf 2016, PLoS ONE 11(3): e0152616; after
+Federolf 2013, PLoS ONE 8(10): e78689).
+
+The markers of a take move together, so a missing marker follows from the others. Around one gap of
+one marker, within ``window`` frames on each side (the cost stays linear in the take's length):
+
+1. the donors are the other markers measured from the frame before the gap to the frame after it;
+   a donor that has gaps of its own in the window and is *distal* (farther from the gap marker than
+   ``distal_share`` of the mean donor distance, the paper's strategy R2) is left out, so that its
+   gaps do not remove training frames for little information;
+2. every position has the mean of the donors in its frame subtracted (a coordinate system moving
+   with the subject); the frames × (3 · markers) matrix is centred and scaled to unit variance per
+   column on the training frames (every used marker measured) and each marker's columns are weighted
+   by ``exp(-d² / (2 σ²))``, ``d`` the marker's mean distance to the gap marker and ``σ``
+   ``weight_scale`` times the median donor distance (the paper's weights, with σ in units of the
+   take's own marker spacing instead of a fixed 200 mm); the gap marker's own columns weigh
+   ``gap_weight`` (the paper's 0.02), so the components describe the donors' coordination;
+3. principal components of the training frames, as many as carry ``min_cumulative`` of the sum of
+   the singular values (the paper's 0.99);
+4. per gap frame, the component scores are the least-squares fit of the donors' observed
+   coordinates, and the gap marker's coordinates follow from its loadings;
+5. the reconstruction's error at the measured frame on each side of the gap is interpolated linearly
+   through the gap and removed, so the fill joins the measured ends without a jump.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from core.errors import InputError
+
+#: frames on each side of a gap whose measured samples train the components
+PCA_WINDOW = 400
+#: weight of the gap marker's own coordinates in the components (Gløersen & Federolf: 0.02)
+GAP_WEIGHT = 0.02
+#: share of the sum of singular values the components keep (Gløersen & Federolf: 0.99)
+MIN_CUMULATIVE = 0.99
+#: a donor with gaps farther than this share of the mean donor distance is left out (strategy R2: 0.5)
+DISTAL_SHARE = 0.5
+#: σ of the distance weights, in units of the median donor distance
+WEIGHT_SCALE = 1.0
+
+
+def _validate(positions: np.ndarray, marker: int, start: int, length: int) -> None:
+    if positions.ndim != 3 or positions.shape[2] != 3:
+        raise InputError(f"PCA fill: positions must have shape (frames, markers, 3), got {positions.shape}")
+    if not 0 <= marker < positions.shape[1]:
+        raise InputError(f"PCA fill: marker {marker} is not a column of the take ({positions.shape[1]} markers)")
+    if length < 1 or start < 1 or start + length >= len(positions):
+        raise InputError(f"PCA fill needs a measured frame on each side of the gap (frames "
+                         f"{start}..{start + length - 1} of 0..{len(positions) - 1})")
+
+
+def fill_pca(positions: np.ndarray, marker: int, start: int, length: int, window: int = PCA_WINDOW,
+             weight_scale: float = WEIGHT_SCALE, gap_weight: float = GAP_WEIGHT,
+             min_cumulative: float = MIN_CUMULATIVE, distal_share: float = DISTAL_SHARE) -> np.ndarray:
+    """Fill frames ``start .. start + length - 1`` of column ``marker`` of ``positions (F, M, 3)`` mm from
+    the other markers (module docstring), (length, 3) mm. The gap samples are ignored.
+
+    InputError when the marker is not measured on both sides of the gap, fewer than 2 other markers are
+    measured through it, or the window holds too few frames with every used marker measured."""
+    _validate(positions, marker, start, length)
+    end = start + length
+    if not (np.isfinite(positions[start - 1, marker]).all() and np.isfinite(positions[end, marker]).all()):
+        raise InputError(f"PCA fill needs the marker measured in the frames on each side of the gap "
+                         f"({start - 1} and {end})")
+    first, last = max(0, start - window), min(len(positions), end + window)
+    block = positions[first:last]
+    gap = np.arange(start - first, end - first)
+    span = np.arange(gap[0] - 1, gap[-1] + 2)            # the gap and its measured ends
+    observed = np.isfinite(block).all(axis=2)
+    observed[gap, marker] = False
+    donors = np.flatnonzero(observed[span].all(axis=0))
+    donors = donors[donors != marker]
+    if len(donors) < 2:
+        raise InputError(f"PCA fill needs 2 other markers measured through the gap (frames {start - 1}..{end}); "
+                         f"{len(donors)} are")
+    distances = _mean_distances(block, observed, marker, donors)
+    keep = observed[:, donors].all(axis=0) | (distances <= distal_share * distances.mean())
+    donors, distances = donors[keep], distances[keep]
+    used = np.append(donors, marker)
+    training = observed[:, used].all(axis=1)
+    columns = 3 * len(used)
+    if training.sum() < columns:
+        raise InputError(f"PCA fill needs {columns} frames with every used marker measured within {window} "
+                         f"frames of the gap; there are {int(training.sum())}")
+    moving = block[:, used] - block[:, donors].mean(axis=1, keepdims=True)
+    matrix = moving.reshape(len(block), columns)
+    centre = matrix[training].mean(axis=0)
+    spread = matrix[training].std(axis=0)
+    spread[spread <= 0.0] = 1.0
+    weights = np.append(np.exp(-distances ** 2 / (2.0 * (weight_scale * np.median(distances)) ** 2)), gap_weight)
+    scale = np.repeat(weights, 3) / spread
+    _, singular, components = np.linalg.svd((matrix[training] - centre) * scale, full_matrices=False)
+    count = int(np.searchsorted(np.cumsum(singular), min_cumulative * singular.sum()) + 1)
+    count = min(count, columns - 3)
+    basis = components[:count].T                           # (columns, count)
+    known = slice(0, columns - 3)
+    scores, *_ = np.linalg.lstsq(basis[known], ((matrix[span] - centre) * scale)[:, known].T, rcond=None)
+    estimate = (basis[columns - 3:] @ scores).T / scale[columns - 3:] + centre[columns - 3:]
+    estimate = estimate + block[span][:, donors].mean(axis=1)
+    residuals = block[span[[0, -1]], marker] - estimate[[0, -1]]
+    ramp = (np.arange(1, length + 1) / (length + 1))[:, None]
+    return estimate[1:-1] + (1.0 - ramp) * residuals[0] + ramp * residuals[1]
+
+
+def _mean_distances(block: np.ndarray, observed: np.ndarray, marker: int, donors: np.ndarray) -> np.ndarray:
+    """Mean distance (mm) of each donor to ``marker`` over the frames where both are measured (at least
+    the two ends of the gap), (K,)."""
+    both = observed[:, donors] & observed[:, [marker]]
+    gaps = np.linalg.norm(np.nan_to_num(block[:, donors] - block[:, [marker]]), axis=2)
+    return (gaps * both).sum(axis=0) / both.sum(axis=0)
