@@ -75,21 +75,32 @@ def command_simulate(args: argparse.Namespace) -> int:
 
 
 def command_solve(args: argparse.Namespace) -> int:
-    from core.ik import solve_take
+    from core.batch.labelling import subject_model
+    from core.batch.resolve import check_layout_names, solve_labelled_take
     from core.io import load_take
-    from core.model import load_layout, load_template
+    from core.io.labelled_c3d import subject_calibrations
+    from core.model import load_layout, load_template, resolve_layout
     from core.prior import PosturePrior
 
     take = load_take(args.take)
-    prior = PosturePrior.load(args.prior) if args.prior else None
-    model = load_template(args.side)
     layout = load_layout(args.layout)
-    result = solve_take(take, model, layout, prior=prior, method=args.method,
-                        progress=progress_printer() if not args.quiet else None)
+    check_layout_names(take.marker_names, layout)
+    prior = PosturePrior.load(args.prior) if args.prior else None
+    subjects = {subject.side: subject for subject in subject_calibrations(take.parameters, args.take)}
+    side = args.side or (next(iter(subjects)) if len(subjects) == 1 else "right")
+    if side in subjects and not args.template:
+        model, markers = subject_model(subjects[side], layout)
+        hand = f"the subject's {side} hand calibrated by auto-label"
+    else:
+        model = load_template(side)
+        markers = resolve_layout(model, layout)
+        hand = f"the {side} template hand"
+    result = solve_labelled_take(take, model, markers, prior, args.method,
+                                 progress=progress_printer() if not args.quiet else None)
     result.save(args.out)
     if args.csv:
         result.save_csv(args.csv)
-    print(f"solved {take.n_frames} frames with {args.method} IK: mean residual "
+    print(f"solved {take.n_frames} frames with {args.method} IK on {hand}: mean residual "
           f"{result.mean_residual_mm:.2f} mm -> {args.out}")
     return 0
 
@@ -180,7 +191,10 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--layout", required=True, help="marker layout name or JSON file")
     solve.add_argument("--prior", help="posture prior .npz (default: the shipped prior)")
     solve.add_argument("--method", choices=["layered", "subspace", "full"], default="layered")
-    solve.add_argument("--side", choices=["right", "left"], default="right")
+    solve.add_argument("--side", choices=["right", "left"],
+                       help="hand side (default: the side auto-label calibrated in the file, else right)")
+    solve.add_argument("--template", action="store_true",
+                       help="solve with the template hand even when the file holds a subject calibration")
     solve.add_argument("--out", required=True, metavar="RESULT.npz")
     solve.add_argument("--csv", metavar="ANGLES.csv", help="also write the joint angles as CSV")
     solve.add_argument("--quiet", action="store_true", help="no progress output")

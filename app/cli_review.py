@@ -22,29 +22,53 @@ def _load_review(path: str):
 
 
 def command_label(args: argparse.Namespace) -> int:
-    from core.batch import auto_label
-    from core.io import load_take
+    from core.batch.labelling import auto_label
+    from core.io import load_take, looks_unlabelled
+    from core.model import load_layout, marker_columns
     from core.session import ReviewTake, export_labelled_c3d
 
     take = load_take(args.raw)
-    outcome = auto_label(take, args.layout, args.hands, args.objects, args.online,
+    layout = load_layout(args.layout)
+    outcome = auto_label(take, layout, args.hands, args.objects, args.online, relabel=args.relabel,
                          progress=None if args.quiet else progress_printer())
     review = ReviewTake.unlabelled(take)
     outcome.command.do(review)
-    export_labelled_c3d(review, args.out)
-    report = outcome.report | {"source": str(args.raw), "output": str(args.out), "layout": args.layout,
-                               "hands": args.hands}
+    export_labelled_c3d(review, args.out, subjects=outcome.subjects)
+    report = outcome.report | {"source": str(args.raw), "output": str(args.out), "layout": layout.name,
+                               "hands": args.hands, "relabel": bool(args.relabel),
+                               "subject_calibration": [subject.side for subject in outcome.subjects]}
     if args.report:
         Path(args.report).write_text(json.dumps(report, indent=2), encoding="utf-8")
-    residual = report["mean_residual_mm"]
-    print(f"labelled {report['frames']} frames ({report['frames_per_s']} frames/s): "
-          f"{100 * report['labelled_share']:.1f} % of label samples found, "
+    residual, noise = report["mean_residual_mm"], report["noise_mm"]
+    health = report["health"]
+    no_hand = any(warning["kind"] == "no_hand" and not warning["model"] for warning in health)
+    found = ("no hand found, nothing labelled" if no_hand else
+             f"{100 * report['labelled_share']:.1f} % of label samples found")
+    print(f"labelled {report['frames']} frames ({report['frames_per_s']} frames/s): {found}, "
           f"{report['ghost_points']} ghost points left unlabelled, mean IK residual "
           f"{'n/a' if residual is None else f'{residual:.2f} mm'} -> {args.out}")
     for model in report["models"]:
         first = model["first_frame_tracked"]
+        share = "not used (no hand found)" if no_hand and model["kind"] in ("right", "left") else \
+            f"{100 * model['labelled_share']:.1f} % labelled"
         print(f"  {model['name']:<12} {model['kind']:<7} tracked from frame "
-              f"{'never' if first < 0 else first + take.first_frame}, {100 * model['labelled_share']:.1f} % labelled")
+              f"{'never' if first < 0 else first + take.first_frame}, {share}")
+    print(f"  marker noise σ {'n/a' if noise is None else f'{noise:.2f} mm'} per axis (estimated on the take)")
+    figures = report["file_labels"]
+    if figures["kept_labels"] or figures["file_label_samples"]:
+        print(f"  kept from the file: {len(figures['kept_labels'])} labels outside the layout "
+              f"({figures['kept_samples']} samples); {figures['file_label_samples']} samples labelled with the "
+              f"layout's names, {figures['disagreed_samples']} of them labelled differently by auto-label"
+              f"{' (auto-label used)' if args.relabel else ' (the file kept)'}")
+    if not looks_unlabelled(take.marker_names):
+        matched = int((marker_columns(take.marker_names, layout.names) >= 0).sum())
+        if matched < 0.5 * len(layout.names):
+            print(f"handmocap: warning: the take is labelled but only {matched} of the {len(layout.names)} "
+                  f"markers of layout '{layout.name}' are among its names: is it the layout the take uses?",
+                  file=sys.stderr)
+    for warning in health:
+        frames = f"frames {warning['first_frame'] + take.first_frame}-{warning['last_frame'] + take.first_frame}"
+        print(f"handmocap: warning: {warning['kind']} ({frames}): {warning['message']}", file=sys.stderr)
     return 0
 
 
@@ -168,9 +192,13 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     label = commands.add_parser("label", help="automatically label the raw points of a take (hands and objects)")
     label.add_argument("raw", help="raw take: C3D with unlabelled points or fragments, Qualisys TSV, TRC")
     label.add_argument("--layout", required=True, help="marker layout of the hands (name or JSON file)")
-    label.add_argument("--hands", choices=["right", "left", "both"], default="right")
+    label.add_argument("--hands", choices=["auto", "right", "left", "both"], default="auto",
+                       help="auto (default): the labeller decides which hands the take shows")
     label.add_argument("--objects", metavar="SPEC.json", help="rigid objects in the scene (see docs)")
     label.add_argument("--online", action="store_true", help="causal tracking only (no backward pass)")
+    label.add_argument("--relabel", action="store_true",
+                       help="label every point afresh: ignore the file's labels of the layout's markers (labels "
+                            "outside the layout are still kept where no model takes their point)")
     label.add_argument("--out", required=True, metavar="LABELLED.c3d")
     label.add_argument("--report", metavar="REPORT.json", help="write what was found as JSON")
     label.add_argument("--quiet", action="store_true", help="no progress output")

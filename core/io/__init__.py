@@ -2,6 +2,7 @@
 
 from core.io.errors import TakeFormatError
 from core.io.loader import READ_SUFFIXES, TAKE_FILE_FILTER, load_take, save_take
-from core.io.take import Take, looks_unlabelled
+from core.io.take import Take, is_marker_label, looks_unlabelled
 
-__all__ = ["READ_SUFFIXES", "TAKE_FILE_FILTER", "Take", "TakeFormatError", "load_take", "looks_unlabelled", "save_take"]
+__all__ = ["READ_SUFFIXES", "TAKE_FILE_FILTER", "Take", "TakeFormatError", "is_marker_label", "load_take",
+           "looks_unlabelled", "save_take"]

@@ -29,6 +29,13 @@ are run-length encoded and split over numbered parameters, like ``POINT:LABELS2`
 * ``SOURCE`` (text): the raw take the labels were made from; ``HANDS`` (text list, optional):
   ``"<name>:<side>:<layout>"`` per solved hand.
 
+``HAND_SUBJECT`` parameter group (optional; :class:`SubjectCalibration`): the subject calibration the
+labelling fitted to each hand, relative to the shipped template of its side, so that a solve of the
+labelled file uses the subject's hand: ``FORMAT`` 1, ``SIDES`` (text list), then per side ``RIGHT_``/
+``LEFT_``: ``LAYOUT`` (text), ``MARKERS`` (text list, the layout's marker order), ``SCALES`` (float, 15:
+joint offset scales of joints 1..15), ``OFFSETS`` (float, 3·M: marker offsets in mm in the rest pose,
+x, y, z per marker). The group is copied on when the file is filled or exported again.
+
 Other parameter groups of the source take are copied when they can be written.
 """
 
@@ -56,6 +63,8 @@ CODE_LEGEND = ["-1 missing", "0 measured", "1 linear fill", "2 spline fill", "3 
 DESCRIPTION = ("per-sample provenance of the labelled points: RUNS* (point, first frame, frames, code), "
                "samples not in a run are measured; EDITED* and GHOSTS* runs (point, first frame, frames)")
 UNLABELLED_PREFIX = "*"
+SUBJECT_GROUP = "HAND_SUBJECT"
+SUBJECT_SCALES = 15
 
 
 @dataclass
@@ -235,3 +244,53 @@ def read_labelled_c3d(path: str | PathLike[str]) -> LabelledC3D:
     take.parameters = {name: values for name, values in take.parameters.items() if name != GROUP}
     return LabelledC3D(take, count, provenance, edited, ghost & present[:, count:],
                        source=source if isinstance(source, str) and source else None, hands=hands)
+
+
+@dataclass(frozen=True, eq=False)
+class SubjectCalibration:
+    """A hand's subject calibration relative to the shipped template of its ``side`` (Zhao et al. eq. 2):
+    the ``layout`` name and its ``marker_names (M,)``, ``scales (15,)`` of the joint offsets of joints
+    1..15 and ``offsets_mm (M,3)`` of the markers in the rest pose (mm)."""
+
+    side: str
+    layout: str
+    marker_names: tuple[str, ...]
+    scales: np.ndarray
+    offsets_mm: np.ndarray
+
+
+def subject_group(calibrations: list[SubjectCalibration]) -> dict[str, object]:
+    """The ``HAND_SUBJECT`` parameter group (module docstring) holding ``calibrations`` (one per side)."""
+    group: dict[str, object] = {"FORMAT": FORMAT_VERSION, "SIDES": [calibration.side for calibration in calibrations]}
+    for calibration in calibrations:
+        prefix = calibration.side.upper()
+        group[f"{prefix}_LAYOUT"] = calibration.layout
+        group[f"{prefix}_MARKERS"] = list(calibration.marker_names)
+        group[f"{prefix}_SCALES"] = np.asarray(calibration.scales, dtype=np.float64).reshape(SUBJECT_SCALES)
+        group[f"{prefix}_OFFSETS"] = np.asarray(calibration.offsets_mm, dtype=np.float64).reshape(-1)
+    return group
+
+
+def subject_calibrations(parameters: dict[str, dict], source: str | PathLike[str] | None = None
+                         ) -> list[SubjectCalibration]:
+    """The subject calibrations a take's ``HAND_SUBJECT`` parameter group holds (none without the group).
+    Raises TakeFormatError (one line) when the group is damaged."""
+    group = parameters.get(SUBJECT_GROUP)
+    if not isinstance(group, dict):
+        return []
+    try:
+        sides = group["SIDES"]
+        calibrations = []
+        for side in [sides] if isinstance(sides, str) else list(sides):
+            prefix = str(side).strip().upper()
+            markers = group[f"{prefix}_MARKERS"]
+            markers = tuple(str(name).strip() for name in ([markers] if isinstance(markers, str) else markers))
+            scales = np.asarray(group[f"{prefix}_SCALES"], dtype=np.float64).reshape(SUBJECT_SCALES)
+            offsets = np.asarray(group[f"{prefix}_OFFSETS"], dtype=np.float64).reshape(len(markers), 3)
+            if not (np.isfinite(scales).all() and np.isfinite(offsets).all()):
+                raise ValueError("values that are not finite")
+            calibrations.append(SubjectCalibration(str(side).strip().lower(), str(group[f"{prefix}_LAYOUT"]).strip(),
+                                                   markers, scales, offsets))
+    except (KeyError, ValueError, TypeError) as error:
+        raise TakeFormatError.at(source, f"damaged {SUBJECT_GROUP} parameter group ({error})") from None
+    return calibrations

@@ -204,14 +204,23 @@ def atomic_target(path: str | PathLike[str]) -> Iterator[Path]:
         temporary.unlink(missing_ok=True)
 
 
-#: point names that carry no label: "*12" (Vicon), "Unlabeled 3" (Motive), "point_004", "M7", "2003"...
-UNLABELLED_NAME = re.compile(r"^(\*|point[_ ]?|unlabell?ed[_ ]?|uname\*?|marker[_ ]?|m|channel|ghost[_ ]?)?\d*$",
-                             re.IGNORECASE)
+#: point names that carry no label: "*12" (Vicon), "Unlabeled 3" (Motive), "point_004", "M7", "2003", and
+#: their repeats suffixed "_2" by :func:`unique_marker_names`
+UNLABELLED_NAME = re.compile(r"^(\*|point[_ ]?|unlabell?ed[_ ]?|unidentified[_ ]?|unnamed[_ ]?|uname\*?|marker[_ ]?|m|"
+                             r"channel|ghost[_ ]?)?\d*(_\d+)?$", re.IGNORECASE)
+
+
+def is_marker_label(name: str) -> bool:
+    """True when a point ``name`` is a label someone gave a marker (``hand_top``, ``pillow_left``, ``LASI``);
+    False for the placeholders of unlabelled points: empty, ``*12`` (C3D/Vicon), ``Unlabeled 3``
+    (Motive), ``point_004``, ``M001`` (an unnamed column), bare numbers (see :data:`UNLABELLED_NAME`)."""
+    stripped = name.strip()
+    return bool(stripped) and not UNLABELLED_NAME.match(stripped)
 
 
 def looks_unlabelled(marker_names: list[str]) -> bool:
     """True when most of a take's point names are placeholders rather than marker labels (a raw take)."""
     if not marker_names:
         return True
-    placeholders = sum(bool(UNLABELLED_NAME.match(name.strip())) for name in marker_names)
+    placeholders = sum(not is_marker_label(name) for name in marker_names)
     return placeholders >= 0.5 * len(marker_names)

@@ -38,7 +38,15 @@ from typing import Any, ClassVar, NamedTuple, Protocol
 import numpy as np
 
 from core.errors import InputError
-from core.session.review import FILL_CODES, MEASURED, MISSING, ReviewTake, copy_rigid_bodies, frame_text
+from core.session.review import (
+    FILL_CODES,
+    MEASURED,
+    MISSING,
+    ReviewTake,
+    copy_health,
+    copy_rigid_bodies,
+    frame_text,
+)
 
 SCOPES = ("fragment", "range", "take")
 INLINE_ARRAY_LIMIT = 4096  # arrays with more elements go to the blob store when there is one
@@ -579,7 +587,8 @@ class SetSolve(Command):
 class LabellingArrays:
     """A labelling result as plain arrays (what :class:`ApplyLabelling` stores): see
     :meth:`ReviewTake.from_labelling`. ``hands``: :class:`~core.session.review.HandTrack` list;
-    ``rigid_bodies``: ``{object name: [label index]}``."""
+    ``rigid_bodies``: ``{object name: [label index]}``; ``health``: the labelling's warnings
+    (:class:`~core.labeling.health.HealthWarning`); ``noise_mm``: its noise estimate (mm, None unknown)."""
 
     marker_names: list[str]
     assignment: np.ndarray
@@ -590,6 +599,8 @@ class LabellingArrays:
     filled_positions: np.ndarray | None = None
     provenance: np.ndarray | None = None
     rigid_bodies: dict[str, list[int]] = field(default_factory=dict)
+    health: list = field(default_factory=list)
+    noise_mm: float | None = None
 
 
 class ApplyLabelling(Command):
@@ -627,7 +638,8 @@ class ApplyLabelling(Command):
                                         review.residuals_mm.copy(), review.ghost.copy(),
                                         [hand.copy() for hand in review.hands],
                                         review.filled_positions.copy(), review.provenance.copy(),
-                                        copy_rigid_bodies(review.rigid_bodies))
+                                        copy_rigid_bodies(review.rigid_bodies), copy_health(review.health),
+                                        review.noise_mm)
 
     def params(self, blobs: BlobStore | None = None) -> dict[str, Any]:
         applied = getattr(self, "_applied", None)
@@ -637,6 +649,7 @@ class ApplyLabelling(Command):
                 "hands": [hand.meta() | {"joint_angles": encode_array(hand.joint_angles, blobs)}
                           for hand in applied.hands],
                 "rigid_bodies": applied.rigid_bodies,
+                "health": [warning.as_dict() for warning in copy_health(applied.health)], "noise_mm": applied.noise_mm,
                 **{name: None if getattr(applied, name) is None else encode_array(getattr(applied, name), blobs)
                    for name in ("assignment", "confidence", "residuals_mm", "ghost_points", "filled_positions",
                                 "provenance")}}
@@ -654,8 +667,9 @@ class ApplyLabelling(Command):
                                                                  "ghost_points")),
                 hands, *(None if params.get(name) is None else decode_array(params[name], blobs)
                          for name in ("filled_positions", "provenance")),
-                copy_rigid_bodies(params.get("rigid_bodies", {})))
-        except (KeyError, TypeError) as error:
+                copy_rigid_bodies(params.get("rigid_bodies", {})), copy_health(params.get("health", [])),
+                None if params.get("noise_mm") is None else float(params["noise_mm"]))
+        except (KeyError, TypeError, ValueError) as error:
             raise InputError(f"malformed labelling record ({error})") from None
         return cls(arrays, hands=hands, description=str(params.get("description", "auto-label")))
 

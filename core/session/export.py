@@ -13,7 +13,14 @@ import numpy as np
 from core.errors import InputError
 from core.io import Take
 from core.io.bvh import write_bvh
-from core.io.labelled_c3d import UNLABELLED_PREFIX, read_labelled_c3d, write_labelled_c3d
+from core.io.labelled_c3d import (
+    SUBJECT_GROUP,
+    UNLABELLED_PREFIX,
+    SubjectCalibration,
+    read_labelled_c3d,
+    subject_group,
+    write_labelled_c3d,
+)
 from core.model import PARAM_NAMES, HandModel
 from core.session.review import MEASURED, MISSING, HandTrack, ReviewTake
 from core.session.storage import write_atomic
@@ -37,14 +44,19 @@ def unlabelled_columns(review: ReviewTake, unlabelled: str = "all") -> tuple[np.
     return columns, positions, review.ghost[:, columns] & free[:, columns]
 
 
-def export_labelled_c3d(review: ReviewTake, path: str | PathLike[str], unlabelled: str = "all") -> None:
+def export_labelled_c3d(review: ReviewTake, path: str | PathLike[str], unlabelled: str = "all",
+                        subjects: list[SubjectCalibration] | None = None) -> None:
     """Write the review as a labelled C3D (``core.io.labelled_c3d``): the labels with their measured
     points and accepted fills, provenance per sample, edited samples, and the unlabelled raw points as
-    ``*<column>`` (``unlabelled``: "all", "non-ghost" or "none"). Atomic; InputError on failure."""
+    ``*<column>`` (``unlabelled``: "all", "non-ghost" or "none"); ``subjects``: the hands' subject
+    calibrations, written as the ``HAND_SUBJECT`` group (else the source's group, if any, is copied).
+    Atomic; InputError on failure."""
     columns, positions, ghost = unlabelled_columns(review, unlabelled)
     hands = [f"{hand.name}:{hand.side}:{hand.layout or ''}" for hand in review.hands]
     parameters = {name: values for name, values in review.take.parameters.items()
                   if name.upper() not in ("POINT", "ANALOG", "FORCE_PLATFORM", "ROTATION", "EZC3D")}
+    if subjects:
+        parameters[SUBJECT_GROUP] = subject_group(subjects)
     write_labelled_c3d(path, review.label_names, review.labelled_positions(), review.provenance,
                        review.take.frame_rate, review.take.first_frame, edited=review.edited,
                        unlabelled=positions if len(columns) else None,

@@ -12,7 +12,9 @@ and, per label (M labels, e.g. the layout's markers, ``R_``/``L_`` prefixed for 
 * ``residuals_mm (F, M)``: distance from the solved model effector to the label's position (NaN none);
 * ``ghost (F, P)`` bool: raw points judged spurious (by the labeller or by hand);
 * ``hands``: one :class:`HandTrack` per solved hand with its labels and ``joint_angles (F, 26)``;
-* ``rigid_bodies``: the labels of each rigid object labelled with the take, ``{name: [label index]}``.
+* ``rigid_bodies``: the labels of each rigid object labelled with the take, ``{name: [label index]}``;
+* ``health``: the doubts of the labelling that made the labels (:class:`~core.labeling.health.HealthWarning`,
+  0-based inclusive frames) and ``noise_mm``, the marker noise σ per axis it estimated (None unknown).
 
 Invariants kept by every command: ``provenance == 0`` exactly where ``assignment >= 0``; a fill
 (codes 1..6, finite ``filled_positions``) only where ``assignment == -1``; a point column is taken by
@@ -33,6 +35,7 @@ import numpy as np
 
 from core.errors import InputError
 from core.io import Take
+from core.labeling.health import WARNING_KINDS, HealthWarning
 
 MEASURED = 0
 MISSING = -1
@@ -50,7 +53,10 @@ LANE_LOW_CONFIDENCE = 4  #: a measured point whose labelling confidence is below
 LANE_EDITED = 5          #: changed by hand
 LANE_NAMES = ("none", "observed", "gap", "filled", "low confidence", "edited")
 
-PROBLEM_KINDS = ("low_confidence", "swap", "gap")
+PROBLEM_KINDS = ("low_confidence", "swap", "gap", "labelling")
+#: health warning kinds, most serious first (the status bar names the most serious one)
+HEALTH_SEVERITY = ("no_hand", "side_uncertain", "low_labelled_share", "reinitialised", "many_ghosts", "high_residual",
+                   "noisy_take")
 
 #: per-frame arrays a command may change, captured for undo (name -> axis 0 is the frame)
 FRAME_ARRAYS = ("assignment", "provenance", "edited", "filled_positions", "confidence", "residuals_mm", "ghost")
@@ -104,6 +110,12 @@ class HandTrack:
         return {"name": self.name, "side": self.side, "layout": self.layout, "labels": self.labels.tolist()}
 
 
+def copy_health(warnings: list) -> list[HealthWarning]:
+    """``warnings`` (:class:`HealthWarning` or their dicts) as a new list of :class:`HealthWarning`."""
+    return [warning if isinstance(warning, HealthWarning) else HealthWarning.from_dict(warning)
+            for warning in warnings or []]
+
+
 def copy_rigid_bodies(groups: dict) -> dict[str, list[int]]:
     """A copy of ``{rigid body name: [label index]}`` with plain ``str`` names and ``int`` indices."""
     return {str(name): [int(label) for label in labels] for name, labels in groups.items()}
@@ -133,10 +145,11 @@ class MarkerStats:
 class Problem:
     """Something the operator should look at: frames ``start .. stop - 1`` of label ``label``.
 
-    ``kind``: "low_confidence", "swap" or "gap"; ``frame``: where to jump (the first frame);
-    ``other``: the other label of a suspected swap (-1 none); ``score``: severity (mm for swaps and
-    low confidence, frames for gaps); ``text``: one line for the operator (0-based frames inside,
-    the text shows the file's frame numbers).
+    ``kind``: "low_confidence", "swap", "gap" or "labelling" (a health warning of the labelling: then
+    ``label`` is the first label of the model it is about, -1 for the whole scene); ``frame``: where to
+    jump (the first frame); ``other``: the other label of a suspected swap (-1 none); ``score``: severity
+    (mm for swaps and low confidence, frames for gaps and warnings); ``text``: one line for the operator
+    (0-based frames inside, the text shows the file's frame numbers).
     """
 
     kind: str
@@ -187,6 +200,8 @@ class ReviewTake:
     ghost: np.ndarray
     hands: list[HandTrack] = field(default_factory=list)
     rigid_bodies: dict[str, list[int]] = field(default_factory=dict)
+    health: list[HealthWarning] = field(default_factory=list)
+    noise_mm: float | None = None
     settings: ReviewSettings = field(default_factory=ReviewSettings)
     version: int = 0
     _cache: dict[str, Any] = field(default_factory=dict, repr=False)
@@ -219,6 +234,8 @@ class ReviewTake:
             if len(hand.labels) and (hand.labels.min() < 0 or hand.labels.max() >= count):
                 raise InputError(f"hand '{hand.name}' refers to labels outside 0..{count - 1}")
         self.rigid_bodies = copy_rigid_bodies(self.rigid_bodies)
+        self.health = copy_health(self.health)
+        self.noise_mm = None if self.noise_mm is None else float(self.noise_mm)
         for name, labels in self.rigid_bodies.items():
             if any(not 0 <= label < count for label in labels):
                 raise InputError(f"rigid body '{name}' refers to labels outside 0..{count - 1}")
@@ -344,6 +361,8 @@ class ReviewTake:
         self.ghost = ghost & ~self._taken_points(assignment)
         self.hands = track_list
         self.rigid_bodies = copy_rigid_bodies(getattr(result, "rigid_bodies", None) or {})
+        self.health = copy_health(getattr(result, "health", None) or [])
+        self.noise_mm = getattr(result, "noise_mm", None)
         self.__post_init__()
         self.changed()
 
@@ -527,7 +546,8 @@ class ReviewTake:
           constant-velocity prediction (counted once per jump: the run of flagged frames), or a
           low-confidence sample with another label's point within ``swap_close_mm``; when two labels
           jump in the same frame they are reported as a pair (``other``);
-        * "gap": an unfilled gap between the label's first and last sample.
+        * "gap": an unfilled gap between the label's first and last sample;
+        * "labelling": a health warning of the labelling (:attr:`health`) over its frames.
         """
         unknown = set(kinds) - set(PROBLEM_KINDS)
         if unknown:
@@ -581,8 +601,31 @@ class ReviewTake:
             found.append(Problem("gap", int(column), int(start), int(stop), score=float(stop - start),
                                  text=f"{self.label_names[column]}: unfilled gap of {stop - start} frame(s) at "
                                       f"frames {self._frames_text(start, stop)}"))
+        found += self._health_problems()
         found.sort(key=lambda p: (p.start, p.label, PROBLEM_KINDS.index(p.kind)))
         return found
+
+    def _health_problems(self) -> list[Problem]:
+        """The labelling's health warnings as "labelling" problems (clipped to the take)."""
+        problems = []
+        for warning in self.health if self.n_frames else []:
+            start = min(max(0, warning.first_frame), self.n_frames - 1)
+            stop = min(self.n_frames, max(start, warning.last_frame) + 1)
+            labels = next((hand.labels.tolist() for hand in self.hands if hand.name == warning.model),
+                          self.rigid_bodies.get(warning.model, []))
+            label = int(labels[0]) if len(labels) else -1
+            problems.append(Problem("labelling", label, start, stop, score=float(stop - start),
+                                    text=f"Auto-label: {warning.message} (frames {self._frames_text(start, stop)})"))
+        return problems
+
+    def health_summary(self) -> str:
+        """One line on the labelling's health warnings for the status bar ("" when there are none)."""
+        if not self.health:
+            return ""
+        count = len(self.health)
+        order = [kind for kind in HEALTH_SEVERITY if kind in WARNING_KINDS] + list(WARNING_KINDS)
+        worst = min(self.health, key=lambda warning: order.index(warning.kind) if warning.kind in order else len(order))
+        return f"Auto-label: {count} warning{'s' if count > 1 else ''} — {worst.message} (F3: next problem)"
 
     def _close_other(self, flags: np.ndarray) -> np.ndarray:
         """``(F, M)`` int64: for flagged samples, another label whose point is within ``swap_close_mm``
@@ -669,8 +712,8 @@ class ReviewTake:
         label names and hands included (for commands that change the labels themselves)."""
         if whole:
             return {"whole": True, "label_names": list(self.label_names), "hands": [h.copy() for h in self.hands],
-                    "rigid_bodies": copy_rigid_bodies(self.rigid_bodies),
-                    **{name: getattr(self, name).copy() for name in FRAME_ARRAYS}}
+                    "rigid_bodies": copy_rigid_bodies(self.rigid_bodies), "health": copy_health(self.health),
+                    "noise_mm": self.noise_mm, **{name: getattr(self, name).copy() for name in FRAME_ARRAYS}}
         saved: dict[str, Any] = {name: getattr(self, name)[start:stop].copy() for name in FRAME_ARRAYS}
         saved.update({f"hand{index}": hand.joint_angles[start:stop].copy() for index, hand in enumerate(self.hands)})
         return saved
@@ -699,6 +742,8 @@ class ReviewTake:
             self.label_names = list(saved["label_names"])
             self.hands = [hand.copy() for hand in saved["hands"]]
             self.rigid_bodies = copy_rigid_bodies(saved.get("rigid_bodies", {}))
+            self.health = copy_health(saved.get("health", []))
+            self.noise_mm = saved.get("noise_mm")
             for name in FRAME_ARRAYS:
                 setattr(self, name, saved[name].copy())
         else:
@@ -728,6 +773,7 @@ class ReviewTake:
     def same_state(self, other: ReviewTake) -> bool:
         """True when labels, hands and every array equal ``other``'s exactly (NaN equal to NaN)."""
         if (self.label_names != other.label_names or self.rigid_bodies != other.rigid_bodies
+                or self.health != other.health or self.noise_mm != other.noise_mm
                 or [h.meta() for h in self.hands] != [h.meta() for h in other.hands]):
             return False
         mine, theirs = self.state_arrays(), other.state_arrays()

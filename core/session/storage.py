@@ -25,7 +25,7 @@ import numpy as np
 from core.errors import InputError
 from core.io import Take
 from core.session.commands import Command, CompoundCommand, FrameSpan, UndoStack, command_from_json
-from core.session.review import FRAME_ARRAYS, HandTrack, ReviewSettings, ReviewTake, copy_rigid_bodies
+from core.session.review import FRAME_ARRAYS, HandTrack, ReviewSettings, ReviewTake, copy_health, copy_rigid_bodies
 
 SNAPSHOT_FORMAT = "handmocap-review"
 SNAPSHOT_VERSION = 1
@@ -116,6 +116,7 @@ def snapshot_bytes(review: ReviewTake, stack: UndoStack | None, journal_seq: int
         "format": SNAPSHOT_FORMAT, "version": SNAPSHOT_VERSION, "journal_seq": int(journal_seq),
         "label_names": review.label_names, "hands": [hand.meta() for hand in review.hands],
         "rigid_bodies": review.rigid_bodies,
+        "health": [warning.as_dict() for warning in review.health], "noise_mm": review.noise_mm,
         "settings": asdict(review.settings),
         "take": {"frames": review.n_frames, "points": review.n_points, "source": review.take.source_path},
         "history": history,
@@ -145,6 +146,8 @@ def _step_json(command: Command, key: str, arrays: dict[str, np.ndarray], blobs:
         step["label_names"] = saved["label_names"]
         step["hands"] = [hand.meta() for hand in saved["hands"]]
         step["rigid_bodies"] = saved.get("rigid_bodies", {})
+        step["health"] = [warning.as_dict() for warning in saved.get("health", [])]
+        step["noise_mm"] = saved.get("noise_mm")
         for index, hand in enumerate(saved["hands"]):
             arrays[f"{prefix}hand{index}"] = hand.joint_angles
     else:
@@ -173,6 +176,8 @@ def _restore_step(step: dict[str, Any], key: str, arrays: dict[str, np.ndarray],
         saved["hands"] = [HandTrack(h["name"], h["side"], h.get("layout"), np.asarray(h["labels"], np.int64),
                                     arrays[f"{prefix}hand{index}"]) for index, h in enumerate(step["hands"])]
         saved["rigid_bodies"] = copy_rigid_bodies(step.get("rigid_bodies", {}))
+        saved["health"] = copy_health(step.get("health", []))
+        saved["noise_mm"] = step.get("noise_mm")
     else:
         saved = {name: arrays[prefix + name] for name in step.get("keys", [])}
     command.set_saved_state(FrameSpan(*step["span"]), saved, str(step.get("text", "")))
@@ -202,6 +207,7 @@ def load_snapshot(path: str | os.PathLike[str], take: Take) -> tuple[ReviewTake,
                            arrays[f"hand{index}"]) for index, h in enumerate(meta["hands"])]
         review = ReviewTake(take=take, label_names=list(meta["label_names"]), hands=hands,
                             rigid_bodies=dict(meta.get("rigid_bodies", {})),
+                            health=copy_health(meta.get("health", [])), noise_mm=meta.get("noise_mm"),
                             settings=ReviewSettings(**meta.get("settings", {})),
                             **{key: arrays[key] for key in FRAME_ARRAYS})
         blobs = DictBlobs(arrays, "blob")
