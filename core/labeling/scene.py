@@ -65,6 +65,7 @@ from core.labeling.initialise import (
 from core.labeling.models import HandTrack, RigidTrack, SceneSettings, Track
 from core.labeling.objects import ObjectSpec, check_unique_names, load_scene_spec
 from core.labeling.sides import SideDecision, decide_sides
+from core.labeling.swaps import neighbour_pairs, point_tracklets, repair_swaps, unify_tracklets
 from core.labeling.take_statistics import measure_take
 from core.model import N_PARAMS, HandModel, MarkerLayout, MarkerSet, load_layout, load_template, resolve_layout
 
@@ -165,6 +166,8 @@ class _Run:
         #: frame -> [(track index, known labels (K,) point columns, starting state)]: tracks to start
         #: there with the labels found by an earlier pass (the calibration pre-pass)
         self.scheduled: dict[int, list[tuple[int, np.ndarray, object]]] = {}
+        #: (F,P) linked point trajectories (:func:`core.labeling.swaps.point_tracklets`), made when needed
+        self.tracklets: np.ndarray | None = None
 
     def columns(self, index: int) -> slice:
         return slice(int(self.offsets[index]), int(self.offsets[index + 1]))
@@ -524,12 +527,49 @@ class _Run:
                 given = True
         return given
 
+    def repair_swaps(self, track_index: int, track: HandTrack, every_fragment: bool = False
+                     ) -> list[tuple[int, int, int, int]]:
+        """Offline: neighbouring markers of the hand labelled the wrong way round over a fragment are
+        exchanged when the IK fits clearly better so (:mod:`core.labeling.swaps`; ``every_fragment``: not
+        only the fragments of suspect residual), and a point trajectory labelled with two markers is
+        given to the one it mostly carries; the frames changed are solved again. Returns the swaps as
+        (marker a, marker b, start, stop) within the hand."""
+        part = self.columns(track_index)
+        states = self.states[track_index]
+        assignment = self.assignment[:, part]
+
+        def energy(frame: int, index: np.ndarray) -> float:
+            state = states[frame]
+            if not np.isfinite(state).all():
+                return np.inf
+            for _ in range(2):
+                state, _, residuals = self._solve(track, self.positions[frame], index, state)
+            return float((residuals[index >= 0] ** 2).sum())
+
+        if self.tracklets is None:
+            self.tracklets = point_tracklets(self.positions)
+        pairs = neighbour_pairs(track.effectors(track.mean_theta))
+        before = assignment.copy()
+        swaps = repair_swaps(assignment, self.residuals[:, part], self.tracklets, pairs, energy,
+                             self.settings.reappear_floor_mm, every_fragment)
+        unify_tracklets(assignment, self.tracklets, energy)
+        for frame in np.flatnonzero((assignment != before).any(axis=1)):
+            if not np.isfinite(states[frame]).all():
+                continue
+            index = assignment[frame]
+            state, _, residuals = self._solve(track, self.positions[frame], index, states[frame])
+            states[frame] = state
+            self.residuals[frame, part] = np.where(index >= 0, residuals, np.nan)
+        self.assignment[:, part] = assignment
+        return swaps
+
     def truncate(self, stop: int) -> None:
         """Keep only the frames before ``stop`` (the calibration window of the pre-pass)."""
         self.positions, self.present = self.positions[:stop], self.present[:stop]
         self.assignment, self.confidence = self.assignment[:stop], self.confidence[:stop]
         self.residuals = self.residuals[:stop]
         self.states = [states[:stop] for states in self.states]
+        self.tracklets = None
 
     def verify_start(self, track_index: int, track: Track) -> None:
         """Offline: track the first ``verify_frames`` frames after the initialisation again, backwards
@@ -721,6 +761,7 @@ def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout = "d
             pre.verify_start(number, track)
             pre.link(number, track, backward=True)
             pre.rescue(number, track)
+            pre.repair_swaps(number, track, every_fragment=True)
         for number, side in enumerate(sides):
             calibrated = _calibrate(pre, number, hand_models[side], marker_sets[side], layout, window_end)
             if calibrated is not None:
@@ -766,6 +807,8 @@ def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout = "d
         run.link(number, track, backward=not online)
         if isinstance(track, HandTrack):
             run.rescue(number, track, causal=online)
+            if not online:
+                run.repair_swaps(number, track)
     if progress is not None:
         progress(1.0)
     result = _result(run, tracks, sides, specs, hand_models, marker_sets, calibrations, positions, online)

@@ -50,7 +50,7 @@ class TakeStatistics:
         return self.chains > 0 and bool(np.isfinite(self.noise_mm))
 
 
-def _links(current: np.ndarray, following: np.ndarray) -> np.ndarray:
+def unambiguous_links(current: np.ndarray, following: np.ndarray) -> np.ndarray:
     """Unambiguous links between two frames' points ``(W,P,3)`` (NaN absent): per point of ``current`` the
     index of its point in ``following`` ``(W,P)``, -1 where the link is ambiguous or absent."""
     distances = np.sqrt(((current[:, :, None, :] - following[:, None, :, :]) ** 2).sum(axis=3))
@@ -86,7 +86,7 @@ def measure_take(positions: np.ndarray) -> TakeStatistics:
     chain = [windows[:, 0]]
     valid = np.isfinite(windows[:, 0]).all(axis=2)
     for step in range(1, CHAIN_FRAMES):
-        links = _links(windows[:, step - 1], windows[:, step])
+        links = unambiguous_links(windows[:, step - 1], windows[:, step])
         column = np.where(valid, np.take_along_axis(links, np.maximum(column, 0), axis=1), -1)
         valid &= column >= 0
         chain.append(np.take_along_axis(windows[:, step], np.maximum(column, 0)[:, :, None], axis=1))
