@@ -197,8 +197,8 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     label.add_argument("--objects", metavar="SPEC.json", help="rigid objects in the scene (see docs)")
     label.add_argument("--online", action="store_true", help="causal tracking only (no backward pass)")
     label.add_argument("--relabel", action="store_true",
-                       help="label every point afresh: ignore the file's labels of the layout's markers (labels "
-                            "outside the layout are still kept where no model takes their point)")
+                       help="label from scratch: ignore the labels the file already has (by default labels "
+                            "outside the layout are kept and the file's hand labels are kept where it has them)")
     label.add_argument("--out", required=True, metavar="LABELLED.c3d")
     label.add_argument("--report", metavar="REPORT.json", help="write what was found as JSON")
     label.add_argument("--quiet", action="store_true", help="no progress output")

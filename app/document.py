@@ -7,9 +7,10 @@ from functools import cached_property
 
 import numpy as np
 
+from core.batch.resolve import subject_markers
 from core.ik import IKResult
 from core.io import Take, looks_unlabelled
-from core.model import HandModel, MarkerSet, best_layout_for, load_layout, load_template, marker_columns, resolve_layout
+from core.model import HandModel, MarkerSet, best_layout_for, load_layout, load_template, marker_columns
 from core.session import Command, FrameSpan, OpenTake, ReviewTake, UndoStack
 
 
@@ -21,6 +22,8 @@ class TakeDocument:
     result arriving with another id is stale and dropped. ``auto_solve``: solve it as soon as the
     solver is free (demo takes, ``--solve``). ``current_frame``: where the operator left it (0-based).
     ``side``: the hand the next solve fits ("right" or "left"); the result knows its own.
+    ``hand_models`` / ``marker_sets``: the subject's hand per side and its calibrated markers (from
+    auto-label), used by drawing, solves and re-solves instead of the template.
     """
 
     take: Take
@@ -36,9 +39,10 @@ class TakeDocument:
     open_take: OpenTake | None = None
     session_take_id: str | None = None
     hand_models: dict[str, HandModel] = field(default_factory=dict)
+    marker_sets: dict[str, MarkerSet] = field(default_factory=dict)
     last_report: dict | None = None
     _columns: np.ndarray | None = field(default=None, repr=False)
-    _marker_sets: dict[tuple[str, str, int], MarkerSet] = field(default_factory=dict, repr=False)
+    _marker_sets: dict[tuple[str, str, int, int], MarkerSet] = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
         if self.layout_name is None:
@@ -84,13 +88,16 @@ class TakeDocument:
         return self.hand_models[side]
 
     def marker_set_for(self, side: str, layout_name: str | None) -> MarkerSet | None:
-        """Layout ``layout_name`` resolved on :meth:`model_for` ``side`` (cached), None without a layout."""
+        """The markers of layout ``layout_name`` on :meth:`model_for` ``side``: the subject's calibrated
+        ones when :attr:`marker_sets` has them, else the layout resolved on the model (cached); None
+        without a layout."""
         if not layout_name:
             return None
         model = self.model_for(side)
-        key = (side, layout_name, id(model))
+        calibrated = self.marker_sets.get(side)
+        key = (side, layout_name, id(model), id(calibrated))
         if key not in self._marker_sets:
-            self._marker_sets[key] = resolve_layout(model, load_layout(layout_name))
+            self._marker_sets[key] = subject_markers(model, load_layout(layout_name), calibrated)
         return self._marker_sets[key]
 
     @cached_property

@@ -27,8 +27,9 @@ from app.document import TakeDocument
 from app.review_controller import ReviewController
 from app.session_controller import SessionController
 from app.workers import TaskRunner, one_line
+from core.batch.resolve import check_layout_names, solve_labelled_take
 from core.errors import CancelledError, HandMocapError
-from core.ik import METHODS, IKResult, solve_take
+from core.ik import METHODS, IKResult
 from core.io import READ_SUFFIXES, TAKE_FILE_FILTER, Take, load_take
 from core.model import layout_names, load_layout, skin_vertices
 from widgets.marker_panel import MarkerPanel
@@ -465,25 +466,30 @@ class MainWindow(QMainWindow):
     # --------------------------------------------------------------------------------------- solve
     def solve(self, document: TakeDocument | None = None) -> None:
         """Run IK of ``document`` (default: the current take) on the worker thread with the chosen
-        layout and method; a solve running for another take is cancelled (it is retried later when
-        it was an automatic one)."""
+        layout and method, on the review's labels when it has any (after auto-label) else on the take's
+        names, with the subject's hand and calibrated markers when auto-label made them; a solve running
+        for another take is cancelled (it is retried later when it was an automatic one)."""
         document = document or self.document
         if document is None:
             return
         layout_name = (self.layout_box.currentText() if document is self.document
                        else document.layout_name or self.layout_box.currentText())
+        review = document.review
+        take = review.labelled_take() if review is not None and review.n_labels else document.take
         try:
             layout = load_layout(layout_name)
+            check_layout_names(take.marker_names, layout)
         except HandMocapError as error:
             self.show_error("Cannot solve", str(error))
             return
         document.layout_name = layout.name
         if document is self.document:
             document.side = self.side_box.currentText()
-        take, model, method = document.take, document.model_for(document.side), self.method_box.currentText()
+        model, method = document.model_for(document.side), self.method_box.currentText()
+        markers = document.marker_set_for(document.side, layout.name)
 
         def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> IKResult:
-            result = solve_take(take, model, layout, method=method, progress=progress, cancelled=cancelled)
+            result = solve_labelled_take(take, model, markers, method=method, progress=progress, cancelled=cancelled)
             skin_vertices(model, result.joint_angles[0])     # compiles the skinning kernel off the GUI thread
             return result
 

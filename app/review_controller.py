@@ -58,6 +58,7 @@ from core.ik import IKResult
 from core.labeling.objects import load_scene_spec, rigid_body_from_points, save_scene_spec
 from core.model import layout_names, marker_positions, skin_vertices
 from core.session import (
+    PROBLEM_KINDS,
     AcceptFills,
     AssignLabel,
     Command,
@@ -105,13 +106,15 @@ class AutoLabelSettings:
     """What the operator chose in the auto-label dialog."""
 
     layout: str = "dense"
-    hands: str = "right"
+    hands: str = "auto"
     objects: str = ""
     online: bool = False
+    relabel: bool = False
 
 
 class AutoLabelDialog(QDialog):
-    """Layout, hands, rigid objects (a scene spec JSON) and online/offline mode of an auto-label run."""
+    """Layout, hands ("auto": the labeller decides), rigid objects (a scene spec JSON), online/offline mode
+    and whether to relabel from scratch (ignore the labels the file already has)."""
 
     def __init__(self, parent: QWidget, settings: AutoLabelSettings) -> None:
         super().__init__(parent)
@@ -121,7 +124,9 @@ class AutoLabelDialog(QDialog):
         self.layout_box.addItems(layout_names())
         self.layout_box.setCurrentText(settings.layout)
         self.hands_box = QComboBox(self)
-        self.hands_box.addItems(["right", "left", "both"])
+        self.hands_box.addItems(["auto", "right", "left", "both"])
+        self.hands_box.setToolTip("auto: the labeller decides which hands the take shows (and warns when it "
+                                  "cannot tell)")
         self.hands_box.setCurrentText(settings.hands)
         self.objects_edit = QLineEdit(settings.objects, self)
         self.objects_edit.setPlaceholderText("none")
@@ -132,10 +137,15 @@ class AutoLabelDialog(QDialog):
         objects.addWidget(browse)
         self.online_box = QCheckBox("Online (causal: no backward pass, as in live tracking)", self)
         self.online_box.setChecked(settings.online)
+        self.relabel_box = QCheckBox("Relabel from scratch (ignore the labels the file already has)", self)
+        self.relabel_box.setToolTip("Off: labels outside the layout (arm, body, objects) are kept, and where the "
+                                    "file labels a point with a layout marker's name that label is kept.")
+        self.relabel_box.setChecked(settings.relabel)
         form.addRow("Marker layout", self.layout_box)
         form.addRow("Hands", self.hands_box)
         form.addRow("Rigid objects", objects)
         form.addRow("", self.online_box)
+        form.addRow("", self.relabel_box)
         buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok | QDialogButtonBox.StandardButton.Cancel, self)
         buttons.button(QDialogButtonBox.StandardButton.Ok).setText("Auto-label")
         buttons.accepted.connect(self.accept)
@@ -149,7 +159,8 @@ class AutoLabelDialog(QDialog):
 
     def settings(self) -> AutoLabelSettings:
         return AutoLabelSettings(self.layout_box.currentText(), self.hands_box.currentText(),
-                                 self.objects_edit.text().strip(), self.online_box.isChecked())
+                                 self.objects_edit.text().strip(), self.online_box.isChecked(),
+                                 self.relabel_box.isChecked())
 
 
 class ReviewController(QObject):
@@ -316,6 +327,8 @@ class ReviewController(QObject):
         self._previews = {}
         self._pending_span = FrameSpan(0, 0)
         self.refresh(structure=True)
+        if document.review.health:
+            self.window.statusBar().showMessage(document.review.health_summary())
 
     def detach(self) -> None:
         """No take is shown any more: clear the review views."""
@@ -684,12 +697,15 @@ class ReviewController(QObject):
             self.problem_label.setText("")
             return
         problems = review.problems()
-        counts = {kind: sum(p.kind == kind for p in problems) for kind in ("low_confidence", "swap", "gap")}
+        counts = {kind: sum(p.kind == kind for p in problems) for kind in PROBLEM_KINDS}
+        warnings = f" · {counts['labelling']} auto-label warnings" if counts["labelling"] else ""
         self.problem_label.setText(f" {counts['swap']} swap suspects · {counts['low_confidence']} low-confidence"
-                                   f" · {counts['gap']} gaps ")
+                                   f" · {counts['gap']} gaps{warnings} ")
+        self.problem_label.setToolTip("\n".join(problem.text for problem in problems if problem.kind == "labelling"))
 
     def go_to_problem(self, forward: bool = True) -> None:
-        """Jump to the next (or previous) low-confidence stretch, swap suspect or unfilled gap."""
+        """Jump to the next (or previous) low-confidence stretch, swap suspect, unfilled gap or stretch an
+        auto-label warning is about."""
         review = self.review
         if review is None:
             return
@@ -869,7 +885,8 @@ class ReviewController(QObject):
 
         def task(progress: Callable[[float], None], cancelled: Callable[[], bool]):
             return auto_label(take, settings.layout, settings.hands, settings.objects or None, settings.online,
-                              models=models or None, progress=progress, cancelled=cancelled)
+                              models=models or None, relabel=settings.relabel, progress=progress,
+                              cancelled=cancelled)
 
         self._start_job("auto-label", task, document=document)
 
@@ -909,7 +926,7 @@ class ReviewController(QObject):
         if review is None or span.empty or not review.hands:
             self._pending_span = FrameSpan(0, 0)
             return
-        jobs = resolve_jobs(review, span, document.hand_models)
+        jobs = resolve_jobs(review, span, document.hand_models, marker_sets=document.marker_sets)
         self._pending_span = FrameSpan(0, 0)
         if jobs:
             self._start_job("re-solve", lambda progress, cancelled: run_resolve_jobs(
@@ -943,15 +960,18 @@ class ReviewController(QObject):
         try:
             if kind == "auto-label":
                 document.hand_models.update(result.models)
-                self.window.sessions.save_take_models(document, result.models)
+                document.marker_sets.update(result.marker_sets)
+                self.window.sessions.save_take_models(document, result.models, result.marker_sets)
                 document.push(result.command)
                 document.last_report = result.report
-                self.window.statusBar().showMessage(
-                    f"Auto-labelled {result.report['frames']} frames: "
-                    f"{100 * result.report['labelled_share']:.1f} % of label samples found, "
-                    f"{result.report['ghost_points']} ghost points left unlabelled", 10000)
                 if document is self.document:
                     self.attach(document)
+                report = result.report
+                self.window.statusBar().showMessage(
+                    document.review.health_summary() or
+                    f"Auto-labelled {report['frames']} frames: {100 * report['labelled_share']:.1f} % of label "
+                    f"samples found, {report['ghost_points']} ghost points left unlabelled", 0 if report["health"]
+                    else 10000)
                 self.window.auto_label_finished(document)
             elif kind == "fill" and result is not None:
                 span = document.push(result)

@@ -20,8 +20,9 @@ from app.document import TakeDocument
 from app.review_controller import AutoLabelSettings
 from core.errors import HandMocapError
 from core.io import Take, load_take
-from core.model import HandModel, add_layout_folder, best_layout_for, remove_layout_folder
+from core.model import HandModel, MarkerSet, add_layout_folder, best_layout_for, remove_layout_folder
 from core.session import OpenTake, Session
+from core.session.storage import read_marker_set, write_marker_set
 from widgets.session_browser import SessionBrowser, TakeRow
 
 if TYPE_CHECKING:
@@ -29,6 +30,7 @@ if TYPE_CHECKING:
 
 AUTOSAVE_MS = 15_000
 TAKE_MODEL_NAME = "labelling_hand_{side}.npz"   # the hand model auto-label calibrated to the take
+TAKE_MARKERS_NAME = "labelling_markers_{side}.npz"  # its calibrated markers (the subject's marker offsets)
 SNAPSHOT_INTERVAL_S = 60.0
 
 
@@ -201,11 +203,15 @@ class SessionController(QObject):
                 document.hand_models[model.side] = model
         for side in ("right", "left"):
             path = opened.folder / TAKE_MODEL_NAME.format(side=side)
+            markers = opened.folder / TAKE_MARKERS_NAME.format(side=side)
             if path.exists():
                 try:
                     document.hand_models[side] = HandModel.load(path)
+                    if markers.exists():
+                        document.marker_sets[side] = read_marker_set(markers)
                 except (HandMocapError, OSError, ValueError, KeyError):
                     self.window.statusBar().showMessage(f"{path.name} is damaged; the template is used", 10000)
+                    document.hand_models.pop(side, None)
         self.window.add_document(document)
         if automatic and not entry.labelled_source and not opened.review.n_labels:
             self.window.review.start_auto_label(AutoLabelSettings(layout=entry.layout or "dense",
@@ -215,15 +221,23 @@ class SessionController(QObject):
             lines = [f"recovered {opened.replayed} edits from the journal"] if opened.replayed else []
             self.window.show_error("Take recovered", "\n".join(lines + opened.warnings))
 
-    def save_take_models(self, document: TakeDocument, models: dict[str, HandModel]) -> None:
-        """Keep the hand models the labelling calibrated to this take's subject in the take's folder, so
-        that drawing and re-solving use them when the take is opened again."""
+    def save_take_models(self, document: TakeDocument, models: dict[str, HandModel],
+                         marker_sets: dict[str, MarkerSet] | None = None) -> None:
+        """Keep the hand models the labelling calibrated to this take's subject, and their calibrated
+        markers, in the take's folder, so that drawing, solves and re-solves use them when the take is
+        opened again."""
         if document.open_take is None or self.session is None or self.session.read_only:
             return
+        folder = document.open_take.folder
         try:
             for side, model in models.items():
-                model.save(document.open_take.folder / TAKE_MODEL_NAME.format(side=side))
-        except OSError as error:
+                model.save(folder / TAKE_MODEL_NAME.format(side=side))
+                markers = folder / TAKE_MARKERS_NAME.format(side=side)
+                if marker_sets and side in marker_sets:
+                    write_marker_set(markers, marker_sets[side])
+                else:
+                    markers.unlink(missing_ok=True)
+        except (OSError, HandMocapError) as error:
             self.window.statusBar().showMessage(f"Cannot keep the calibrated hand model: {error}", 10000)
 
     def set_state(self, take_id: str, state: str) -> None:

@@ -4,8 +4,9 @@ What the input file knows is kept (:func:`file_labels`): points it labels with n
 scene (an arm, the back, an object of a body take) are not offered to the labeller, are not ghosts,
 and come out as labels of their own; points it labels with the scene's names (the layout's markers,
 ``R_``/``L_`` prefixed for two hands, or the objects' markers) are evidence: the file's label is kept
-where the file has one and the labeller's result is used for the rest (``relabel=True``: every point
-is labelled afresh, and a label outside the scene is kept only where no model took its point).
+where the file has one and the labeller's result is used for the rest. ``relabel=True`` labels from
+scratch: every point is offered to the labeller and its result is used as it is (the file's labels are
+only compared with it).
 
 The report carries the labeller's noise estimate and health warnings, plus the warnings that need only
 the result (:func:`result_health`): a model labelling a small share of its markers while the points
@@ -100,18 +101,18 @@ def file_labels(take: Take, scene_names: set[str]) -> FileLabels:
 
 
 def merge_file_labels(arrays: LabellingArrays, take: Take, known: FileLabels, relabel: bool = False) -> dict:
-    """Bring what the file knows into a labelling of ``take`` (``arrays`` changed in place): the kept
-    labels are appended as labels of their own (with ``relabel``, only where no label took their point),
-    and unless ``relabel`` each evidence column's point goes to its label wherever the file has it (a
-    label that had taken that point elsewhere loses it). Returns figures: ``file_label_samples`` (samples
-    the file labels with scene names), ``disagreed_samples`` (of those, the labeller gave the label
-    another point or none), ``kept_labels``, ``kept_samples``."""
+    """Bring what the file knows into a labelling of ``take`` (``arrays`` changed in place), unless
+    ``relabel``: the kept labels are appended as labels of their own, and each evidence column's point
+    goes to its label wherever the file has it (a label that had taken that point elsewhere loses it).
+    Returns figures: ``file_label_samples`` (samples the file labels with scene names),
+    ``disagreed_samples`` (of those, the labeller gave the label another point or none), ``kept_labels``,
+    ``kept_samples``."""
     present = np.isfinite(take.marker_positions).all(axis=2)
     assignment = arrays.assignment
-    names = [name.lower() for name in arrays.marker_names]
+    lowered = [name.lower() for name in arrays.marker_names]
     file_samples = disagreed = 0
     for column, name in known.evidence.items():
-        label = _evidence_label(names, name, assignment, column)
+        label = _evidence_label(lowered, name, assignment, column)
         if label < 0:
             continue
         frames = np.flatnonzero(present[:, column])
@@ -129,15 +130,10 @@ def merge_file_labels(arrays: LabellingArrays, take: Take, known: FileLabels, re
         arrays.confidence[differs, label] = np.nan
         arrays.residuals_mm[differs, label] = np.nan
         arrays.ghost_points[differs, column] = False
-    columns = known.kept_columns
-    kept = present[:, columns].copy()
-    if relabel and len(columns):
-        taken = np.zeros(present.shape, dtype=bool)
-        frames, labels = np.nonzero(assignment >= 0)
-        taken[frames, assignment[frames, labels]] = True
-        kept &= ~taken[:, columns]
+    columns, names = (known.kept_columns[:0], []) if relabel else (known.kept_columns, list(known.kept_names))
+    kept = present[:, columns]
     frames = len(assignment)
-    arrays.marker_names = list(arrays.marker_names) + list(known.kept_names)
+    arrays.marker_names = list(arrays.marker_names) + names
     arrays.assignment = np.concatenate([assignment, np.where(kept, columns[None, :], -1)], axis=1)
     extra = np.full((frames, len(columns)), np.nan)
     arrays.confidence = np.concatenate([arrays.confidence, extra], axis=1)
@@ -145,7 +141,7 @@ def merge_file_labels(arrays: LabellingArrays, take: Take, known: FileLabels, re
     arrays.ghost_points = arrays.ghost_points.copy()
     arrays.ghost_points[:, columns] &= ~kept
     return {"file_label_samples": int(file_samples), "disagreed_samples": int(disagreed),
-            "kept_labels": list(known.kept_names), "kept_samples": int(kept.sum())}
+            "kept_labels": names, "kept_samples": int(kept.sum())}
 
 
 def _evidence_label(names: list[str], name: str, assignment: np.ndarray, column: int) -> int:
@@ -255,7 +251,7 @@ def auto_label(take: Take, layout: str | MarkerLayout = "dense", hands: str = "a
                cancelled: Callable[[], bool] | None = None) -> AutoLabelOutcome:
     """Label the raw points of ``take`` (see :func:`core.labeling.scene.label_scene`; ``hands`` "auto",
     "right", "left" or "both"), keep what its point names already say (module docstring; ``relabel``:
-    label every point afresh) and wrap the result as an undoable :class:`ApplyLabelling` for a review of
+    label from scratch, ignoring them) and wrap the result as an undoable :class:`ApplyLabelling` for a review of
     this take. Raises InputError (e.g. every point is labelled outside the scene) or CancelledError."""
     layout = load_layout(layout) if isinstance(layout, str) else layout
     specs = load_scene_spec(objects) if isinstance(objects, str | Path) else list(objects or [])

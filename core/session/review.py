@@ -625,7 +625,7 @@ class ReviewTake:
         count = len(self.health)
         order = [kind for kind in HEALTH_SEVERITY if kind in WARNING_KINDS] + list(WARNING_KINDS)
         worst = min(self.health, key=lambda warning: order.index(warning.kind) if warning.kind in order else len(order))
-        return f"Auto-label: {count} warning{'s' if count > 1 else ''} — {worst.message} (F3: next problem)"
+        return f"Auto-label: {count} warning{'s' if count > 1 else ''} — {worst.message}"
 
     def _close_other(self, flags: np.ndarray) -> np.ndarray:
         """``(F, M)`` int64: for flagged samples, another label whose point is within ``swap_close_mm``

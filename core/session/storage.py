@@ -24,6 +24,7 @@ import numpy as np
 
 from core.errors import InputError
 from core.io import Take
+from core.model import MarkerSet
 from core.session.commands import Command, CompoundCommand, FrameSpan, UndoStack, command_from_json
 from core.session.review import FRAME_ARRAYS, HandTrack, ReviewSettings, ReviewTake, copy_health, copy_rigid_bodies
 
@@ -82,6 +83,24 @@ def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
             return {key: data[key] for key in data.files}
     except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as error:
         raise InputError(f"{Path(path).name}: cannot read ({error})") from None
+
+
+MARKER_SET_ARRAYS = ("vertex", "rest_positions", "influence_joints", "influence_weights", "local_points", "offsets_mm")
+
+
+def write_marker_set(path: str | os.PathLike[str], markers: MarkerSet) -> None:
+    """Keep a resolved marker set (e.g. a subject's calibrated markers) as ``.npz``, atomically and durably."""
+    arrays = {name: np.asarray(getattr(markers, name)) for name in MARKER_SET_ARRAYS}
+    write_atomic(path, npz_bytes({"names": np.array(list(markers.names)), **arrays}))
+
+
+def read_marker_set(path: str | os.PathLike[str]) -> MarkerSet:
+    """A marker set written by :func:`write_marker_set`; InputError naming the file when unreadable."""
+    arrays = read_npz(path)
+    try:
+        return MarkerSet([str(name) for name in arrays["names"]], *(arrays[name] for name in MARKER_SET_ARRAYS))
+    except KeyError as error:
+        raise InputError(f"{Path(path).name}: not a marker set ({error})") from None
 
 
 class DictBlobs:
