@@ -92,11 +92,18 @@ def test_file_hand_labels_are_evidence_and_relabel_starts_afresh():
     assert review.n_labels == 13 and fresh.report["file_labels"]["disagreed_samples"] >= present.sum()
 
 
-def test_every_point_labelled_outside_the_layout_is_refused():
+def test_a_take_labelled_for_another_layout_is_refused_unless_relabelled(tmp_path, capsys):
     simulated = simulate_take(layout="glove-13", n_frames=100, seed=2)
     body = Take([f"B{name}" for name in simulated.take.marker_names], simulated.take.marker_positions, 100.0)
-    with pytest.raises(InputError, match="nothing is left to label"):
+    with pytest.raises(InputError, match="only 0 point columns of the take are left to label"):
         auto_label(body, "glove-13", "right")
+    fresh = auto_label(body, "glove-13", "right", relabel=True)
+    assert fresh.report["labelled_share"] > 0.9 and fresh.report["file_labels"]["kept_labels"] == []
+    path = tmp_path / "glove.c3d"
+    save_take(simulated.take, path)
+    assert main(["label", str(path), "--layout", "dense", "--out", str(tmp_path / "o.c3d"), "--quiet"]) == 2
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1 and "outside layout 'dense'" in error
 
 
 def test_cli_label_hands_auto_default_relabel_and_solve_with_the_subject(raw_with_body, tmp_path, capsys):

@@ -38,6 +38,9 @@ HAND_FOUND_SHARE = 0.05
 #: a hand labelling less than this fraction of the markers the points present allow, over the frames it
 #: is tracked, is reported (a wrong side or layout labels about half)
 LOW_SHARE_RATIO = 0.75
+#: labelling is refused when the columns left to the labeller (not labelled outside the scene) are fewer
+#: than this share of the layout's markers: the layout is not the one the take is labelled with
+MIN_OFFERED_SHARE = 0.5
 
 
 @dataclass
@@ -260,10 +263,12 @@ def auto_label(take: Take, layout: str | MarkerLayout = "dense", hands: str = "a
     if len(known.kept_columns) and not relabel:
         positions = take.marker_positions.copy()
         positions[:, known.kept_columns] = np.nan
-        if not np.isfinite(positions).all(axis=2).any():
-            raise InputError(f"every point of the take is labelled with names outside layout '{layout.name}' "
-                             f"({', '.join(known.kept_names[:4])}…): nothing is left to label (give the layout "
-                             "the take uses, or relabel to label every point afresh)")
+        left = int(np.isfinite(positions).all(axis=2).any(axis=0).sum())
+        if left < MIN_OFFERED_SHARE * len(layout.names):
+            examples = ", ".join(known.kept_names[:3])
+            raise InputError(f"only {left} point columns of the take are left to label: the other "
+                             f"{len(known.kept_names)} are labelled with names outside layout '{layout.name}' "
+                             f"({examples}…) and are kept; give the layout the take uses, or relabel from scratch")
         offered = replace(take, marker_positions=positions, parameters=dict(take.parameters))
     started = time.perf_counter()
     result = label_scene(offered, hands=hands, layout=layout, objects=specs or None, online=online, models=models,
