@@ -77,8 +77,8 @@ HAND_PREFIX = {"right": "R_", "left": "L_"}
 class SceneModel:
     """One model of the scene: ``name``, ``kind`` ("right", "left" or "object"), its columns
     ``markers`` (slice into the scene's marker list), the (calibrated) hand model and marker set used,
-    or the object spec; ``init_frame`` where it was first initialised (-1 never) and the subject
-    calibration report of a hand."""
+    or the object spec; ``init_frame`` where it was first initialised (-1 never), the subject
+    calibration report of a hand, and the frames where a lost hand was fitted afresh."""
 
     name: str
     kind: str
@@ -88,6 +88,7 @@ class SceneModel:
     object_spec: ObjectSpec | None = None
     init_frame: int = -1
     calibration: dict = field(default_factory=dict)
+    reinitialised: list[int] = field(default_factory=list)
 
 
 @dataclass
@@ -143,6 +144,12 @@ class SceneLabeling:
         return {model.name: indices[model.markers].tolist() for model in self.models if model.kind == "object"}
 
 
+DEGRADED_RATIO = 2.0
+"""A hand whose frame's mean residual exceeds this times its running typical residual is degraded."""
+TYPICAL_RATE = 0.02
+"""Rate of the running typical residual (an exponential mean over about 50 frames)."""
+
+
 class _Run:
     """Forward/backward tracking of a set of tracks over a take's points; fills the result arrays."""
 
@@ -168,6 +175,12 @@ class _Run:
         self.scheduled: dict[int, list[tuple[int, np.ndarray, object]]] = {}
         #: (F,P) linked point trajectories (:func:`core.labeling.swaps.point_tracklets`), made when needed
         self.tracklets: np.ndarray | None = None
+        #: per hand track: consecutive frames it has been lost; frames where it was fitted afresh
+        self.lost: dict[int, int] = {}
+        self.reinitialised: dict[int, list[int]] = {}
+        #: per hand track: running typical mean residual (mm) and the last frame it was re-checked
+        self.typical_residual: dict[int, float] = {}
+        self.last_recheck: dict[int, int] = {}
 
     def columns(self, index: int) -> slice:
         return slice(int(self.offsets[index]), int(self.offsets[index + 1]))
@@ -325,6 +338,7 @@ class _Run:
                 index, confidence, residuals, states = self.step([self.tracks[number] for number in active], points)
                 self.record(frame, active, columns, index, confidence, residuals, states)
                 taken[index[index >= 0]] = True
+                self._count_lost(frame, active)
             for number, labels, state in self.scheduled.pop(frame, []):
                 taken |= self._start_with(frame, number, columns, labels, state, taken)
             waiting = [number for number, track in enumerate(self.tracks)
@@ -336,8 +350,66 @@ class _Run:
                 if len(free) >= 3:
                     for candidate in initialise_frame(self.tracks, waiting, points[free], settings, self.cut):
                         self._start(frame, candidate, columns[free], points[free])
+            for number in [number for number, count in self.lost.items() if count >= settings.retry_every]:
+                self._reinitialise(frame, number, columns, points)
             if on_frame is not None:
                 on_frame(frame)
+
+    def _count_lost(self, frame: int, active: list[int]) -> None:
+        """Count, per active hand, the consecutive frames up to ``frame`` in which it labelled fewer than
+        ``init_min_share`` of its markers (a hand the tracker has lost, e.g. after a long occlusion) or
+        fitted with a mean residual above :data:`DEGRADED_RATIO` × its running typical residual (a
+        finger shift or a swap the tracker settled into); a degraded hand is counted at most once per
+        ``hypothesis_frames`` frames, as re-checking it costs a fresh fit."""
+        settings = self.settings
+        for number in active:
+            track = self.tracks[number]
+            if not isinstance(track, HandTrack):
+                continue
+            labels = self.assignment[frame, self.columns(number)] >= 0
+            least = max(3, int(np.ceil(settings.init_min_share * track.count)))
+            lost = int(labels.sum()) < least
+            residual = float(self.residuals[frame, self.columns(number)][labels].mean()) if labels.any() else np.nan
+            typical = self.typical_residual.get(number, residual)
+            degraded = bool(np.isfinite(residual) and residual > max(DEGRADED_RATIO * typical,
+                                                                    settings.reappear_floor_mm))
+            if np.isfinite(residual) and not degraded:
+                self.typical_residual[number] = typical + TYPICAL_RATE * (residual - typical)
+            recently = frame - self.last_recheck.get(number, -10 ** 9) < settings.hypothesis_frames
+            count = lost or (degraded and not recently)
+            self.lost[number] = self.lost.get(number, 0) + 1 if count else 0
+
+    def _reinitialise(self, frame: int, number: int, columns: np.ndarray, points: np.ndarray) -> None:
+        """Fit a lost or degraded hand ``number`` afresh to the frame's points no other model took; offline, the new fit
+        replaces the tracked one when it holds up better over the next ``hypothesis_frames`` frames
+        (:func:`window_cost`), online when it labels more markers. Tried every ``retry_every`` frames."""
+        self.lost[number] = 0
+        self.last_recheck[number] = frame
+        others = np.ones(self.assignment.shape[1], dtype=bool)
+        others[self.columns(number)] = False
+        foreign = self.assignment[frame, others]
+        free = np.flatnonzero(~np.isin(columns, foreign[foreign >= 0]))
+        if len(free) < 3:
+            return
+        found = initialise_frame(self.tracks, [number], points[free], self.settings, self.cut)
+        if not found:
+            return
+        candidate = found[0]
+        current = self.assignment[frame, self.columns(number)]
+        if self.make_track is not None:
+            state = self.states[number][frame]
+            kept = window_cost(self.make_track(number), self.positions, frame, current, state, self.settings)
+            hypotheses = [(candidate.state, candidate.point_index), *candidate.alternatives]
+            costs = [self._window_cost(frame, number, _columns_of(labels, columns[free]), start)
+                     for start, labels in hypotheses]
+            if min(costs) >= kept:
+                return
+        elif candidate.matched <= int((current >= 0).sum()):
+            return
+        first_init = self.init_frames[number]
+        self._start(frame, candidate, columns[free], points[free])
+        self.init_frames[number] = first_init
+        self.reinitialised.setdefault(number, []).append(frame)
 
     def _start_with(self, frame: int, number: int, columns: np.ndarray, labels: np.ndarray, state,
                     taken: np.ndarray) -> np.ndarray:
@@ -542,8 +614,7 @@ class _Run:
             state = states[frame]
             if not np.isfinite(state).all():
                 return np.inf
-            for _ in range(2):
-                state, _, residuals = self._solve(track, self.positions[frame], index, state)
+            _, _, residuals = self._solve(track, self.positions[frame], index, state)
             return float((residuals[index >= 0] ** 2).sum())
 
         if self.tracklets is None:
@@ -573,13 +644,23 @@ class _Run:
 
     def verify_start(self, track_index: int, track: Track) -> None:
         """Offline: track the first ``verify_frames`` frames after the initialisation again, backwards
-        from their end (where tracking has settled), and keep per frame whichever labelling of the
-        model has the lower eq. 2 cost (mean residual + α · markers left unlabelled): an initial fit
-        that took a neighbouring finger's points is corrected from the later, settled posture."""
+        from their end (where tracking has settled), keeping per frame the better labelling
+        (:meth:`retrack_backward`): an initial fit that took a neighbouring finger's points is corrected
+        from the later, settled posture."""
         init = self.init_frames[track_index]
-        end = min(init + self.settings.verify_frames, len(self.positions) - 2)
+        if init >= 0:
+            self.retrack_backward(track_index, track, min(init + self.settings.verify_frames, len(self.positions) - 2),
+                                  init)
+
+    def retrack_backward(self, track_index: int, track: Track, end: int, stop: int, converge: int | None = None
+                         ) -> None:
+        """Offline: track the frames ``end-1`` down to ``stop`` again backwards, from the states of
+        ``end`` and ``end+1``, and keep per frame whichever labelling of the model has the lower eq. 2
+        cost (mean residual + α · markers left unlabelled); with ``converge``, stop once that many
+        consecutive frames agree with the labels already there (the two directions have met)."""
         states = self.states[track_index]
-        if init < 0 or end <= init + 1 or not (np.isfinite(states[end]).all() and np.isfinite(states[end + 1]).all()):
+        if end <= stop + 1 or end + 1 >= len(states) or not (np.isfinite(states[end]).all()
+                                                              and np.isfinite(states[end + 1]).all()):
             return
         part = self.columns(track_index)
         labelled = self.assignment[:, part] >= 0
@@ -593,7 +674,8 @@ class _Run:
             seen = index >= 0
             return float(residuals[seen].mean() if seen.any() else 0.0) + alpha * float((~seen).sum())
 
-        for frame in range(end - 1, init - 1, -1):
+        agreeing = 0
+        for frame in range(end - 1, stop - 1, -1):
             columns = np.flatnonzero(self.present[frame])
             foreign = self.assignment[frame, others]
             free = columns[~np.isin(columns, foreign[foreign >= 0])]
@@ -601,7 +683,11 @@ class _Run:
             own = self.assignment[frame, part]
             backward_columns = np.where(index >= 0, free[np.maximum(index, 0)], -1)
             if np.array_equal(backward_columns, own):
+                agreeing += 1
+                if converge is not None and agreeing >= converge:
+                    return
                 continue
+            agreeing = 0
             if cost(index, residuals) < cost(own, np.nan_to_num(self.residuals[frame, part])):
                 self.record(frame, [track_index], free, index, confidence, residuals, states_now)
 
@@ -740,30 +826,16 @@ def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout = "d
     calibrate_online = settings.calibrate and online
     pre = None
     if settings.calibrate and not online and sides:
-        pre = _Run(tracks, positions, settings, lambda number: make_tracks(hand_models, marker_sets)[number])
-        _seed(pre, tracks, initial_states)
-        window_end = frames
-        report = reporter(0.0, 0.15, frames)
-
-        def stop_when_calibrated(frame: int) -> None:
-            nonlocal window_end
-            inits = [pre.init_frames[i] for i, track in enumerate(tracks) if isinstance(track, HandTrack)]
-            if all(init >= 0 for init in inits) and frame >= max(inits) + settings.calibration_frames - 1:
-                window_end = frame + 1
-                raise _WindowDone
-
-        try:
-            pre.forward(0, frames, report, stop_when_calibrated)
-        except _WindowDone:
-            pass
-        pre.truncate(window_end)
-        for number, track in enumerate(make_tracks(hand_models, marker_sets)[:len(sides)]):
-            pre.verify_start(number, track)
-            pre.link(number, track, backward=True)
-            pre.rescue(number, track)
-            pre.repair_swaps(number, track, every_fragment=True)
+        windows = _calibration_windows(frames, settings)
+        prepasses = []
+        for number, offset in enumerate(windows):
+            report = reporter(0.15 * number / len(windows), 0.15 * (number + 1) / len(windows), frames - offset)
+            prepasses.append(_prepass(positions[offset:], tracks, settings, initial_states if offset == 0 else None,
+                                      lambda number: make_tracks(hand_models, marker_sets)[number], report))
+        pre = prepasses[0]
         for number, side in enumerate(sides):
-            calibrated = _calibrate(pre, number, hand_models[side], marker_sets[side], layout, window_end)
+            calibrated = _calibrate([(run, len(run.positions)) for run in prepasses], number, hand_models[side],
+                                    marker_sets[side], layout)
             if calibrated is not None:
                 hand_models[side], marker_sets[side], calibrations[side] = calibrated
         tracks = make_tracks(hand_models, marker_sets)
@@ -787,7 +859,8 @@ def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout = "d
                 if init >= 0 and frame >= init + settings.calibration_frames - 1:
                     pending.discard(number)
                     side = sides[number]
-                    calibrated = _calibrate(run, number, hand_models[side], marker_sets[side], layout, frame + 1)
+                    calibrated = _calibrate([(run, frame + 1)], number, hand_models[side], marker_sets[side],
+                                            layout)
                     if calibrated is not None:
                         hand_models[side], marker_sets[side], calibrations[side] = calibrated
                         tracks[number].set_model(hand_models[side], marker_sets[side])
@@ -800,6 +873,9 @@ def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout = "d
         for number in range(len(tracks)):
             report(number)
             if isinstance(tracks[number], HandTrack):
+                for frame in run.reinitialised.get(number, []):
+                    run.retrack_backward(number, make_tracks(hand_models, marker_sets)[number], frame, 0,
+                                         converge=settings.hypothesis_frames)
                 run.verify_start(number, make_tracks(hand_models, marker_sets)[number])
             run.backward(number, lambda number=number: make_tracks(hand_models, marker_sets)[number])
     for number in range(len(tracks)):
@@ -849,21 +925,74 @@ def _seed(run: _Run, tracks: list[Track], initial_states: dict[str, object] | No
         run.start_at(0, number, state)
 
 
-def _calibrate(run: _Run, number: int, model: HandModel, markers: MarkerSet, layout: MarkerLayout,
-               stop: int) -> tuple[HandModel, MarkerSet, dict] | None:
-    """Subject calibration of hand track ``number`` from its labelled frames before ``stop``."""
+def _calibration_windows(frames: int, settings: SceneSettings) -> list[int]:
+    """First frames of the calibration pre-passes: one window per :data:`CALIBRATION_SPACING` ×
+    ``calibration_frames`` frames of the take (at most :data:`MAX_CALIBRATION_WINDOWS`), evenly spread,
+    so the subject calibration of a long take sees all of it, not only its start."""
+    count = int(np.clip(np.ceil(frames / (CALIBRATION_SPACING * settings.calibration_frames)), 1,
+                        MAX_CALIBRATION_WINDOWS))
+    return [int(round(number * frames / count)) for number in range(count)]
+
+
+def _prepass(positions: np.ndarray, tracks: list[Track], settings: SceneSettings,
+             initial_states: dict[str, object] | None, make_track: Callable[[int], Track],
+             report: Callable[[int], None]) -> _Run:
+    """Label ``positions (F,P,3)`` with the uncalibrated ``tracks`` until every hand has been tracked for
+    ``calibration_frames`` frames (or the end), then verify, link, rescue and repair swaps: the labelled
+    window a subject calibration is fitted to. Returns the run, truncated to the window."""
+    pre = _Run(tracks, positions, settings, make_track)
+    _seed(pre, tracks, initial_states)
+    window_end = len(positions)
+    hands = [number for number, track in enumerate(tracks) if isinstance(track, HandTrack)]
+
+    def stop_when_calibrated(frame: int) -> None:
+        nonlocal window_end
+        inits = [pre.init_frames[number] for number in hands]
+        if all(init >= 0 for init in inits) and frame >= max(inits) + settings.calibration_frames - 1:
+            window_end = frame + 1
+            raise _WindowDone
+
+    try:
+        pre.forward(0, len(positions), report, stop_when_calibrated)
+    except _WindowDone:
+        pass
+    pre.truncate(window_end)
+    for number in hands:
+        track = make_track(number)
+        assert isinstance(track, HandTrack)
+        pre.verify_start(number, track)
+        pre.link(number, track, backward=True)
+        pre.rescue(number, track)
+        pre.repair_swaps(number, track, every_fragment=True)
+    return pre
+
+
+CALIBRATION_SPACING = 10
+"""One calibration window per this many × ``calibration_frames`` frames of a take (15 s at 100 Hz)."""
+MAX_CALIBRATION_WINDOWS = 6
+
+
+def _calibrate(windows: list[tuple[_Run, int]], number: int, model: HandModel, markers: MarkerSet,
+               layout: MarkerLayout) -> tuple[HandModel, MarkerSet, dict] | None:
+    """Subject calibration of hand track ``number`` from its labelled frames in ``windows``: (run, the
+    frame before which its labels are used), pooled."""
     from core.calibration.subject import calibrate_subject
 
-    init = run.init_frames[number]
-    if init < 0:
+    labelled_parts, angle_parts = [], []
+    for run, stop in windows:
+        init = run.init_frames[number]
+        if init < 0 or stop <= init:
+            continue
+        part = run.columns(number)
+        assignment = run.assignment[init:stop, part]
+        taken = np.take_along_axis(run.positions[init:stop], np.maximum(assignment, 0)[:, :, None], axis=1)
+        labelled_parts.append(np.where((assignment >= 0)[:, :, None], taken, np.nan))
+        angle_parts.append(run.states[number][init:stop])
+    if not labelled_parts:
         return None
-    part = run.columns(number)
-    assignment = run.assignment[init:stop, part]
-    points = run.positions[init:stop]
-    labelled = np.take_along_axis(points, np.maximum(assignment, 0)[:, :, None], axis=1)
-    labelled = np.where((assignment >= 0)[:, :, None], labelled, np.nan)
     try:
-        return calibrate_subject(labelled, model, markers, initial_angles=run.states[number][init:stop])
+        return calibrate_subject(np.concatenate(labelled_parts), model, markers,
+                                 initial_angles=np.concatenate(angle_parts))
     except InputError:
         return None
 
@@ -882,7 +1011,7 @@ def _result(run: _Run, tracks: list[Track], sides: list[str], specs: list[Object
         if isinstance(track, HandTrack):
             scene_models.append(SceneModel(track.name, track.kind, run.columns(number), hand_models[track.kind],
                                            marker_sets[track.kind], None, run.init_frames[number],
-                                           calibrations.get(track.kind, {})))
+                                           calibrations.get(track.kind, {}), run.reinitialised.get(number, [])))
             joint_angles[track.name] = run.states[number]
         else:
             assert isinstance(track, RigidTrack)

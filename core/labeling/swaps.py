@@ -2,7 +2,8 @@
 2015 §III-D: "labels of neighbouring fingers are easily confused").
 
 A tracker that takes two neighbouring markers' points the wrong way round (ring and middle fingertip,
-a fingertip and its own middle marker) keeps them so for as long as both stay in view: the IK bends
+a fingertip and its own middle marker), or gives a marker its hidden neighbour's point (a finger
+shift), keeps them so for as long as they stay in view: the IK bends
 the hand to fit, and a subject calibration on those frames even moves the markers to make it fit. A
 swap shows as residuals on the two markers well above the hand's typical residual; it is settled by
 solving the IK both ways on frames sampled over the fragment (the stretch where both markers are
@@ -28,9 +29,11 @@ SUSPECT_RATIO = 1.5
 ENERGY_RATIO = 0.5
 """The swapped labelling is kept when its IK energy over the sampled frames is below this share of the
 labelling as found (half: a clear preference, not a coin toss between two equally poor fits)."""
-SAMPLE_FRAMES = 8
+SAMPLE_FRAMES = 6
 """Frames of a fragment the IK is solved on, both ways."""
-MIN_FRAGMENT_FRAMES = 3
+MIN_FRAGMENT_FRAMES = 5
+"""Shorter fragments are not tested (a swap of a few frames at a crossing costs little, and the IK
+evidence of so few frames is weak)."""
 
 
 def neighbour_pairs(rest_positions: np.ndarray, count: int = NEIGHBOURS) -> list[tuple[int, int]]:
@@ -74,25 +77,27 @@ def _chain_ids(links: np.ndarray, present: np.ndarray) -> np.ndarray:
 
 
 def pair_fragments(first: np.ndarray, second: np.ndarray, tracklets: np.ndarray) -> list[tuple[int, int]]:
-    """Frame ranges ``[start, stop)`` where both markers are labelled (``first``/``second (F,)`` point
-    columns, -1 none) and each keeps to one tracklet of ``tracklets (F,P)`` (:func:`point_tracklets`):
-    the stretches over which a swap of the two labels is one hypothesis. Ranges shorter than
+    """Frame ranges ``[start, stop)`` where at least one of two markers is labelled (``first``/``second
+    (F,)`` point columns, -1 none) and each keeps to one tracklet of ``tracklets (F,P)``
+    (:func:`point_tracklets`) or stays unlabelled: the stretches over which exchanging the two labels
+    (or moving the one label to the other marker) is one hypothesis. Ranges shorter than
     :data:`MIN_FRAGMENT_FRAMES` are left out."""
     frames = np.arange(len(first))
-    both = (first >= 0) & (second >= 0)
-    key_first = np.where(both, tracklets[frames, np.maximum(first, 0)], -1)
-    key_second = np.where(both, tracklets[frames, np.maximum(second, 0)], -1)
+    key_first = np.where(first >= 0, tracklets[frames, np.maximum(first, 0)], -1)
+    key_second = np.where(second >= 0, tracklets[frames, np.maximum(second, 0)], -1)
+    either = (first >= 0) | (second >= 0)
     change = np.ones(len(first) + 1, dtype=bool)
-    change[1:-1] = (key_first[1:] != key_first[:-1]) | (key_second[1:] != key_second[:-1]) | ~both[1:] | ~both[:-1]
+    change[1:-1] = (key_first[1:] != key_first[:-1]) | (key_second[1:] != key_second[:-1])
     edges = np.flatnonzero(change)
     return [(int(start), int(stop)) for start, stop in zip(edges[:-1], edges[1:], strict=True)
-            if both[start] and stop - start >= MIN_FRAGMENT_FRAMES]
+            if either[start] and stop - start >= MIN_FRAGMENT_FRAMES]
 
 
 def repair_swaps(assignment: np.ndarray, residuals: np.ndarray, tracklets: np.ndarray, pairs: list[tuple[int, int]],
                  energy: Callable[[int, np.ndarray], float], floor_mm: float, every_fragment: bool = False
                  ) -> list[tuple[int, int, int, int]]:
-    """Test and repair swaps of a hand's markers. ``assignment (F,K)`` point column per marker (-1 none),
+    """Test and repair swaps of a hand's markers (both labelled: the labels exchanged; one labelled: its
+    label moved to the other marker). ``assignment (F,K)`` point column per marker (-1 none),
     edited in place; ``residuals (F,K)`` mm of that labelling; ``tracklets (F,P)`` of
     :func:`point_tracklets`; ``energy(frame, index (K,))`` the IK
     energy (mm², summed over the markers) of the hand solved with those labels in that frame; ``floor_mm``
@@ -107,7 +112,8 @@ def repair_swaps(assignment: np.ndarray, residuals: np.ndarray, tracklets: np.nd
     for a, b in pairs:
         for start, stop in pair_fragments(assignment[:, a], assignment[:, b], tracklets):
             span = slice(start, stop)
-            pair_residual = float(np.nanmean(residuals[span][:, [a, b]]))
+            pair_residuals = residuals[span][:, [a, b]]
+            pair_residual = float(np.nanmean(pair_residuals)) if np.isfinite(pair_residuals).any() else 0.0
             if not pair_residual > suspect_mm:
                 continue
             sample = np.unique(np.linspace(start, stop - 1, min(SAMPLE_FRAMES, stop - start)).round().astype(int))

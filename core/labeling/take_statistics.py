@@ -24,7 +24,7 @@ CHAIN_FRAMES = 5
 """Frames per linked chain: the 4th difference needs five samples."""
 AMBIGUITY_RATIO = 2.0
 """A link is kept when the next-nearest point (either way) is at least this times farther than the linked one."""
-MAX_WINDOWS = 4000
+MAX_WINDOWS = 1500
 """At most this many chain windows are sampled, evenly over the take (cost independent of its length)."""
 FOURTH_DIFFERENCE_VARIANCE = 70.0
 """Variance of the 4th difference of white noise of unit variance: C(8, 4)."""
