@@ -10,6 +10,7 @@ import numpy as np
 from core.batch.resolve import subject_markers
 from core.ik import IKResult
 from core.io import Take, looks_unlabelled
+from core.io.labelled_c3d import SubjectCalibration
 from core.model import HandModel, MarkerSet, best_layout_for, load_layout, load_template, marker_columns
 from core.session import Command, FrameSpan, OpenTake, ReviewTake, UndoStack
 
@@ -23,7 +24,8 @@ class TakeDocument:
     solver is free (demo takes, ``--solve``). ``current_frame``: where the operator left it (0-based).
     ``side``: the hand the next solve fits ("right" or "left"); the result knows its own.
     ``hand_models`` / ``marker_sets``: the subject's hand per side and its calibrated markers (from
-    auto-label), used by drawing, solves and re-solves instead of the template.
+    auto-label), used by drawing, solves and re-solves instead of the template; ``subjects``: those
+    calibrations relative to the template, written into exported labelled C3D files.
     """
 
     take: Take
@@ -40,6 +42,7 @@ class TakeDocument:
     session_take_id: str | None = None
     hand_models: dict[str, HandModel] = field(default_factory=dict)
     marker_sets: dict[str, MarkerSet] = field(default_factory=dict)
+    subjects: dict[str, SubjectCalibration] = field(default_factory=dict)
     last_report: dict | None = None
     _columns: np.ndarray | None = field(default=None, repr=False)
     _marker_sets: dict[tuple[str, str, int, int], MarkerSet] = field(default_factory=dict, repr=False)

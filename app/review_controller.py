@@ -961,6 +961,9 @@ class ReviewController(QObject):
             if kind == "auto-label":
                 document.hand_models.update(result.models)
                 document.marker_sets.update(result.marker_sets)
+                for side in result.models:
+                    document.subjects.pop(side, None)
+                document.subjects.update({subject.side: subject for subject in result.subjects})
                 self.window.sessions.save_take_models(document, result.models, result.marker_sets)
                 document.push(result.command)
                 document.last_report = result.report
@@ -1029,7 +1032,8 @@ class ReviewController(QObject):
         self.window.statusBar().showMessage(f"Exported {path}", 5000)
 
     def export_c3d(self, path: str) -> None:
-        export_labelled_c3d(self.review, path)
+        """The review as a labelled C3D, with the subject calibrations auto-label made (``HAND_SUBJECT``)."""
+        export_labelled_c3d(self.review, path, subjects=list(self.document.subjects.values()))
 
     def export_csv(self, path: str) -> None:
         export_joint_angles_csv(self.review, path)

@@ -8,6 +8,7 @@ and when the take or the window closes.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,9 +21,10 @@ from app.document import TakeDocument
 from app.review_controller import AutoLabelSettings
 from core.errors import HandMocapError
 from core.io import Take, load_take
+from core.io.labelled_c3d import SubjectCalibration
 from core.model import HandModel, MarkerSet, add_layout_folder, best_layout_for, remove_layout_folder
 from core.session import OpenTake, Session
-from core.session.storage import read_marker_set, write_marker_set
+from core.session.storage import read_marker_set, write_atomic, write_marker_set
 from widgets.session_browser import SessionBrowser, TakeRow
 
 if TYPE_CHECKING:
@@ -31,6 +33,7 @@ if TYPE_CHECKING:
 AUTOSAVE_MS = 15_000
 TAKE_MODEL_NAME = "labelling_hand_{side}.npz"   # the hand model auto-label calibrated to the take
 TAKE_MARKERS_NAME = "labelling_markers_{side}.npz"  # its calibrated markers (the subject's marker offsets)
+TAKE_SUBJECT_NAME = "labelling_subject_{side}.json"  # the calibration relative to the template (C3D export)
 SNAPSHOT_INTERVAL_S = 60.0
 
 
@@ -204,11 +207,14 @@ class SessionController(QObject):
         for side in ("right", "left"):
             path = opened.folder / TAKE_MODEL_NAME.format(side=side)
             markers = opened.folder / TAKE_MARKERS_NAME.format(side=side)
+            subject = opened.folder / TAKE_SUBJECT_NAME.format(side=side)
             if path.exists():
                 try:
                     document.hand_models[side] = HandModel.load(path)
                     if markers.exists():
                         document.marker_sets[side] = read_marker_set(markers)
+                    if subject.exists():
+                        document.subjects[side] = SubjectCalibration.from_dict(json.loads(subject.read_text()))
                 except (HandMocapError, OSError, ValueError, KeyError):
                     self.window.statusBar().showMessage(f"{path.name} is damaged; the template is used", 10000)
                     document.hand_models.pop(side, None)
@@ -237,6 +243,11 @@ class SessionController(QObject):
                     write_marker_set(markers, marker_sets[side])
                 else:
                     markers.unlink(missing_ok=True)
+                subject = folder / TAKE_SUBJECT_NAME.format(side=side)
+                if side in document.subjects:
+                    write_atomic(subject, json.dumps(document.subjects[side].as_dict()).encode("utf-8"))
+                else:
+                    subject.unlink(missing_ok=True)
         except (OSError, HandMocapError) as error:
             self.window.statusBar().showMessage(f"Cannot keep the calibrated hand model: {error}", 10000)
 

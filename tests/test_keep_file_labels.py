@@ -9,11 +9,17 @@ import numpy as np
 import pytest
 
 from app.cli import main
-from core.batch.labelling import auto_label
+from core.batch.labelling import auto_label, subject_model
 from core.batch.resolve import solve_labelled_take
 from core.errors import InputError
-from core.io import Take, is_marker_label, load_take, save_take
-from core.io.labelled_c3d import read_labelled_c3d, subject_calibrations
+from core.io import Take, TakeFormatError, is_marker_label, load_take, save_take
+from core.io.labelled_c3d import (
+    SUBJECT_GROUP,
+    SubjectCalibration,
+    read_labelled_c3d,
+    subject_calibrations,
+    subject_group,
+)
 from core.model import load_layout, load_template, resolve_layout
 from core.session import MEASURED, ReviewTake, export_labelled_c3d
 from core.simulate import simulate_take
@@ -168,3 +174,20 @@ def test_real_recording_keeps_its_other_markers_and_solves_with_the_subject():
     before = solve_labelled_take(labelled, template, resolve_layout(template, layout)).mean_residual_mm
     after = solve_labelled_take(labelled, outcome.models["right"], outcome.marker_sets["right"]).mean_residual_mm
     assert after < before - 0.3, (before, after)
+
+
+def test_subject_calibration_round_trips_and_a_damaged_group_is_one_line():
+    layout = load_layout("glove-13")
+    calibration = SubjectCalibration("left", "glove-13", tuple(layout.names), np.linspace(0.9, 1.1, 15),
+                                     np.arange(39.0).reshape(13, 3) / 10)
+    for back in (SubjectCalibration.from_dict(calibration.as_dict()),
+                 subject_calibrations({SUBJECT_GROUP: subject_group([calibration])})[0]):
+        assert (back.side, back.layout, back.marker_names) == ("left", "glove-13", tuple(layout.names))
+        np.testing.assert_allclose(back.offsets_mm, calibration.offsets_mm)
+        np.testing.assert_allclose(back.scales, calibration.scales)
+    damaged = subject_group([calibration])
+    damaged["LEFT_OFFSETS"] = damaged["LEFT_OFFSETS"][:7]
+    with pytest.raises(TakeFormatError, match="damaged HAND_SUBJECT"):
+        subject_calibrations({SUBJECT_GROUP: damaged}, "x.c3d")
+    with pytest.raises(InputError, match="made with layout 'glove-13', not 'dense'"):
+        subject_model(calibration, load_layout("dense"))

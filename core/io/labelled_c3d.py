@@ -258,6 +258,23 @@ class SubjectCalibration:
     scales: np.ndarray
     offsets_mm: np.ndarray
 
+    def as_dict(self) -> dict:
+        """Plain JSON form (lists of numbers)."""
+        return {"side": self.side, "layout": self.layout, "marker_names": list(self.marker_names),
+                "scales": np.asarray(self.scales, float).tolist(),
+                "offsets_mm": np.asarray(self.offsets_mm, float).tolist()}
+
+    @staticmethod
+    def from_dict(values: dict) -> SubjectCalibration:
+        """Inverse of :meth:`as_dict`; InputError when the values do not fit together."""
+        try:
+            names = tuple(str(name) for name in values["marker_names"])
+            scales = np.asarray(values["scales"], dtype=np.float64).reshape(SUBJECT_SCALES)
+            offsets = np.asarray(values["offsets_mm"], dtype=np.float64).reshape(len(names), 3)
+            return SubjectCalibration(str(values["side"]), str(values["layout"]), names, scales, offsets)
+        except (KeyError, TypeError, ValueError) as error:
+            raise InputError(f"not a subject calibration ({error})") from None
+
 
 def subject_group(calibrations: list[SubjectCalibration]) -> dict[str, object]:
     """The ``HAND_SUBJECT`` parameter group (module docstring) holding ``calibrations`` (one per side)."""

@@ -10,7 +10,8 @@ from PySide6.QtCore import Qt, QTimer
 from PySide6.QtWidgets import QApplication, QDialogButtonBox
 
 from app.review_controller import AutoLabelDialog, AutoLabelSettings
-from core.io import save_take
+from core.io import load_take, save_take
+from core.io.labelled_c3d import subject_calibrations
 from core.session import MEASURED, Session
 from core.simulate import simulate_take
 
@@ -106,7 +107,7 @@ def test_labelling_warning_in_status_bar_problem_list_and_screenshot(window, qtb
     assert window.save_screenshot(SCREENSHOT) and SCREENSHOT.stat().st_size > 10_000
 
 
-def test_session_take_keeps_the_subject_markers(window, qtbot, tmp_path):
+def test_session_take_keeps_the_subject_markers_and_exports_the_calibration(window, qtbot, tmp_path):
     simulated = simulate_take(layout="dense", n_frames=150, seed=4, noise_mm=0.3, unlabelled=True)
     path = tmp_path / "raw.c3d"
     save_take(simulated.take, path)
@@ -130,3 +131,7 @@ def test_session_take_keeps_the_subject_markers(window, qtbot, tmp_path):
     assert reopened is not document
     np.testing.assert_array_equal(reopened.marker_sets["right"].local_points, markers.local_points)
     assert reopened.marker_set_for("right", "dense") is reopened.marker_sets["right"]
+    assert reopened.subjects["right"].layout == "dense"
+    exported = tmp_path / "exported.c3d"
+    window.review.export_c3d(str(exported))                         # a CLI solve of it uses the subject
+    assert [subject.side for subject in subject_calibrations(load_take(exported).parameters)] == ["right"]
