@@ -969,12 +969,15 @@ class ReviewController(QObject):
                 document.last_report = result.report
                 if document is self.document:
                     self.attach(document)
-                report = result.report
+                report, known = result.report, result.report["file_labels"]
+                kept = (f"; kept from the file: {len(known['kept_labels'])} labels outside the layout, its hand "
+                        f"labels ({known['disagreed_samples']} samples differed from auto-label)"
+                        if known["kept_labels"] or known["file_label_samples"] else "")
                 self.window.statusBar().showMessage(
                     document.review.health_summary() or
                     f"Auto-labelled {report['frames']} frames: {100 * report['labelled_share']:.1f} % of label "
-                    f"samples found, {report['ghost_points']} ghost points left unlabelled", 0 if report["health"]
-                    else 10000)
+                    f"samples found, {report['ghost_points']} ghost points left unlabelled{kept}",
+                    0 if report["health"] else 10000)
                 self.window.auto_label_finished(document)
             elif kind == "fill" and result is not None:
                 span = document.push(result)

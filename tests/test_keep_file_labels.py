@@ -191,3 +191,34 @@ def test_subject_calibration_round_trips_and_a_damaged_group_is_one_line():
         subject_calibrations({SUBJECT_GROUP: damaged}, "x.c3d")
     with pytest.raises(InputError, match="made with layout 'glove-13', not 'dense'"):
         subject_model(calibration, load_layout("dense"))
+
+
+def test_cli_label_claims_nothing_when_only_stray_points_fit_a_hand(tmp_path, capsys, monkeypatch):
+    import core.batch.labelling as labelling
+    from core.labeling.scene import SceneLabeling, SceneModel
+
+    rng = np.random.default_rng(2)
+    frames, count = 200, 13
+    points = rng.uniform(-300, 300, (count, 3))[None] + np.cumsum(rng.normal(0, 0.5, (frames, 1, 3)), axis=0)
+    take = Take([f"point_{i:03d}" for i in range(count)], points, 100.0)
+
+    def stray_hand(offered, **_options):
+        assignment = np.full((frames, count), -1)
+        assignment[:4, :7] = np.arange(7)                    # a hand fitted to stray points in 4 frames
+        shape = (frames, count)
+        return SceneLabeling(list(load_layout("glove-13").names), np.zeros(count, np.int64),
+                             [SceneModel("right", "right", slice(0, count), init_frame=0)], assignment,
+                             np.ones(shape), np.ones(shape), np.zeros(shape, bool),
+                             {"right": np.zeros((frames, 26))}, {}, offered.marker_positions)
+
+    monkeypatch.setattr(labelling, "label_scene", stray_hand)
+    path, report = tmp_path / "stray.c3d", tmp_path / "report.json"
+    save_take(take, path)
+    assert main(["label", str(path), "--layout", "glove-13", "--out", str(tmp_path / "o.c3d"), "--report",
+                 str(report), "--quiet"]) == 0
+    captured = capsys.readouterr()
+    assert "no hand found, nothing labelled" in captured.out and "not used (no hand found)" in captured.out
+    assert "handmocap: warning: no_hand" in captured.err
+    figures = json.loads(report.read_text())
+    assert figures["labelled_share"] == 0.0 and figures["subject_calibration"] == []
+    assert read_labelled_c3d(tmp_path / "o.c3d").provenance.max() == -1     # no label holds a point

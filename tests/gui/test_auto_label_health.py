@@ -76,6 +76,8 @@ def test_real_take_keeps_its_other_markers_and_solves_with_the_subject(window, q
         assert (review.assignment[present, label] == column).all()
         assert (review.provenance[present, label] == MEASURED).all() and not review.ghost[:, column].any()
     assert int(review.ghost.sum()) < 200
+    message = window.statusBar().currentMessage()
+    assert message.startswith("Auto-label: ") or "kept from the file: 8 labels outside the layout" in message
     assert "right" in document.marker_sets                          # the subject's calibrated markers
     assert window.viewport.hand_count() == 1
     window.solve_action.trigger()
