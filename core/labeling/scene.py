@@ -146,6 +146,8 @@ class SceneLabeling:
 
 DEGRADED_RATIO = 2.0
 """A hand whose frame's mean residual exceeds this times its running typical residual is degraded."""
+RECHECK_RATIO = 2.5
+"""Offline re-check: a marker whose mean residual over a window exceeds this times its median is suspect."""
 TYPICAL_RATE = 0.02
 """Rate of the running typical residual (an exponential mean over about 50 frames)."""
 
@@ -645,26 +647,27 @@ class _Run:
     def verify_start(self, track_index: int, track: Track) -> None:
         """Offline: track the first ``verify_frames`` frames after the initialisation again, backwards
         from their end (where tracking has settled), keeping per frame the better labelling
-        (:meth:`retrack_backward`): an initial fit that took a neighbouring finger's points is corrected
-        from the later, settled posture."""
+        (:meth:`retrack`): an initial fit that took a neighbouring finger's points is corrected from the
+        later, settled posture."""
         init = self.init_frames[track_index]
         if init >= 0:
-            self.retrack_backward(track_index, track, min(init + self.settings.verify_frames, len(self.positions) - 2),
-                                  init)
+            self.retrack(track_index, track, min(init + self.settings.verify_frames, len(self.positions) - 2), init)
 
-    def retrack_backward(self, track_index: int, track: Track, end: int, stop: int, converge: int | None = None
-                         ) -> None:
-        """Offline: track the frames ``end-1`` down to ``stop`` again backwards, from the states of
-        ``end`` and ``end+1``, and keep per frame whichever labelling of the model has the lower eq. 2
-        cost (mean residual + α · markers left unlabelled); with ``converge``, stop once that many
-        consecutive frames agree with the labels already there (the two directions have met)."""
+    def retrack(self, track_index: int, track: Track, end: int, stop: int, direction: int = -1,
+                converge: int | None = None) -> None:
+        """Offline: track the frames from ``end + direction`` to ``stop`` (inclusive) again, in
+        ``direction`` (-1 backwards, +1 forwards), from the states of ``end`` and the frame before it in
+        that direction, and keep per frame whichever labelling of the model has the lower eq. 2 cost
+        (mean residual + α · markers left unlabelled); with ``converge``, stop once that many
+        consecutive frames agree with the labels already there (the two labellings have met)."""
         states = self.states[track_index]
-        if end <= stop + 1 or end + 1 >= len(states) or not (np.isfinite(states[end]).all()
-                                                              and np.isfinite(states[end + 1]).all()):
+        before = end - direction
+        if (stop - end) * direction < 1 or not 0 <= before < len(states) or not (
+                np.isfinite(states[end]).all() and np.isfinite(states[before]).all()):
             return
         part = self.columns(track_index)
         labelled = self.assignment[:, part] >= 0
-        track.start(states[end + 1], labelled[end + 1])
+        track.start(states[before], labelled[before])
         track.commit(states[end], np.nan_to_num(self.residuals[end, part]), labelled[end])
         others = np.ones(self.assignment.shape[1], dtype=bool)
         others[part] = False
@@ -675,14 +678,14 @@ class _Run:
             return float(residuals[seen].mean() if seen.any() else 0.0) + alpha * float((~seen).sum())
 
         agreeing = 0
-        for frame in range(end - 1, stop - 1, -1):
+        for frame in range(end + direction, stop + direction, direction):
             columns = np.flatnonzero(self.present[frame])
             foreign = self.assignment[frame, others]
             free = columns[~np.isin(columns, foreign[foreign >= 0])]
             index, confidence, residuals, states_now = self.step([track], self.positions[frame, free])
             own = self.assignment[frame, part]
-            backward_columns = np.where(index >= 0, free[np.maximum(index, 0)], -1)
-            if np.array_equal(backward_columns, own):
+            new_columns = np.where(index >= 0, free[np.maximum(index, 0)], -1)
+            if np.array_equal(new_columns, own):
                 agreeing += 1
                 if converge is not None and agreeing >= converge:
                     return
@@ -690,6 +693,62 @@ class _Run:
             agreeing = 0
             if cost(index, residuals) < cost(own, np.nan_to_num(self.residuals[frame, part])):
                 self.record(frame, [track_index], free, index, confidence, residuals, states_now)
+
+    def recheck(self, track_index: int, make_track: Callable[[], Track]) -> None:
+        """Offline: where a marker of the hand fits much worse than it does over the rest of the take (mean
+        residual over a window of ``hypothesis_frames`` frames above :data:`RECHECK_RATIO` × its median, and
+        above the noise floor: a finger shift or swap the tracker settled into), fit the hand afresh at the
+        window's first frame; when that holds up better over the window (:func:`window_cost`), label from
+        it forwards and backwards until the labellings agree again (:meth:`retrack`)."""
+        settings = self.settings
+        part = self.columns(track_index)
+        residuals = np.where(self.assignment[:, part] >= 0, self.residuals[:, part], np.nan)
+        finite = np.isfinite(residuals)
+        if not finite.any():
+            return
+        counts = finite.sum(axis=0)
+        medians = np.array([np.median(residuals[finite[:, k], k]) if counts[k] else np.inf
+                            for k in range(residuals.shape[1])])
+        size = settings.hypothesis_frames
+        frames = len(self.positions)
+        for start in range(max(self.init_frames[track_index], 0), frames - 1, size):
+            block = residuals[start:start + size]
+            seen = np.isfinite(block).sum(axis=0)
+            means = np.where(seen >= size // 2, np.nansum(block, axis=0) / np.maximum(seen, 1), 0.0)
+            if not (means > np.maximum(RECHECK_RATIO * medians, settings.reappear_floor_mm)).any():
+                continue
+            columns = np.flatnonzero(self.present[start])
+            others = np.ones(self.assignment.shape[1], dtype=bool)
+            others[part] = False
+            foreign = self.assignment[start, others]
+            free = np.flatnonzero(~np.isin(columns, foreign[foreign >= 0]))
+            if len(free) < 3:
+                continue
+            found = initialise_frame(self.tracks, [track_index], self.positions[start, columns[free]], settings,
+                                     self.cut)
+            if not found or not np.isfinite(self.states[track_index][start]).all():
+                continue
+            current = self.assignment[start, part]
+            kept = window_cost(make_track(), self.positions, start, current, self.states[track_index][start],
+                               settings)
+            hypotheses = [(found[0].state, found[0].point_index), *found[0].alternatives]
+            costs = [window_cost(make_track(), self.positions, start, _columns_of(labels, columns[free]), state,
+                                 settings) for state, labels in hypotheses]
+            if min(costs) >= kept:
+                continue
+            state, labels = hypotheses[int(np.argmin(costs))]
+            track = make_track()
+            index = labels.copy()
+            for _ in range(3):
+                state, effectors, fitted = self._solve(track, self.positions[start, columns[free]], index, state)
+            self.record(start, [track_index], columns[free], index,
+                        _margins(pair_distances(effectors, self.positions[start, columns[free]]), index,
+                                 track.thresholds()), fitted, [state])
+            if start + 1 < frames:
+                self.states[track_index][start + 1] = state
+            self.retrack(track_index, make_track(), start, frames - 1, +1, converge=size)
+            self.retrack(track_index, make_track(), start, 0, -1, converge=size)
+            self.reinitialised.setdefault(track_index, []).append(start)
 
     def ghost_points(self) -> np.ndarray:
         ghosts = self.present.copy()
@@ -874,9 +933,10 @@ def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout = "d
             report(number)
             if isinstance(tracks[number], HandTrack):
                 for frame in run.reinitialised.get(number, []):
-                    run.retrack_backward(number, make_tracks(hand_models, marker_sets)[number], frame, 0,
-                                         converge=settings.hypothesis_frames)
+                    run.retrack(number, make_tracks(hand_models, marker_sets)[number], frame, 0,
+                                converge=settings.hypothesis_frames)
                 run.verify_start(number, make_tracks(hand_models, marker_sets)[number])
+                run.recheck(number, lambda number=number: make_tracks(hand_models, marker_sets)[number])
             run.backward(number, lambda number=number: make_tracks(hand_models, marker_sets)[number])
     for number in range(len(tracks)):
         track = make_tracks(hand_models, marker_sets)[number]

@@ -26,9 +26,10 @@ NEIGHBOURS = 3
 """Each marker is tested against its this many nearest markers on the hand (mean posture of the prior)."""
 SUSPECT_RATIO = 1.5
 """A fragment is tested when the two markers' mean residual there exceeds this times the hand's typical one."""
-ENERGY_RATIO = 0.5
+ENERGY_RATIO = 0.75
 """The swapped labelling is kept when its IK energy over the sampled frames is below this share of the
-labelling as found (half: a clear preference, not a coin toss between two equally poor fits)."""
+labelling as found, and lower by more than the squared noise floor per sampled frame (a clear
+preference, not a coin toss between two equally poor fits)."""
 SAMPLE_FRAMES = 6
 """Frames of a fragment the IK is solved on, both ways."""
 MIN_FRAGMENT_FRAMES = 5
@@ -123,7 +124,7 @@ def repair_swaps(assignment: np.ndarray, residuals: np.ndarray, tracklets: np.nd
                 as_found += energy(int(frame), index)
                 index[[a, b]] = index[[b, a]]
                 swapped += energy(int(frame), index)
-            if swapped < ENERGY_RATIO * as_found:
+            if swapped < ENERGY_RATIO * as_found and as_found - swapped > len(sample) * floor_mm ** 2:
                 assignment[span, a], assignment[span, b] = assignment[span, b].copy(), assignment[span, a].copy()
                 repaired.append((a, b, start, stop))
     return repaired
