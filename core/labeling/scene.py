@@ -890,7 +890,8 @@ def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout = "d
         for number, offset in enumerate(windows):
             report = reporter(0.15 * number / len(windows), 0.15 * (number + 1) / len(windows), frames - offset)
             prepasses.append(_prepass(positions[offset:], tracks, settings, initial_states if offset == 0 else None,
-                                      lambda number: make_tracks(hand_models, marker_sets)[number], report))
+                                      lambda number: make_tracks(hand_models, marker_sets)[number], report,
+                                      decision if offset == 0 else None))
         pre = prepasses[0]
         for number, side in enumerate(sides):
             calibrated = _calibrate([(run, len(run.positions)) for run in prepasses], number, hand_models[side],
@@ -901,6 +902,8 @@ def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout = "d
     run = _Run(tracks, positions, settings,
                None if online else lambda number: make_tracks(hand_models, marker_sets)[number])
     _seed(run, tracks, initial_states)
+    if pre is None:
+        _schedule_decided(run, tracks, decision)
     if pre is not None:
         # the calibrated models start where, and with the labels that, the pre-pass found (re-running the
         # initial fit with a model adapted to the window could pick another, self-consistent labelling)
@@ -985,6 +988,16 @@ def _seed(run: _Run, tracks: list[Track], initial_states: dict[str, object] | No
         run.start_at(0, number, state)
 
 
+def _schedule_decided(run: _Run, tracks: list[Track], decision: SideDecision | None) -> None:
+    """Start the hands of ``run`` where, and with the labels and states that, ``hands="auto"`` decided."""
+    if decision is None:
+        return
+    for number, track in enumerate(tracks):
+        start = decision.starts.get(track.kind) if isinstance(track, HandTrack) else None
+        if start is not None and run.init_frames[number] < 0:
+            run.scheduled.setdefault(decision.frame, []).append((number, start[0].copy(), start[1].copy()))
+
+
 def _calibration_windows(frames: int, settings: SceneSettings) -> list[int]:
     """First frames of the calibration pre-passes: one window per :data:`CALIBRATION_SPACING` ×
     ``calibration_frames`` frames of the take (at most :data:`MAX_CALIBRATION_WINDOWS`), evenly spread,
@@ -996,12 +1009,14 @@ def _calibration_windows(frames: int, settings: SceneSettings) -> list[int]:
 
 def _prepass(positions: np.ndarray, tracks: list[Track], settings: SceneSettings,
              initial_states: dict[str, object] | None, make_track: Callable[[int], Track],
-             report: Callable[[int], None]) -> _Run:
+             report: Callable[[int], None], decision: SideDecision | None = None) -> _Run:
     """Label ``positions (F,P,3)`` with the uncalibrated ``tracks`` until every hand has been tracked for
     ``calibration_frames`` frames (or the end), then verify, link, rescue and repair swaps: the labelled
-    window a subject calibration is fitted to. Returns the run, truncated to the window."""
+    window a subject calibration is fitted to (hands starting from the fits ``decision`` chose, when
+    given). Returns the run, truncated to the window."""
     pre = _Run(tracks, positions, settings, make_track)
     _seed(pre, tracks, initial_states)
+    _schedule_decided(pre, tracks, decision)
     window_end = len(positions)
     hands = [number for number, track in enumerate(tracks) if isinstance(track, HandTrack)]
 

@@ -7,13 +7,15 @@ its joint limits. So, from the first frame where a hand fits a cluster, every ha
 fitted with both models, the best fits of each are tracked over the next
 ``settings.hypothesis_frames`` frames, and each cluster gets the side whose tracked fit costs less
 (mean eq. 2 cost per frame). Two hand clusters are one right and one left hand (the pairing of least
-total cost). The margin between the two sides' costs is kept: a small one is reported to the operator.
+total cost, so two hands are never started exchanged). The margin between the two sides' costs is
+kept (a small one is reported to the operator), and so is the winning fit of each side: tracking
+starts from it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -29,11 +31,14 @@ uncertain: half a millimetre of mean residual, or half a marker lost per frame."
 @dataclass(frozen=True)
 class SideDecision:
     """``sides``: the hands found ("right", "left" or both, in that order); ``frame`` where it was decided;
-    ``margins`` per side: the other side's tracked cost minus this side's (mm-equivalent, larger is surer)."""
+    ``margins`` per side: the other side's tracked cost minus this side's (mm-equivalent, larger is surer);
+    ``starts``: the tracked fit each side won with, to start tracking from."""
 
     sides: list[str]
     frame: int
     margins: dict[str, float]
+    #: per side, the winning start: point column per marker (K,) (-1 none) and θ (26,) in ``frame``
+    starts: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
 
     @property
     def uncertain(self) -> list[str]:
@@ -57,27 +62,33 @@ def decide_sides(positions: np.ndarray, make_track: Callable[[str], HandTrack], 
         for members in clusters_of(points, cut_mm):
             if len(members) < least:
                 continue
-            per_side = {}
+            per_side: dict[str, float] = {}
+            starts: dict[str, tuple[np.ndarray, np.ndarray]] = {}
             for side, probe in probes.items():
-                fits = [fit for fit in fit_hand(probe, points[members], settings)
-                        if fit[3] <= settings.init_max_residual_mm and fit[2] >= least]
-                if fits:
-                    per_side[side] = min(cost(make_track(side), frame,
-                                              np.where(fit[4] >= 0, columns[members][np.maximum(fit[4], 0)], -1),
-                                              fit[1]) for fit in fits)
+                for fit in fit_hand(probe, points[members], settings):
+                    if fit[3] > settings.init_max_residual_mm or fit[2] < least:
+                        continue
+                    labels = np.where(fit[4] >= 0, columns[members][np.maximum(fit[4], 0)], -1)
+                    tracked = cost(make_track(side), frame, labels, fit[1])
+                    if tracked < per_side.get(side, np.inf):
+                        per_side[side], starts[side] = tracked, (labels, fit[1])
             if per_side:
-                costs.append({side: per_side.get(side, np.inf) for side in probes})
+                costs.append(({side: per_side.get(side, np.inf) for side in probes}, starts))
         if not costs:
             continue
-        costs.sort(key=lambda entry: min(entry.values()))
+        costs.sort(key=lambda entry: min(entry[0].values()))
         if len(costs) == 1:
-            best = min(costs[0], key=costs[0].get)
+            tracked, starts = costs[0]
+            best = min(tracked, key=tracked.get)
             other = "left" if best == "right" else "right"
-            return SideDecision([best], frame, {best: costs[0][other] - costs[0][best]})
-        first, second = costs[0], costs[1]
+            return SideDecision([best], frame, {best: tracked[other] - tracked[best]}, {best: starts[best]})
+        (first, first_starts), (second, second_starts) = costs[0], costs[1]
         straight = first["right"] + second["left"]
         crossed = first["left"] + second["right"]
         margin = float(abs(straight - crossed))
-        return SideDecision(["right", "left"], frame, {"right": margin, "left": margin})
+        chosen = {"right": first_starts.get("right"), "left": second_starts.get("left")} if straight <= crossed \
+            else {"right": second_starts.get("right"), "left": first_starts.get("left")}
+        return SideDecision(["right", "left"], frame, {"right": margin, "left": margin},
+                            {side: start for side, start in chosen.items() if start is not None})
     raise InputError("no frame of the take initialises a hand: no cluster of points fits a left or right hand "
                      "with this layout (is the layout right, and is most of the hand visible in some frame?)")
