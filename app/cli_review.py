@@ -74,11 +74,15 @@ def command_label(args: argparse.Namespace) -> int:
 
 def command_fill(args: argparse.Namespace) -> int:
     from core.batch import fill_review_gaps, find_review_gaps, gap_groups
+    from core.io import looks_unlabelled
     from core.session import PROVENANCE_NAMES, export_labelled_c3d
 
     review = _load_review(args.labelled)
     if not review.n_labels:
         raise InputError(f"{args.labelled} has no labelled points; label it first (handmocap label)")
+    if looks_unlabelled(review.label_names):
+        raise InputError(f"{args.labelled} is not labelled (its points are named like '{review.label_names[0]}'): "
+                         "filling would join unrelated points; label it first (handmocap label)")
     groups = gap_groups(review)
     gaps = find_review_gaps(review, groups)
     command = fill_review_gaps(review, groups, args.max_gap, args.method,
@@ -170,20 +174,36 @@ def command_evaluate_label(args: argparse.Namespace) -> int:
 
 
 def command_evaluate_gaps(args: argparse.Namespace) -> int:
+    from core.batch.filling import evaluate_hidden_gaps
     from core.gaps import evaluate_gap_fill, format_gap_fill_table
-    from core.io import load_take
+    from core.io import Take, load_take
     from core.labeling.evaluate import REAL_RECORDING
     from core.model import load_layout, load_template
 
     path = Path(args.take) if args.take else REAL_RECORDING
     if not path.exists():
         raise InputError(f"{path}: no take to evaluate gap filling on (give one)")
-    evaluation = evaluate_gap_fill(load_take(path), load_template(), load_layout(args.layout),
-                                   n_trials=args.trials, seed=args.seed)
-    print(format_gap_fill_table(evaluation))
+    take = load_take(path)
+    if not args.whole:
+        take = Take(marker_names=list(take.marker_names), marker_positions=take.marker_positions[:take.n_frames // 2],
+                    frame_rate=take.frame_rate, first_frame=take.first_frame, vendor=take.vendor)
+    layout = load_layout(args.layout)
+    lengths = tuple(args.lengths)
+    single = evaluate_gap_fill(take, load_template(), layout, lengths, n_trials=args.trials, seed=args.seed)
+    print(f"one hidden gap at a time ({args.trials} per length, seed {args.seed}), error in mm:")
+    print(format_gap_fill_table(single))
+    many = evaluate_hidden_gaps(take, layout, lengths, n_gaps=args.gaps, seed=args.seed)
+    print(f"\n{args.gaps} gaps hidden at once per length, filled as 'handmocap fill --method M' does "
+          f"(seed {args.seed}), error in mm:")
+    print(format_gap_fill_table(many))
     if args.json:
-        print_json({f"{method}_{length}_mm": round(value, 3) for method, per_length in
-                    evaluation["mean_error_mm"].items() for length, value in per_length.items()})
+        figures = {f"{method}_{length}_{kind}_mm": round(value, 3) for kind, key in (("mean", "mean_error_mm"),
+                                                                                     ("worst", "worst_error_mm"))
+                   for method, per_length in single[key].items() for length, value in per_length.items()}
+        figures |= {f"hidden_{method}_{length}_{kind}_mm": round(value, 3)
+                    for kind, key in (("mean", "mean_error_mm"), ("worst", "worst_error_mm"))
+                    for method, per_length in many[key].items() for length, value in per_length.items()}
+        print_json(figures)
     return 0
 
 
@@ -208,8 +228,9 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     fill.add_argument("labelled", metavar="LABELLED.c3d", help="labelled take (our labelled C3D, or any "
                       "labelled C3D/TSV/TRC/CSV)")
     fill.add_argument("--max-gap", type=int, required=True, metavar="FRAMES", help="longest gap to fill")
-    fill.add_argument("--method", choices=["auto", "model", "spline", "linear", "pattern", "rigid"], default="auto",
-                      help="auto: per gap, the method with the lowest fill-check error that applies")
+    fill.add_argument("--method", choices=["auto", "pca", "model", "spline", "linear", "pattern", "rigid"],
+                      default="auto", help="auto: per gap, the first method of its fill check that applies (pca: "
+                      "marker intercorrelations, Gløersen & Federolf 2016)")
     fill.add_argument("--out", required=True, metavar="FILLED.c3d")
     fill.add_argument("--quiet", action="store_true", help="no progress output")
     add_json_flag(fill)
@@ -239,11 +260,16 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     evaluate_label.set_defaults(handler=command_evaluate_label)
 
     evaluate_gaps = evaluate_commands.add_parser(
-        "gaps", help="gap-fill error per method on hidden stretches of finger markers (10, 20, 40 frames)")
+        "gaps", help="gap-fill error (mean and worst frame) per method on hidden stretches of finger markers, "
+        "one at a time and many at once through 'fill'")
     evaluate_gaps.add_argument("take", nargs="?", help="labelled take (default: the real glove recording)")
     evaluate_gaps.add_argument("--layout", default="glove-13")
-    evaluate_gaps.add_argument("--trials", type=int, default=200, help="hidden stretches per length")
-    evaluate_gaps.add_argument("--seed", type=int, default=0)
+    evaluate_gaps.add_argument("--lengths", type=int, nargs="+", default=[10, 20, 40, 80], metavar="FRAMES",
+                               help="gap lengths (default 10 20 40 80)")
+    evaluate_gaps.add_argument("--trials", type=int, default=200, help="hidden stretches per length, one at a time")
+    evaluate_gaps.add_argument("--gaps", type=int, default=30, help="gaps hidden at once per length (default 30)")
+    evaluate_gaps.add_argument("--whole", action="store_true", help="the whole take (default: its first half)")
+    evaluate_gaps.add_argument("--seed", type=int, default=2, help="default 2 (the fills were tuned on seed 1)")
     add_json_flag(evaluate_gaps)
     evaluate_gaps.set_defaults(handler=command_evaluate_gaps)
 

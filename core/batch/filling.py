@@ -1,5 +1,6 @@
 """Gaps of a review: which labels belong together (a hand, or the rest), the gaps, their fill check,
-previews of each method, and "fill all short gaps" as one undoable command.
+previews of each method, "fill all short gaps" as one undoable command, and its accuracy on many gaps
+hidden at once in a labelled take.
 
 A *group* is a hand's labels in layout order (the model fill uses that hand's model, layout and solved
 joint angles), or the labels no hand owns (the model fill then applies only when their names match a
@@ -16,9 +17,10 @@ import numpy as np
 from core.errors import CancelledError, InputError
 from core.gaps import FILL_METHODS, FillCheck, Gap, ModelContext, check_gap, fill_gap, find_gaps
 from core.gaps.check import FALLBACK_ORDER
-from core.gaps.fills import fill_pattern
+from core.gaps.evaluate import GAP_LENGTHS, marker_columns
+from core.gaps.fills import SPLINE_CONTEXT, fill_pattern
 from core.io import Take
-from core.model import HandModel, best_layout_for, load_layout, load_template
+from core.model import HandModel, MarkerLayout, best_layout_for, load_layout, load_template
 from core.session import PROVENANCE_NAMES, AcceptFills, GapFill, ReviewTake
 
 
@@ -165,3 +167,69 @@ def fill_review_gaps(review: ReviewTake, groups: list[GapGroup], max_gap: int, m
                      cancelled: Callable[[], bool] | None = None) -> AcceptFills | None:
     """:func:`short_open_gaps` filled by :func:`fill_gaps` in one call (command line, tests)."""
     return fill_gaps(groups, short_open_gaps(review, groups, max_gap), method, progress, cancelled)
+
+
+def hide_gaps(take: Take, columns: list[int], length: int, count: int, rng: np.random.Generator,
+              margin: int = SPLINE_CONTEXT) -> tuple[Take, list[tuple[int, int]]]:
+    """A copy of ``take`` with up to ``count`` gaps of ``length`` frames hidden at random in ``columns``,
+    each inside measured samples with ``margin`` measured frames on each side (gaps of different markers
+    may overlap in time), and the hidden ``(column, start)`` pairs."""
+    positions = take.marker_positions.copy()
+    hidden: list[tuple[int, int]] = []
+    size = length + 2 * margin
+    for _ in range(50 * count):
+        if len(hidden) == count or take.n_frames < size:
+            break
+        column = int(columns[rng.integers(len(columns))])
+        start = int(rng.integers(margin, take.n_frames - length - margin + 1))
+        if np.isfinite(positions[start - margin:start + length + margin, column]).all():
+            positions[start:start + length, column] = np.nan
+            hidden.append((column, start))
+    return Take(marker_names=list(take.marker_names), marker_positions=positions, frame_rate=take.frame_rate,
+                first_frame=take.first_frame, vendor=take.vendor), hidden
+
+
+def evaluate_hidden_gaps(take: Take, layout: MarkerLayout, lengths: tuple[int, ...] = GAP_LENGTHS, n_gaps: int = 30,
+                         seed: int = 0, methods: tuple[str, ...] = ("auto", "pca"),
+                         markers: list[str] | None = None) -> dict:
+    """Fill error of ``handmocap fill --method M`` on ``n_gaps`` gaps hidden at once per length.
+
+    For each length, :func:`hide_gaps` hides the gaps in ``markers`` (default: the finger markers of
+    ``layout``) of the labelled ``take``; each method fills the review of that take with
+    :func:`fill_review_gaps` (maximum gap: the length), as the command line does. Returns
+    ``{"lengths", "mean_error_mm": {method: {length: mm}}, "worst_error_mm": {...}, "gaps": {length:
+    hidden}, "unfilled": {method: {length: count}}, "chosen": {method: {length: {fill method: count}}}}``:
+    mean over the hidden frames that were filled and the largest error in any of them.
+    """
+    context = ModelContext.for_take(take.marker_names, load_template(), layout)
+    columns = marker_columns(take, context, markers)
+    rng = np.random.default_rng(seed)
+    result: dict = {"lengths": list(lengths), "mean_error_mm": {}, "worst_error_mm": {}, "gaps": {}, "unfilled": {},
+                    "chosen": {}}
+    for method in methods:
+        for key in ("mean_error_mm", "worst_error_mm", "unfilled", "chosen"):
+            result[key][method] = {}
+    for length in lengths:
+        hidden_take, hidden = hide_gaps(take, columns, length, n_gaps, rng)
+        result["gaps"][length] = len(hidden)
+        truth = take.marker_positions
+        for method in methods:
+            review = ReviewTake.from_labelled_take(hidden_take)
+            command = fill_review_gaps(review, gap_groups(review), length, method)
+            if command is not None:
+                command.do(review)
+            filled = review.labelled_positions()
+            errors = np.concatenate([np.linalg.norm(filled[start:start + length, column]
+                                                    - truth[start:start + length, column], axis=1)
+                                     for column, start in hidden])
+            done = np.isfinite(errors)
+            result["mean_error_mm"][method][length] = float(errors[done].mean()) if done.any() else float("nan")
+            result["worst_error_mm"][method][length] = float(errors[done].max()) if done.any() else float("nan")
+            result["unfilled"][method][length] = int((~done).reshape(len(hidden), length).all(axis=1).sum())
+            keys = {(review.label_names[column], start) for column, start in hidden}
+            chosen: dict[str, int] = {}
+            for fill in command.fills if command is not None else []:
+                if (fill.label, fill.start) in keys:
+                    chosen[fill.method] = chosen.get(fill.method, 0) + 1
+            result["chosen"][method][length] = chosen
+    return result

@@ -35,6 +35,12 @@ MISSING = -1
 FALLBACK_ORDER = ("pca", "model", "spline", "linear")
 #: known stretches the fill check hides on each side of a gap, when there is room
 STRETCHES_PER_SIDE = 2
+#: gaps longer than this (s) are filled by PCA when it applies: over a longer gap the hand's motion is no longer
+#: the one the nearby check stretches sample, and their errors stop predicting the local fills' errors
+LOCAL_HORIZON_S = 0.5
+#: another method displaces PCA only when it beats it by this factor on every hidden stretch, on the mean and on
+#: the worst-frame error (the check's few stretches are a noisy sample; PCA is the better fill in general)
+DISPLACE_FACTOR = 2.0
 #: frames of IK solved on each side of a gap for a model fill without precomputed joint angles
 IK_PAD = 30
 #: frames on each side of a gap over which a donor's distance to the gap marker must stay steady
@@ -133,13 +139,16 @@ def fill_gap(positions: np.ndarray, marker: int, start: int, length: int, method
 class FillCheck:
     """Fill check of one gap: each applicable method fills hidden known stretches of the same length
     starting at frames ``test_starts`` (the nearest first, ``test_start``); ``errors_mm`` is its mean
-    3D error over the stretches' frames, ``worst_mm`` its largest error in any frame (mm);
-    ``reasons`` says why the other methods did not apply."""
+    3D error over the stretches' frames, ``worst_mm`` its largest error in any frame, ``stretch_errors_mm``
+    the (mean, worst) of each stretch (mm); ``reasons`` says why the other methods did not apply;
+    ``frame_rate`` (Hz) of the take gives the gap's duration."""
 
     gap: Gap
     test_starts: tuple[int, ...]
+    frame_rate: float = 100.0
     errors_mm: dict[str, float] = field(default_factory=dict)
     worst_mm: dict[str, float] = field(default_factory=dict)
+    stretch_errors_mm: dict[str, list[tuple[float, float]]] = field(default_factory=dict)
     reasons: dict[str, str] = field(default_factory=dict)
 
     @property
@@ -148,12 +157,25 @@ class FillCheck:
         return self.test_starts[0]
 
     def score_mm(self, method: str) -> float:
-        """Ranking score of ``method`` (mm): the mean of its mean and its worst-frame error."""
-        return 0.5 * (self.errors_mm[method] + self.worst_mm.get(method, self.errors_mm[method]))
+        """Score of ``method`` (mm): the mean of its mean and its worst-frame error."""
+        return 0.5 * (self.errors_mm[method] + self.worst_mm[method])
+
+    def displaces_pca(self, method: str) -> bool:
+        """Whether ``method`` beats PCA by :data:`DISPLACE_FACTOR` on every stretch, mean and worst frame."""
+        return all(DISPLACE_FACTOR * mean < pca_mean and DISPLACE_FACTOR * worst < pca_worst
+                   for (mean, worst), (pca_mean, pca_worst)
+                   in zip(self.stretch_errors_mm[method], self.stretch_errors_mm["pca"], strict=True))
 
     def ranking(self) -> list[str]:
-        """Applicable methods, lowest score first (:meth:`score_mm`)."""
-        return sorted(self.errors_mm, key=self.score_mm)
+        """Applicable methods, the one to use first: PCA when it applies, unless the gap lasts at most
+        :data:`LOCAL_HORIZON_S` and a method displaces it (:meth:`displaces_pca`, the best score first);
+        the others by score (:meth:`score_mm`)."""
+        order = sorted(self.errors_mm, key=self.score_mm)
+        if "pca" not in self.errors_mm:
+            return order
+        short = self.gap.length <= LOCAL_HORIZON_S * self.frame_rate
+        first = next((method for method in order if method != "pca" and short and self.displaces_pca(method)), "pca")
+        return [first] + [method for method in order if method != first]
 
 
 def _test_stretches(observed: np.ndarray, gap: Gap, margin: int, per_side: int = STRETCHES_PER_SIDE) -> list[int]:
@@ -182,11 +204,11 @@ def check_gap(take: Take, gap: Gap, context: ModelContext | None = None,
               methods: tuple[str, ...] = FILL_METHODS, margin: int = SPLINE_CONTEXT) -> FillCheck:
     """Hide measured stretches of ``gap.length`` frames near the gap (up to :data:`STRETCHES_PER_SIDE` on
     each side, ``margin`` observed frames around each), fill each with every method and report the mean
-    and worst-frame 3D error in mm. The model fill solves its IK with the stretch hidden; a method that
-    fails on any stretch is not applicable."""
+    and worst-frame 3D error in mm (ranked by :meth:`FillCheck.ranking`). The model fill solves its IK
+    with the stretch hidden; a method that fails on any stretch is not applicable."""
     positions = take.marker_positions
     starts = _test_stretches(~take.missing_mask[:, gap.marker], gap, margin)
-    check = FillCheck(gap, tuple(starts))
+    check = FillCheck(gap, tuple(starts), take.frame_rate)
     errors: dict[str, list[np.ndarray]] = {method: [] for method in methods}
     for start in starts:
         hidden = positions.copy()
@@ -206,11 +228,12 @@ def check_gap(take: Take, gap: Gap, context: ModelContext | None = None,
             frames = np.concatenate(per_stretch)
             check.errors_mm[method] = float(frames.mean())
             check.worst_mm[method] = float(frames.max())
+            check.stretch_errors_mm[method] = [(float(error.mean()), float(error.max())) for error in per_stretch]
     return check
 
 
 def recommend(take: Take, gap: Gap, context: ModelContext | None = None) -> str:
-    """The method with the lowest error in the fill check of ``gap``; InputError when none applies."""
+    """The first method of the fill check ranking of ``gap``; InputError when none applies."""
     ranking = check_gap(take, gap, context).ranking()
     if not ranking:
         raise InputError(f"no fill method applies to the gap of '{gap.name}' at frame {gap.start}")

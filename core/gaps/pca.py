@@ -7,19 +7,25 @@ one marker, within ``window`` frames on each side (the cost stays linear in the 
 1. the donors are the other markers measured from the frame before the gap to the frame after it;
    a donor that has gaps of its own in the window and is *distal* (farther from the gap marker than
    ``distal_share`` of the mean donor distance, the paper's strategy R2) is left out, so that its
-   gaps do not remove training frames for little information;
-2. every position has the mean of the donors in its frame subtracted (a coordinate system moving
-   with the subject); the frames × (3 · markers) matrix is centred and scaled to unit variance per
-   column on the training frames (every used marker measured) and each marker's columns are weighted
-   by ``exp(-d² / (2 σ²))``, ``d`` the marker's mean distance to the gap marker and ``σ``
+   gaps do not remove training frames for little information; the near ones with gaps are added
+   nearest first while enough training frames remain (many markers occluded in turn);
+2. every position is expressed in a coordinate system moving with the hand: the paper subtracts the
+   donors' mean per frame; here the donors' weighted centroid is subtracted and their weighted
+   least-squares rotation from the frame before the gap is undone as well, so that turning the whole
+   hand does not look like a change of posture;
+3. the frames × (3 · markers) matrix is centred and scaled to unit variance per column on the
+   training frames (every used marker measured) and each marker's columns are weighted by
+   ``exp(-d² / (2 σ²))``, ``d`` the marker's mean distance to the gap marker and ``σ``
    ``weight_scale`` times the median donor distance (the paper's weights, with σ in units of the
    take's own marker spacing instead of a fixed 200 mm); the gap marker's own columns weigh
    ``gap_weight`` (the paper's 0.02), so the components describe the donors' coordination;
-3. principal components of the training frames, as many as carry ``min_cumulative`` of the sum of
-   the singular values (the paper's 0.99);
-4. per gap frame, the component scores are the least-squares fit of the donors' observed
-   coordinates, and the gap marker's coordinates follow from its loadings;
-5. the reconstruction's error at the measured frame on each side of the gap is interpolated linearly
+4. principal components of the training frames, as many as carry ``min_cumulative`` of the sum of
+   the singular values (the paper's 0.99); the variance of the others is the noise;
+5. per gap frame, the component scores are the least-squares fit of the donors' observed
+   coordinates, regularised by that noise (the posterior mean of probabilistic PCA, so a posture
+   outside the training frames is not extrapolated wildly), and the gap marker's coordinates follow
+   from its loadings;
+6. the reconstruction's error at the measured frame on each side of the gap is interpolated linearly
    through the gap and removed, so the fill joins the measured ends without a jump.
 """
 
@@ -39,6 +45,8 @@ MIN_CUMULATIVE = 0.99
 DISTAL_SHARE = 0.5
 #: σ of the distance weights, in units of the median donor distance
 WEIGHT_SCALE = 1.0
+#: a donor with gaps of its own is used only while the training frames number this many per column
+FRAMES_PER_COLUMN = 2
 
 
 def _validate(positions: np.ndarray, marker: int, start: int, length: int) -> None:
@@ -76,32 +84,68 @@ def fill_pca(positions: np.ndarray, marker: int, start: int, length: int, window
         raise InputError(f"PCA fill needs 2 other markers measured through the gap (frames {start - 1}..{end}); "
                          f"{len(donors)} are")
     distances = _mean_distances(block, observed, marker, donors)
-    keep = observed[:, donors].all(axis=0) | (distances <= distal_share * distances.mean())
+    keep, training = _training_donors(observed, marker, donors, distances, distal_share)
     donors, distances = donors[keep], distances[keep]
     used = np.append(donors, marker)
-    training = observed[:, used].all(axis=1)
     columns = 3 * len(used)
-    if training.sum() < columns:
+    if len(donors) < 2 or training.sum() < columns:
         raise InputError(f"PCA fill needs {columns} frames with every used marker measured within {window} "
                          f"frames of the gap; there are {int(training.sum())}")
-    moving = block[:, used] - block[:, donors].mean(axis=1, keepdims=True)
-    matrix = moving.reshape(len(block), columns)
+    weights = np.append(np.exp(-distances ** 2 / (2.0 * (weight_scale * np.median(distances)) ** 2)), gap_weight)
+    frames = np.flatnonzero(training | np.isin(np.arange(len(block)), span))
+    rotations, origins = _poses(block[frames][:, donors], block[span[0], donors], weights[:-1])
+    local = np.einsum("nji,nkj->nki", rotations, block[frames][:, used] - origins[:, None])
+    matrix = np.full((len(block), columns), np.nan)
+    matrix[frames] = local.reshape(len(frames), columns)
     centre = matrix[training].mean(axis=0)
     spread = matrix[training].std(axis=0)
     spread[spread <= 0.0] = 1.0
-    weights = np.append(np.exp(-distances ** 2 / (2.0 * (weight_scale * np.median(distances)) ** 2)), gap_weight)
     scale = np.repeat(weights, 3) / spread
     _, singular, components = np.linalg.svd((matrix[training] - centre) * scale, full_matrices=False)
     count = int(np.searchsorted(np.cumsum(singular), min_cumulative * singular.sum()) + 1)
     count = min(count, columns - 3)
-    basis = components[:count].T                           # (columns, count)
-    known = slice(0, columns - 3)
-    scores, *_ = np.linalg.lstsq(basis[known], ((matrix[span] - centre) * scale)[:, known].T, rcond=None)
-    estimate = (basis[columns - 3:] @ scores).T / scale[columns - 3:] + centre[columns - 3:]
-    estimate = estimate + block[span][:, donors].mean(axis=1)
+    variances = singular ** 2 / max(1, int(training.sum()) - 1)
+    noise = variances[count:].sum() / (columns - count)
+    loadings = components[:count].T * np.sqrt(np.maximum(variances[:count] - noise, 0.0))   # (columns, count)
+    known = loadings[:-3]
+    observed_scaled = ((matrix[span] - centre) * scale)[:, :-3]
+    scores = np.linalg.solve(known.T @ known + noise * np.eye(count), known.T @ observed_scaled.T)
+    estimate = (loadings[-3:] @ scores).T / scale[-3:] + centre[-3:]
+    at_span = np.searchsorted(frames, span)
+    estimate = np.einsum("nij,nj->ni", rotations[at_span], estimate) + origins[at_span]
     residuals = block[span[[0, -1]], marker] - estimate[[0, -1]]
     ramp = (np.arange(1, length + 1) / (length + 1))[:, None]
     return estimate[1:-1] + (1.0 - ramp) * residuals[0] + ramp * residuals[1]
+
+
+def _poses(donors: np.ndarray, reference: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame, the pose of the donors ``(N, K, 3)`` mm: rotations (N, 3, 3), the weighted least-squares
+    rotation of ``reference (K, 3)`` onto them, and origins (N, 3) mm, their weighted centroid."""
+    share = weights / weights.sum()
+    origins = np.einsum("k,nki->ni", share, donors)
+    centred = reference - share @ reference
+    covariance = np.einsum("k,ki,nkj->nij", share, centred, donors - origins[:, None])
+    u, _, vt = np.linalg.svd(covariance)
+    flip = np.ones((len(donors), 3))
+    flip[:, 2] = np.sign(np.linalg.det(u @ vt))
+    flip[flip == 0.0] = 1.0
+    return np.einsum("nji,nj,nkj->nik", vt, flip, u), origins
+
+
+def _training_donors(observed: np.ndarray, marker: int, donors: np.ndarray, distances: np.ndarray,
+                     distal_share: float) -> tuple[np.ndarray, np.ndarray]:
+    """Which ``donors`` (K,) bool to use and the training frames (N,) bool where they and ``marker`` are
+    all measured: every donor measured throughout the window; then, nearest first, the others that are
+    not distal, each while at least :data:`FRAMES_PER_COLUMN` training frames per column remain."""
+    keep = observed[:, donors].all(axis=0)
+    training = observed[:, marker] & observed[:, donors[keep]].all(axis=1)
+    for index in np.argsort(distances, kind="stable"):
+        if keep[index] or distances[index] > distal_share * distances.mean():
+            continue
+        narrower = training & observed[:, donors[index]]
+        if narrower.sum() >= FRAMES_PER_COLUMN * 3 * (keep.sum() + 2):
+            keep[index], training = True, narrower
+    return keep, training
 
 
 def _mean_distances(block: np.ndarray, observed: np.ndarray, marker: int, donors: np.ndarray) -> np.ndarray:

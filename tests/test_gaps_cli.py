@@ -1,0 +1,66 @@
+"""``handmocap fill --method pca``, the refusal of an unlabelled take, and ``handmocap evaluate gaps``."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app.cli import main
+from core.io import Take, load_take, save_take
+from core.simulate import simulate_take
+
+REAL_TSV = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / \
+    "dfki_glove_right_hand_frames_0001_3000.tsv"
+
+
+@pytest.fixture(scope="module")
+def labelled(tmp_path_factory):
+    """A labelled glove-13 take (TRC) with two gaps of a fingertip, and the truth."""
+    simulated = simulate_take(layout="glove-13", n_frames=400, seed=5, noise_mm=0.2)
+    truth = simulated.take.marker_positions
+    positions = truth.copy()
+    tip = simulated.take.marker_names.index("middle_tip")
+    positions[100:130, tip] = np.nan
+    positions[250:290, tip] = np.nan
+    take = Take(list(simulated.take.marker_names), positions, simulated.take.frame_rate)
+    path = tmp_path_factory.mktemp("fill") / "labelled.trc"
+    save_take(take, path)
+    return path, truth, tip
+
+
+def test_fill_with_pca_through_the_command_line(labelled, tmp_path, capsys):
+    path, truth, tip = labelled
+    out = tmp_path / "filled.c3d"
+    assert main(["fill", str(path), "--max-gap", "60", "--method", "pca", "--out", str(out), "--quiet",
+                 "--json"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    result = json.loads(lines[-1])
+    assert result["filled"] == {"pca": 2} and result["codes"]["6"] == "pca"
+    assert "filled 2 (2 pca)" in lines[0]
+    filled = load_take(out).marker_positions[:, tip]
+    for start, stop in ((100, 130), (250, 290)):
+        error = np.linalg.norm(filled[start:stop] - truth[start:stop, tip], axis=1)
+        assert np.isfinite(error).all() and error.mean() < 5.0
+
+
+def test_fill_refuses_an_unlabelled_take(tmp_path, capsys):
+    raw = simulate_take(layout="glove-13", n_frames=120, seed=1, unlabelled=True).take
+    path = tmp_path / "raw.csv"
+    save_take(raw, path)
+    out = tmp_path / "filled.c3d"
+    assert main(["fill", str(path), "--max-gap", "20", "--out", str(out), "--quiet"]) == 2
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1 and "not labelled" in error and "point_000" in error
+    assert not out.exists()
+
+
+@pytest.mark.skipif(not REAL_TSV.exists(), reason="shared data absent")
+def test_evaluate_gaps_prints_every_method_and_auto_against_pca(capsys):
+    assert main(["evaluate", "gaps", "--lengths", "10", "80", "--trials", "2", "--gaps", "2", "--json"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    rows = {line.split()[0] for line in lines if line and line.split()[0] in
+            ("linear", "spline", "pattern", "rigid", "model", "pca", "auto")}
+    assert rows == {"linear", "spline", "pattern", "rigid", "model", "pca", "auto"}
+    figures = json.loads(lines[-1])
+    assert {"pca_80_mean_mm", "pca_80_worst_mm", "hidden_auto_80_mean_mm", "hidden_pca_10_worst_mm"} <= set(figures)
