@@ -96,3 +96,14 @@ def test_real_recording_with_two_millimetres_of_noise_and_mirrored():
     assert figures["sides_right"] == 1
     assert figures["correct_share"] >= 0.99, figures
     assert figures["wrong_share"] <= 0.005, figures
+
+
+@needs_real
+def test_the_whole_real_recording_labels_at_least_as_well_as_its_halves():
+    """Subject calibration pooled over windows across the take, refreshed where the markers moved."""
+    from core.labeling.robustness import evaluate_long_take
+
+    figures = evaluate_long_take(seed=0)
+    assert figures["whole_at_least_halves"], figures
+    assert figures["whole"]["correct_share"] >= 0.995, figures
+    assert figures["whole"]["mean_residual_mm"] <= 2.1, figures

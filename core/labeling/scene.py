@@ -889,16 +889,19 @@ def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout = "d
         prepasses = []
         for number, offset in enumerate(windows):
             report = reporter(0.15 * number / len(windows), 0.15 * (number + 1) / len(windows), frames - offset)
-            prepasses.append(_prepass(positions[offset:], tracks, settings, initial_states if offset == 0 else None,
+            prepasses.append(_prepass(positions[offset:], make_tracks(hand_models, marker_sets), settings,
+                                      initial_states if offset == 0 else None,
                                       lambda number: make_tracks(hand_models, marker_sets)[number], report,
                                       decision if offset == 0 else None))
         pre = prepasses[0]
+        template_models = dict(hand_models)
         for number, side in enumerate(sides):
             calibrated = _calibrate([(run, len(run.positions)) for run in prepasses], number, hand_models[side],
                                     marker_sets[side], layout)
             if calibrated is not None:
                 hand_models[side], marker_sets[side], calibrations[side] = calibrated
         tracks = make_tracks(hand_models, marker_sets)
+        refreshed = _refreshed_calibrations(prepasses, windows, tracks, template_models, marker_sets, layout)
     run = _Run(tracks, positions, settings,
                None if online else lambda number: make_tracks(hand_models, marker_sets)[number])
     _seed(run, tracks, initial_states)
@@ -912,6 +915,10 @@ def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout = "d
                 run.scheduled.setdefault(init, []).append(
                     (number, pre.assignment[init, pre.columns(number)].copy(), pre.states[number][init].copy()))
     on_frame = None
+    if pre is not None and refreshed:
+        def on_frame(frame: int) -> None:
+            for number, model, markers in refreshed.get(frame + 1, []):
+                tracks[number].set_model(model, markers)
     if calibrate_online and sides:
         pending = set(range(len(sides)))
 
@@ -1042,6 +1049,46 @@ def _prepass(positions: np.ndarray, tracks: list[Track], settings: SceneSettings
     return pre
 
 
+def _refreshed_calibrations(prepasses: list[_Run], windows: list[int], tracks: list[Track],
+                            template_models: dict[str, HandModel], marker_sets: dict[str, MarkerSet],
+                            layout: MarkerLayout) -> dict[int, list[tuple[int, HandModel, MarkerSet]]]:
+    """Per later calibration window whose frames the pooled subject model fits clearly worse than the
+    first window's (mean residual above :data:`REFRESH_RATIO` × the first's: the markers moved on the
+    skin, a glove slipped), a calibration of that window alone, to track with from the window's first
+    frame on. Returns {first frame: [(hand track number, model, marker set)]}."""
+    refreshed: dict[int, list[tuple[int, HandModel, MarkerSet]]] = {}
+    for number, track in enumerate(tracks):
+        if not isinstance(track, HandTrack) or len(prepasses) < 2:
+            continue
+        fits = [_window_residual(run, number, track) for run in prepasses]
+        for run, offset, fit in zip(prepasses[1:], windows[1:], fits[1:], strict=True):
+            if not (np.isfinite(fit) and fit > REFRESH_RATIO * fits[0]):
+                continue
+            calibrated = _calibrate([(run, len(run.positions))], number, template_models[track.kind],
+                                    resolve_layout(template_models[track.kind], layout), layout)
+            if calibrated is not None:
+                refreshed.setdefault(offset, []).append((number, calibrated[0], calibrated[1]))
+    return refreshed
+
+
+def _window_residual(run: _Run, number: int, track: HandTrack, samples: int = 12) -> float:
+    """Mean residual (mm) of ``track``'s (calibrated) hand on up to ``samples`` labelled frames of a pre-pass."""
+    part = run.columns(number)
+    states = run.states[number]
+    frames = np.flatnonzero(np.isfinite(states).all(axis=1) & ((run.assignment[:, part] >= 0).sum(axis=1) >= 3))
+    if not len(frames):
+        return np.nan
+    chosen = frames[np.unique(np.linspace(0, len(frames) - 1, min(samples, len(frames))).round().astype(int))]
+    values = []
+    for frame in chosen:
+        index = run.assignment[frame, part]
+        _, _, residuals = run._solve(track, run.positions[frame], index, states[frame])
+        values.append(float(residuals[index >= 0].mean()))
+    return float(np.mean(values))
+
+
+REFRESH_RATIO = 1.25
+"""A later window fitted this much worse than the first by the pooled subject model gets its own calibration."""
 CALIBRATION_SPACING = 10
 """One calibration window per this many × ``calibration_frames`` frames of a take (15 s at 100 Hz)."""
 MAX_CALIBRATION_WINDOWS = 6

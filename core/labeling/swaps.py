@@ -28,8 +28,8 @@ SUSPECT_RATIO = 1.5
 """A fragment is tested when the two markers' mean residual there exceeds this times the hand's typical one."""
 ENERGY_RATIO = 0.75
 """The swapped labelling is kept when its IK energy over the sampled frames is below this share of the
-labelling as found, and lower by more than the squared noise floor per sampled frame (a clear
-preference, not a coin toss between two equally poor fits)."""
+labelling as found, and lower by more than 4 σ² per sampled frame (a clear preference, not a coin
+toss between two equally poor fits)."""
 SAMPLE_FRAMES = 6
 """Frames of a fragment the IK is solved on, both ways."""
 MIN_FRAGMENT_FRAMES = 5
@@ -102,13 +102,16 @@ def repair_swaps(assignment: np.ndarray, residuals: np.ndarray, tracklets: np.nd
     edited in place; ``residuals (F,K)`` mm of that labelling; ``tracklets (F,P)`` of
     :func:`point_tracklets`; ``energy(frame, index (K,))`` the IK
     energy (mm², summed over the markers) of the hand solved with those labels in that frame; ``floor_mm``
-    the smallest residual worth suspecting (the noise); ``every_fragment``: test every fragment, not only
+    the noise radius: the swapped energy must be lower by more than a quarter of its square (4 σ²) per
+    sampled frame (a
+    fragment is suspect when its residual exceeds :data:`SUSPECT_RATIO` × the hand's median, which
+    already holds the noise); ``every_fragment``: test every fragment, not only
     those whose residual is suspect (a short window labelled with the uncalibrated template, whose
     residuals are high everywhere). Returns the swaps made as (a, b, start, stop)."""
     finite = residuals[np.isfinite(residuals)]
     if not len(finite):
         return []
-    suspect_mm = 0.0 if every_fragment else max(SUSPECT_RATIO * float(np.median(finite)), floor_mm)
+    suspect_mm = 0.0 if every_fragment else SUSPECT_RATIO * float(np.median(finite))
     repaired = []
     for a, b in pairs:
         for start, stop in pair_fragments(assignment[:, a], assignment[:, b], tracklets):
@@ -124,7 +127,7 @@ def repair_swaps(assignment: np.ndarray, residuals: np.ndarray, tracklets: np.nd
                 as_found += energy(int(frame), index)
                 index[[a, b]] = index[[b, a]]
                 swapped += energy(int(frame), index)
-            if swapped < ENERGY_RATIO * as_found and as_found - swapped > len(sample) * floor_mm ** 2:
+            if swapped < ENERGY_RATIO * as_found and as_found - swapped > len(sample) * (floor_mm / 2.0) ** 2:
                 assignment[span, a], assignment[span, b] = assignment[span, b].copy(), assignment[span, a].copy()
                 repaired.append((a, b, start, stop))
     return repaired
