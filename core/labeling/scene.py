@@ -353,7 +353,7 @@ class _Run:
                     for candidate in initialise_frame(self.tracks, waiting, points[free], settings, self.cut):
                         self._start(frame, candidate, columns[free], points[free])
             for number in [number for number, count in self.lost.items() if count >= settings.retry_every]:
-                self._reinitialise(frame, number, columns, points)
+                self._reinitialise(frame, number)
             if on_frame is not None:
                 on_frame(frame)
 
@@ -381,37 +381,53 @@ class _Run:
             count = lost or (degraded and not recently)
             self.lost[number] = self.lost.get(number, 0) + 1 if count else 0
 
-    def _reinitialise(self, frame: int, number: int, columns: np.ndarray, points: np.ndarray) -> None:
-        """Fit a lost or degraded hand ``number`` afresh to the frame's points no other model took; offline, the new fit
-        replaces the tracked one when it holds up better over the next ``hypothesis_frames`` frames
-        (:func:`window_cost`), online when it labels more markers. Tried every ``retry_every`` frames."""
+    def _reinitialise(self, frame: int, number: int) -> None:
+        """Fit a lost or degraded hand ``number`` afresh in ``frame`` (:meth:`_refit`) and continue tracking
+        from that fit. Tried every ``retry_every`` frames while lost, once per ``hypothesis_frames`` while
+        degraded."""
         self.lost[number] = 0
         self.last_recheck[number] = frame
+        refit = self._refit(frame, number)
+        if refit is None:
+            return
+        labels, state = refit
+        columns = np.flatnonzero(self.present[frame])
+        part = self.columns(number)
+        others = np.ones(self.assignment.shape[1], dtype=bool)
+        others[part] = False
+        foreign = self.assignment[frame, others]
+        first_init = self.init_frames[number]
+        self._start_with(frame, number, columns, labels, state, np.isin(columns, foreign[foreign >= 0]))
+        self.init_frames[number] = first_init
+        self.reinitialised.setdefault(number, []).append(frame)
+
+    def _refit(self, frame: int, number: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """A fresh fit of hand ``number`` (:func:`initialise_frame`) to the points of ``frame`` no other model
+        took, when it beats the labelling the hand has there: offline, when one of its hypotheses holds up
+        better over the next ``hypothesis_frames`` frames (:func:`window_cost`); online (no look-ahead), when
+        it labels more markers. Returns (point column per marker (K,), θ) or None."""
+        columns = np.flatnonzero(self.present[frame])
         others = np.ones(self.assignment.shape[1], dtype=bool)
         others[self.columns(number)] = False
         foreign = self.assignment[frame, others]
-        free = np.flatnonzero(~np.isin(columns, foreign[foreign >= 0]))
-        if len(free) < 3:
-            return
-        found = initialise_frame(self.tracks, [number], points[free], self.settings, self.cut)
+        free = columns[~np.isin(columns, foreign[foreign >= 0])]
+        state = self.states[number][frame]
+        if len(free) < 3 or not np.isfinite(state).all():
+            return None
+        found = initialise_frame(self.tracks, [number], self.positions[frame, free], self.settings, self.cut)
         if not found:
-            return
+            return None
         candidate = found[0]
         current = self.assignment[frame, self.columns(number)]
-        if self.make_track is not None:
-            state = self.states[number][frame]
-            kept = window_cost(self.make_track(number), self.positions, frame, current, state, self.settings)
-            hypotheses = [(candidate.state, candidate.point_index), *candidate.alternatives]
-            costs = [self._window_cost(frame, number, _columns_of(labels, columns[free]), start)
-                     for start, labels in hypotheses]
-            if min(costs) >= kept:
-                return
-        elif candidate.matched <= int((current >= 0).sum()):
-            return
-        first_init = self.init_frames[number]
-        self._start(frame, candidate, columns[free], points[free])
-        self.init_frames[number] = first_init
-        self.reinitialised.setdefault(number, []).append(frame)
+        if self.make_track is None:
+            if candidate.matched <= int((current >= 0).sum()):
+                return None
+            return _columns_of(candidate.point_index, free), candidate.state
+        kept = self._window_cost(frame, number, current, state)
+        hypotheses = [(_columns_of(labels, free), start) for start, labels in
+                      [(candidate.state, candidate.point_index), *candidate.alternatives]]
+        costs = [self._window_cost(frame, number, labels, start) for labels, start in hypotheses]
+        return hypotheses[int(np.argmin(costs))] if min(costs) < kept else None
 
     def _start_with(self, frame: int, number: int, columns: np.ndarray, labels: np.ndarray, state,
                     taken: np.ndarray) -> np.ndarray:
@@ -694,13 +710,15 @@ class _Run:
             if cost(index, residuals) < cost(own, np.nan_to_num(self.residuals[frame, part])):
                 self.record(frame, [track_index], free, index, confidence, residuals, states_now)
 
-    def recheck(self, track_index: int, make_track: Callable[[], Track]) -> None:
+    def recheck(self, track_index: int) -> None:
         """Offline: where a marker of the hand fits much worse than it does over the rest of the take (mean
         residual over a window of ``hypothesis_frames`` frames above :data:`RECHECK_RATIO` × its median, and
         above the noise floor: a finger shift or swap the tracker settled into), fit the hand afresh at the
         window's first frame; when that holds up better over the window (:func:`window_cost`), label from
         it forwards and backwards until the labellings agree again (:meth:`retrack`)."""
         settings = self.settings
+        if self.make_track is None:
+            return
         part = self.columns(track_index)
         residuals = np.where(self.assignment[:, part] >= 0, self.residuals[:, part], np.nan)
         finite = np.isfinite(residuals)
@@ -717,37 +735,23 @@ class _Run:
             means = np.where(seen >= size // 2, np.nansum(block, axis=0) / np.maximum(seen, 1), 0.0)
             if not (means > np.maximum(RECHECK_RATIO * medians, settings.reappear_floor_mm)).any():
                 continue
+            refit = self._refit(start, track_index)
+            if refit is None:
+                continue
+            labels, state = refit
             columns = np.flatnonzero(self.present[start])
-            others = np.ones(self.assignment.shape[1], dtype=bool)
-            others[part] = False
-            foreign = self.assignment[start, others]
-            free = np.flatnonzero(~np.isin(columns, foreign[foreign >= 0]))
-            if len(free) < 3:
-                continue
-            found = initialise_frame(self.tracks, [track_index], self.positions[start, columns[free]], settings,
-                                     self.cut)
-            if not found or not np.isfinite(self.states[track_index][start]).all():
-                continue
-            current = self.assignment[start, part]
-            kept = window_cost(make_track(), self.positions, start, current, self.states[track_index][start],
-                               settings)
-            hypotheses = [(found[0].state, found[0].point_index), *found[0].alternatives]
-            costs = [window_cost(make_track(), self.positions, start, _columns_of(labels, columns[free]), state,
-                                 settings) for state, labels in hypotheses]
-            if min(costs) >= kept:
-                continue
-            state, labels = hypotheses[int(np.argmin(costs))]
-            track = make_track()
-            index = labels.copy()
+            index = np.searchsorted(columns, labels)
+            index = np.where(labels >= 0, index, -1)
+            track = self.make_track(track_index)
+            points = self.positions[start, columns]
             for _ in range(3):
-                state, effectors, fitted = self._solve(track, self.positions[start, columns[free]], index, state)
-            self.record(start, [track_index], columns[free], index,
-                        _margins(pair_distances(effectors, self.positions[start, columns[free]]), index,
-                                 track.thresholds()), fitted, [state])
+                state, effectors, fitted = self._solve(track, points, index, state)
+            self.record(start, [track_index], columns, index,
+                        _margins(pair_distances(effectors, points), index, track.thresholds()), fitted, [state])
             if start + 1 < frames:
                 self.states[track_index][start + 1] = state
-            self.retrack(track_index, make_track(), start, frames - 1, +1, converge=size)
-            self.retrack(track_index, make_track(), start, 0, -1, converge=size)
+            self.retrack(track_index, self.make_track(track_index), start, frames - 1, +1, converge=size)
+            self.retrack(track_index, self.make_track(track_index), start, 0, -1, converge=size)
             self.reinitialised.setdefault(track_index, []).append(start)
 
     def ghost_points(self) -> np.ndarray:
@@ -946,7 +950,7 @@ def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout = "d
                     run.retrack(number, make_tracks(hand_models, marker_sets)[number], frame, 0,
                                 converge=settings.hypothesis_frames)
                 run.verify_start(number, make_tracks(hand_models, marker_sets)[number])
-                run.recheck(number, lambda number=number: make_tracks(hand_models, marker_sets)[number])
+                run.recheck(number)
             run.backward(number, lambda number=number: make_tracks(hand_models, marker_sets)[number])
     for number in range(len(tracks)):
         track = make_tracks(hand_models, marker_sets)[number]
