@@ -21,7 +21,7 @@ from core.gaps.fills import (
     fill_rigid,
     fill_spline,
 )
-from core.gaps.pca import fill_pca
+from core.gaps.pca import PCA_WINDOW, fill_pca
 from core.ik import IKResult, match_layout, solve_positions, solve_take
 from core.io import Take
 from core.model import HandModel, MarkerLayout, MarkerSet, load_template, resolve_layout
@@ -205,12 +205,15 @@ def check_gap(take: Take, gap: Gap, context: ModelContext | None = None,
     """Hide measured stretches of ``gap.length`` frames near the gap (up to :data:`STRETCHES_PER_SIDE` on
     each side, ``margin`` observed frames around each), fill each with every method and report the mean
     and worst-frame 3D error in mm (ranked by :meth:`FillCheck.ranking`). The model fill solves its IK
-    with the stretch hidden; a method that fails on any stretch is not applicable."""
-    positions = take.marker_positions
+    with the stretch hidden; a method that fails on any stretch is not applicable. Only the frames the
+    fills of the stretches read are copied, so the cost does not grow with the take."""
     starts = _test_stretches(~take.missing_mask[:, gap.marker], gap, margin)
     check = FillCheck(gap, tuple(starts), take.frame_rate)
+    pad = max(PCA_WINDOW, IK_PAD, DONOR_WINDOW, margin) + 1
+    first = max(0, min(starts) - pad)
+    positions = take.marker_positions[first:max(starts) + gap.length + pad]
     errors: dict[str, list[np.ndarray]] = {method: [] for method in methods}
-    for start in starts:
+    for start in np.asarray(starts) - first:
         hidden = positions.copy()
         hidden[start:start + gap.length, gap.marker] = np.nan
         truth = positions[start:start + gap.length, gap.marker]
@@ -218,7 +221,7 @@ def check_gap(take: Take, gap: Gap, context: ModelContext | None = None,
             if method in check.reasons:
                 continue
             try:
-                values = fill_gap(hidden, gap.marker, start, gap.length, method, context)
+                values = fill_gap(hidden, gap.marker, int(start), gap.length, method, context)
             except InputError as error:
                 check.reasons[method] = str(error)
                 continue
