@@ -133,8 +133,8 @@ def short_open_gaps(review: ReviewTake, groups: list[GapGroup], max_gap: int) ->
 def fill_gaps(groups: list[GapGroup], gaps: list[ReviewGap], method: str = "auto",
               progress: Callable[[float], None] | None = None,
               cancelled: Callable[[], bool] | None = None) -> AcceptFills | None:
-    """One undoable command filling ``gaps`` with ``method`` ("auto": per gap, the best method of its fill
-    check that applies, else model, spline, linear); None when nothing could be filled. Reads only the
+    """One undoable command filling ``gaps`` with ``method`` ("auto": per gap, the first method of its fill
+    check ranking that applies, else PCA, model, spline, linear); None when nothing could be filled. Reads only the
     groups (copies), so it may run on a worker while the review changes."""
     if method != "auto" and method not in FILL_METHODS:
         raise InputError(f"unknown fill method '{method}' (use auto, {', '.join(FILL_METHODS)})")
