@@ -88,7 +88,10 @@ def fill_pca(positions: np.ndarray, marker: int, start: int, length: int, window
     donors, distances = donors[keep], distances[keep]
     used = np.append(donors, marker)
     columns = 3 * len(used)
-    if len(donors) < 2 or training.sum() < columns:
+    if len(donors) < 2:
+        raise InputError(f"PCA fill needs 2 other markers measured together with the gap marker within {window} "
+                         f"frames of the gap; {len(donors)} are")
+    if training.sum() < columns:
         raise InputError(f"PCA fill needs {columns} frames with every used marker measured within {window} "
                          f"frames of the gap; there are {int(training.sum())}")
     weights = np.append(np.exp(-distances ** 2 / (2.0 * (weight_scale * np.median(distances)) ** 2)), gap_weight)
