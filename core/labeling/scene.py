@@ -146,6 +146,8 @@ class SceneLabeling:
 
 DEGRADED_RATIO = 2.0
 """A hand whose frame's mean residual exceeds this times its running typical residual is degraded."""
+SWAP_ROUNDS = 3
+"""Swap tests are repeated (up to this many rounds) while they find swaps."""
 RECHECK_RATIO = 2.5
 """Offline re-check: a marker whose mean residual over a window exceeds this times its median is suspect."""
 TYPICAL_RATE = 0.02
@@ -639,8 +641,13 @@ class _Run:
             self.tracklets = point_tracklets(self.positions)
         pairs = neighbour_pairs(track.effectors(track.mean_theta))
         before = assignment.copy()
-        swaps = repair_swaps(assignment, self.residuals[:, part], self.tracklets, pairs, energy,
-                             self.settings.reappear_floor_mm, every_fragment)
+        swaps: list[tuple[int, int, int, int]] = []
+        for _round in range(SWAP_ROUNDS):      # an exchange can complete another (three fingers rotated)
+            found = repair_swaps(assignment, self.residuals[:, part], self.tracklets, pairs, energy,
+                                 self.settings.reappear_floor_mm, every_fragment)
+            swaps += found
+            if not found:
+                break
         unify_tracklets(assignment, self.tracklets, energy)
         for frame in np.flatnonzero((assignment != before).any(axis=1)):
             if not np.isfinite(states[frame]).all():
