@@ -36,6 +36,7 @@ from PySide6.QtWidgets import (
 )
 
 from core.gaps import FILL_METHODS, METHOD_CODES, FillCheck, Gap
+from core.gaps.check import DISPLACE_FACTOR, LOCAL_HORIZON_S
 from widgets.marker_lanes import GAP_COLOR, METHOD_COLORS, css
 from widgets.marker_panel import MISSING_TEXT, SORT_ROLE, ColumnTableModel
 
@@ -59,7 +60,8 @@ COLUMN_TIPS = (
     "Marker with the gap",
     "First missing frame (the file's frame numbers)",
     "Missing frames",
-    "Method that fills the hidden stretches of the fill check best (mean and worst-frame error)",
+    f"Method to use: PCA, unless the gap lasts at most {LOCAL_HORIZON_S:g} s and another method fills\n"
+    f"every hidden stretch of the fill check {DISPLACE_FACTOR:g}× better, on the mean and the worst frame",
     "Fill-check error of the recommended method: known stretches of the same length near the gap are\n"
     "hidden and filled, and the mean distance to the measured samples reported (mm)",
     "open: not filled yet; filled (method); rejected: left as a gap on purpose",
