@@ -13,7 +13,8 @@ and raises :class:`InputError` with the reason when its conditions are not met:
   frame after: the marker's position in the donors' frame (Kabsch, per frame) is interpolated linearly;
 * model (maycock2015 §III-C) — 2 on each side and IK joint angles solved without the gap: the joint
   angles that only the gap marker determines are interpolated by minimum squared angular acceleration
-  with the two frames on each side fixed (C¹ at both ends), and the marker follows by forward kinematics.
+  with the two frames on each side fixed (C¹ at both ends; their angles and velocities from a line
+  through up to 5 solved frames on each side), and the marker follows by forward kinematics.
 """
 
 from __future__ import annotations
@@ -28,6 +29,8 @@ from core.model.kinematics import ANCESTOR
 
 SPLINE_CONTEXT = 10
 MODEL_CONTEXT = 2
+#: solved frames on each side of a gap through which the model fill fits its end angles and velocities
+MODEL_FIT = 5
 
 
 def _validate_gap(trajectory: np.ndarray, start: int, length: int) -> None:
@@ -162,6 +165,21 @@ def _unwrap_rotation_vectors(rotation_vectors: np.ndarray) -> np.ndarray:
     return result
 
 
+def _boundary_angles(joint_angles: np.ndarray, start: int, end: int) -> np.ndarray:
+    """IK angles ``(4, 26)`` at the :data:`MODEL_CONTEXT` frames on each side of the gap, from the line
+    fitted (least squares, per parameter) through the up to :data:`MODEL_FIT` solved frames next to the
+    gap on that side: IK noise would otherwise set the interpolation's end velocities. Rotation vectors
+    are made continuous across both sides first."""
+    sides = (np.arange(max(0, start - MODEL_FIT), start), np.arange(end, min(len(joint_angles), end + MODEL_FIT)))
+    solved = [frames[np.isfinite(joint_angles[frames]).all(axis=1)] for frames in sides]
+    values = joint_angles[np.concatenate(solved)].copy()
+    values[:, 3:6] = _unwrap_rotation_vectors(values[:, 3:6])
+    before, after = values[:len(solved[0])], values[len(solved[0]):]
+    targets = (np.arange(start - MODEL_CONTEXT, start), np.arange(end, end + MODEL_CONTEXT))
+    return np.vstack([np.polynomial.polynomial.polyval(target, np.polynomial.polynomial.polyfit(frames, side, 1)).T
+                      for frames, side, target in zip(solved, (before, after), targets, strict=True)])
+
+
 def affected_parameters(markers: MarkerSet, marker: int, observed_markers: np.ndarray) -> np.ndarray:
     """(26,) bool: the parameters that move ``marker`` but none of the ``observed_markers (M,) bool``
     (each marker judged by the joint carrying most of its skin weight)."""
@@ -179,7 +197,8 @@ def fill_model(positions: np.ndarray, start: int, length: int, marker: int, join
     ``positions (F, M, 3)`` mm are the measured markers in ``markers`` order; ``joint_angles (F, 26)``
     come from IK solved with the gap missing. The parameters that move the marker but no marker
     observed through the whole gap are interpolated by :func:`minimum_acceleration_interpolation`
-    from the two frames on each side; the others keep their IK values. Those others shift when the
+    from the two frames on each side (smoothed by :func:`_boundary_angles`); the others keep their IK
+    values. Those others shift when the
     marker drops out of the IK, so at the frames next to the gap they are extrapolated linearly from
     the gap frames; the forward-kinematics positions are then shifted by the residual (measured − model)
     at those two frames, interpolated linearly, so the fill joins the measured samples without a jump.
@@ -205,8 +224,7 @@ def fill_model(positions: np.ndarray, start: int, length: int, marker: int, join
     inner = angles[1:-1, ~affected]
     steps = inner[[0, -1]] - inner[[1, -2]] if length >= 2 else np.zeros((2, inner.shape[1]))
     angles[np.ix_([0, -1], np.flatnonzero(~affected))] = inner[[0, -1]] + steps
-    boundary = joint_angles[context].copy()
-    boundary[:, 3:6] = _unwrap_rotation_vectors(boundary[:, 3:6])
+    boundary = _boundary_angles(joint_angles, start, end)
     angles[1:-1, affected] = minimum_acceleration_interpolation(boundary[:2, affected], boundary[2:, affected],
                                                                 length)
     kinematic = marker_positions_batch(model, markers.subset(np.array([marker])), angles)[:, 0]
