@@ -26,6 +26,10 @@ AMBIGUITY_RATIO = 2.0
 """A link is kept when the next-nearest point (either way) is at least this times farther than the linked one."""
 MAX_WINDOWS = 1500
 """At most this many chain windows are sampled, evenly over the take (cost independent of its length)."""
+MAX_LINK_WORK = 50_000_000
+"""Fewer windows are sampled when a take has very many points P per frame (windows × P² at most this)."""
+MAX_PAIR_DISTANCES = 4_000_000
+"""Point-pair distances held in memory at once while linking (32 MB)."""
 FOURTH_DIFFERENCE_VARIANCE = 70.0
 """Variance of the 4th difference of white noise of unit variance: C(8, 4)."""
 SECOND_DIFFERENCE_VARIANCE = 6.0
@@ -52,21 +56,35 @@ class TakeStatistics:
 
 def unambiguous_links(current: np.ndarray, following: np.ndarray) -> np.ndarray:
     """Unambiguous links between two frames' points ``(W,P,3)`` (NaN absent): per point of ``current`` the
-    index of its point in ``following`` ``(W,P)``, -1 where the link is ambiguous or absent."""
+    index of its point in ``following`` ``(W,P)``, -1 where the link is ambiguous or absent. Works in
+    blocks of frames so that no more than :data:`MAX_PAIR_DISTANCES` distances are held at once."""
+    count = current.shape[1]
+    block = max(1, MAX_PAIR_DISTANCES // max(count * count, 1))
+    if len(current) > block:
+        return np.concatenate([_links(current[start:start + block], following[start:start + block])
+                               for start in range(0, len(current), block)])
+    return _links(current, following)
+
+
+def _two_smallest(distances: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Index of the smallest value along ``axis`` of ``distances``, that value and the second smallest
+    (inf when there is none); linear time (partition, not sort)."""
+    size = distances.shape[axis]
+    nearest = np.argmin(distances, axis=axis)
+    best = np.min(distances, axis=axis)
+    if size < 2:
+        return nearest, best, np.full(best.shape, np.inf)
+    second = np.take(np.partition(distances, 1, axis=axis), 1, axis=axis)
+    return nearest, best, second
+
+
+def _links(current: np.ndarray, following: np.ndarray) -> np.ndarray:
     distances = np.sqrt(((current[:, :, None, :] - following[:, None, :, :]) ** 2).sum(axis=3))
     distances = np.where(np.isfinite(distances), distances, np.inf)
-    count = distances.shape[2]
-    if count < 1:
+    if distances.shape[2] < 1:
         return np.full(distances.shape[:2], -1)
-    order = np.argsort(distances, axis=2)
-    nearest = order[:, :, 0]
-    best = np.take_along_axis(distances, nearest[:, :, None], axis=2)[:, :, 0]
-    second = np.take_along_axis(distances, order[:, :, 1:2], axis=2)[:, :, 0] if count > 1 else np.full_like(best,
-                                                                                                           np.inf)
-    backward_order = np.argsort(distances, axis=1)
-    backward_nearest = backward_order[:, 0, :]                                     # (W,P) per following point
-    backward_second = np.take_along_axis(distances, backward_order[:, 1:2, :], axis=1)[:, 0, :] \
-        if distances.shape[1] > 1 else np.full(backward_nearest.shape, np.inf)
+    nearest, best, second = _two_smallest(distances, 2)                  # (W,P) per current point
+    backward_nearest, _, backward_second = _two_smallest(distances, 1)   # (W,P) per following point
     mutual = np.take_along_axis(backward_nearest, nearest, axis=1) == np.arange(distances.shape[1])[None, :]
     clear = (second >= AMBIGUITY_RATIO * best) & \
         (np.take_along_axis(backward_second, nearest, axis=1) >= AMBIGUITY_RATIO * best)
@@ -79,8 +97,8 @@ def measure_take(positions: np.ndarray) -> TakeStatistics:
     frames = positions.shape[0]
     if frames < CHAIN_FRAMES or positions.shape[1] == 0:
         return TakeStatistics(np.nan, np.nan, np.nan, 0)
-    starts = np.unique(np.linspace(0, frames - CHAIN_FRAMES, min(MAX_WINDOWS, frames - CHAIN_FRAMES + 1))
-                       .astype(np.int64))
+    count = min(MAX_WINDOWS, max(10, MAX_LINK_WORK // positions.shape[1] ** 2), frames - CHAIN_FRAMES + 1)
+    starts = np.unique(np.linspace(0, frames - CHAIN_FRAMES, count).astype(np.int64))
     windows = positions[starts[:, None] + np.arange(CHAIN_FRAMES)]           # (W,5,P,3)
     column = np.broadcast_to(np.arange(positions.shape[1]), (len(starts), positions.shape[1])).copy()
     chain = [windows[:, 0]]
