@@ -424,7 +424,7 @@ class SwapLabels(Command):
 @dataclass(frozen=True)
 class GapFill:
     """A fill to accept: label ``label`` at frames ``start .. start + len(positions) - 1`` by ``method``
-    (``linear``, ``spline``, ``pattern``, ``rigid`` or ``model``), ``positions (n, 3)`` mm."""
+    (``linear``, ``spline``, ``pattern``, ``rigid``, ``model`` or ``pca``), ``positions (n, 3)`` mm."""
 
     label: str
     start: int
