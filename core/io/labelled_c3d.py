@@ -157,7 +157,8 @@ def write_labelled_c3d(path: str | PathLike[str], label_names: list[str], positi
     """Write a labelled C3D (scheme in the module docstring), atomically.
 
     ``positions (F, M, 3)`` mm: measured and filled samples of the M labels (NaN missing);
-    ``provenance (F, M)`` codes (0 measured, 1..6 fill method, see PROVENANCE_NAMES; -1 missing); ``edited (F, M)`` bool;
+    ``provenance (F, M)`` codes (0 measured, 1..6 fill method as PROVENANCE_NAMES, -1 missing);
+    ``edited (F, M)`` bool;
     ``unlabelled (F, U, 3)`` mm named ``unlabelled_names`` (default ``*0``, ``*1``...), ``ghost (F, U)``
     bool; ``parameters``: other groups to copy (a group the writer cannot store is dropped with a
     warning). Raises TakeFormatError (one line) when the file cannot be written.
