@@ -21,6 +21,19 @@ def _load_review(path: str):
     return ReviewTake.from_labelled_take(load_take(path))
 
 
+def _subject_hands(parameters: dict, source: str) -> tuple[dict, dict]:
+    """The subject's hand models and calibrated marker sets per side that auto-label stored in a labelled
+    C3D (its ``HAND_SUBJECT`` group), for the model fill; empty when the take has none."""
+    from core.batch.labelling import subject_model
+    from core.io.labelled_c3d import subject_calibrations
+    from core.model import load_layout
+
+    models, marker_sets = {}, {}
+    for subject in subject_calibrations(parameters, source):
+        models[subject.side], marker_sets[subject.side] = subject_model(subject, load_layout(subject.layout))
+    return models, marker_sets
+
+
 def command_label(args: argparse.Namespace) -> int:
     from core.batch.labelling import auto_label
     from core.io import load_take, looks_unlabelled
@@ -83,7 +96,7 @@ def command_fill(args: argparse.Namespace) -> int:
     if looks_unlabelled(review.label_names):
         raise InputError(f"{args.labelled} is not labelled (its points are named like '{review.label_names[0]}'): "
                          "filling would join unrelated points; label it first (handmocap label)")
-    groups = gap_groups(review)
+    groups = gap_groups(review, *_subject_hands(review.take.parameters, args.labelled))
     gaps = find_review_gaps(review, groups)
     command = fill_review_gaps(review, groups, args.max_gap, args.method,
                                progress=None if args.quiet else progress_printer())

@@ -720,7 +720,7 @@ class ReviewController(QObject):
     # ----------------------------------------------------------------------------------- gaps
     def _refresh_gaps(self) -> None:
         document, review = self.document, self.review
-        self._groups = gap_groups(review, document.hand_models) if review.n_labels else []
+        self._groups = gap_groups(review, document.hand_models, document.marker_sets) if review.n_labels else []
         self._gaps = find_review_gaps(review, self._groups) if self._groups else []
         old = {(row.marker, row.start, row.length): row for row in self._rows}
         rows = []

@@ -64,3 +64,23 @@ def test_evaluate_gaps_prints_every_method_and_auto_against_pca(capsys):
     assert rows == {"linear", "spline", "pattern", "rigid", "model", "pca", "auto"}
     figures = json.loads(lines[-1])
     assert {"pca_80_mean_mm", "pca_80_worst_mm", "hidden_auto_80_mean_mm", "hidden_pca_10_worst_mm"} <= set(figures)
+
+
+def test_fill_of_an_auto_labelled_take_uses_the_subjects_calibrated_hand(tmp_path):
+    """`handmocap label` stores the subject calibration in the labelled C3D; `fill` gives it to the model fill."""
+    from app.cli_review import _load_review, _subject_hands
+    from core.batch import gap_groups
+    from core.model import load_layout, load_template, resolve_layout
+
+    raw = tmp_path / "raw.c3d"
+    simulated = simulate_take(layout="glove-13", n_frames=300, seed=5, noise_mm=0.3, occlusion=True, unlabelled=True)
+    save_take(simulated.take, raw)
+    out = tmp_path / "labelled.c3d"
+    assert main(["label", str(raw), "--layout", "glove-13", "--out", str(out), "--quiet"]) == 0
+    review = _load_review(str(out))
+    models, marker_sets = _subject_hands(review.take.parameters, str(out))
+    assert list(marker_sets) == ["right"]
+    context = gap_groups(review, models, marker_sets)[0].context
+    assert context is not None and context.markers is marker_sets["right"]
+    template = resolve_layout(load_template("right"), load_layout("glove-13"))
+    assert not np.allclose(context.markers.rest_positions, template.rest_positions)

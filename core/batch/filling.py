@@ -14,13 +14,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core.batch.resolve import subject_markers
 from core.errors import CancelledError, InputError
 from core.gaps import FILL_METHODS, FillCheck, Gap, ModelContext, check_gap, fill_gap, find_gaps
 from core.gaps.check import FALLBACK_ORDER
 from core.gaps.evaluate import GAP_LENGTHS, marker_columns
 from core.gaps.fills import SPLINE_CONTEXT, fill_pattern
 from core.io import Take
-from core.model import HandModel, MarkerLayout, best_layout_for, load_layout, load_template
+from core.model import HandModel, MarkerLayout, MarkerSet, best_layout_for, load_layout, load_template
 from core.session import PROVENANCE_NAMES, AcceptFills, GapFill, ReviewTake
 
 
@@ -57,9 +58,11 @@ def _group_take(review: ReviewTake, labels: np.ndarray, names: list[str]) -> Tak
                 first_frame=review.take.first_frame, vendor=review.take.vendor)
 
 
-def gap_groups(review: ReviewTake, models: dict[str, HandModel] | None = None) -> list[GapGroup]:
-    """The hands of ``review`` (model fill with their solved angles) and the remaining labels."""
-    models = models or {}
+def gap_groups(review: ReviewTake, models: dict[str, HandModel] | None = None,
+               marker_sets: dict[str, MarkerSet] | None = None) -> list[GapGroup]:
+    """The hands of ``review`` (model fill with their solved angles, the subject's ``models`` and calibrated
+    ``marker_sets`` per side when given) and the remaining labels."""
+    models, marker_sets = models or {}, marker_sets or {}
     groups = []
     owned = np.zeros(review.n_labels, dtype=bool)
     for hand in review.hands:
@@ -71,7 +74,9 @@ def gap_groups(review: ReviewTake, models: dict[str, HandModel] | None = None) -
         names = list(layout.names) if layout is not None and len(layout.names) == len(labels) else \
             [review.label_names[label] for label in labels]
         take = _group_take(review, labels, names)
-        context = (ModelContext.for_take(names, models.get(hand.side) or load_template(hand.side), layout)
+        model = models.get(hand.side) or load_template(hand.side)
+        context = (ModelContext.for_take(names, model, layout,
+                                         subject_markers(model, layout, marker_sets.get(hand.side)))
                    if layout is not None else None)
         angles = hand.joint_angles.copy() if np.isfinite(hand.joint_angles).all(axis=1).any() else None
         groups.append(GapGroup(labels, take, context, angles))
@@ -79,8 +84,13 @@ def gap_groups(review: ReviewTake, models: dict[str, HandModel] | None = None) -
     if len(rest):
         names = [review.label_names[label] for label in rest]
         layout_name = best_layout_for(names)
-        context = (ModelContext.for_take(names, models.get("right") or load_template("right"),
-                                         load_layout(layout_name)) if layout_name else None)
+        side = next(iter(models)) if len(models) == 1 else "right"     # a lone subject hand's side
+        model = models.get(side) or load_template(side)
+        context = None
+        if layout_name:
+            layout = load_layout(layout_name)
+            context = ModelContext.for_take(names, model, layout, subject_markers(model, layout,
+                                                                                   marker_sets.get(side)))
         groups.append(GapGroup(rest, _group_take(review, rest, names), context, None))
     return groups
 

@@ -57,9 +57,12 @@ class ModelContext:
     columns: np.ndarray
 
     @classmethod
-    def for_take(cls, marker_names: list[str], model: HandModel, layout: MarkerLayout) -> ModelContext:
-        """Resolve ``layout`` on ``model`` and match it to a take's ``marker_names`` by name."""
-        return cls(model, layout, resolve_layout(model, layout), match_layout(marker_names, layout))
+    def for_take(cls, marker_names: list[str], model: HandModel, layout: MarkerLayout,
+                 markers: MarkerSet | None = None) -> ModelContext:
+        """Match ``layout`` to a take's ``marker_names`` by name, with ``markers`` (the subject's calibrated
+        ones) or the layout resolved on ``model``."""
+        return cls(model, layout, markers if markers is not None else resolve_layout(model, layout),
+                   match_layout(marker_names, layout))
 
     def layout_index(self, marker: int) -> int:
         """Index in the layout of take column ``marker``; InputError when the layout lacks it."""
