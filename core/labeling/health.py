@@ -99,7 +99,7 @@ def assess_labelling(result: SceneLabeling, frame_rate: float) -> list[HealthWar
             warnings.append(HealthWarning("no_hand", model.name, 0, frames - 1,
                                           f"the {model.name} hand was not found in any frame"))
             continue
-        for frame in model.reinitialised:
+        for frame in sorted(model.reinitialised):
             warnings.append(HealthWarning("reinitialised", model.name, frame, frame,
                                           f"the {model.name} hand was lost and fitted afresh here: check the labels "
                                           "on either side"))
