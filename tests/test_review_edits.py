@@ -28,6 +28,7 @@ from core.session import (
     Unlabel,
     command_from_json,
 )
+from core.session.events import Change, ReviewChanged
 from core.session.synthetic import synthetic_labelling
 
 FRAMES = 60
@@ -342,7 +343,7 @@ def test_undo_stack_state_listeners_limit_and_recorder(labelled):
     review, _, _ = labelled
     events = []
     stack = UndoStack(review, limit=3)
-    stack.add_listener(lambda event, span: events.append((event, tuple(span))))
+    stack.add_listener(lambda change: events.append((change.operation, tuple(change.span))))
     assert stack.is_clean() and not stack.can_undo() and not stack.can_redo()
     for label in ("M0", "M1", "M2", "M3"):
         stack.push(Unlabel(label=label, scope="range", start=0, stop=5))
@@ -367,6 +368,35 @@ def test_undo_stack_state_listeners_limit_and_recorder(labelled):
     with pytest.raises(InputError, match="disk full"):
         stack.undo()
     assert review.same_state(before) and stack.index == 3
+
+
+def test_an_edit_its_undo_and_its_redo_each_announce_what_changed(labelled):
+    review, result, _ = labelled
+    stack = UndoStack(review)
+    heard: list[ReviewChanged] = []
+    stack.add_listener(heard.append)
+    stack.push(Unlabel(label="M1", scope="range", start=10, stop=20))
+    edit = ReviewChanged("do", (10, 20), Change.LABELS | Change.FILLS | Change.SOLVE)
+    assert heard == [edit]
+    stack.attach(SetSolve(0, 10, np.zeros((10, 26))))
+    assert heard[-1] == ReviewChanged("attach", (10, 20), Change.SOLVE)
+    stack.undo()
+    assert heard[-1] == ReviewChanged("undo", (10, 20), edit.what) and not heard[-1].structure
+    stack.redo()
+    assert heard[-1] == ReviewChanged("redo", (10, 20), edit.what)
+    stack.push(AcceptFills([GapFill("M0", FRAMES // 3, "linear", np.ones((2, 3)))]))
+    assert heard[-1] == ReviewChanged("do", (FRAMES // 3, FRAMES // 3 + 2), Change.FILLS)
+    stack.undo()
+    assert heard[-1].operation == "undo" and heard[-1].what == Change.FILLS
+    stack.push(ApplyLabelling(result))                       # auto-label again: the whole review
+    assert heard[-1].what == Change.ALL and heard[-1].structure and heard[-1].span == (0, FRAMES)
+    stack.undo()
+    assert heard[-1] == ReviewChanged("undo", (0, FRAMES), Change.ALL)
+    stack.set_clean()
+    assert heard[-1] == ReviewChanged("clean", (0, 0), Change.NONE)
+    stack.remove_listener(heard.append)
+    stack.redo()
+    assert heard[-1].operation == "clean"
 
 
 def test_scene_labelling_result_gives_one_track_per_hand(labelled):

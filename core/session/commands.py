@@ -38,6 +38,7 @@ from typing import Any, ClassVar, NamedTuple, Protocol
 import numpy as np
 
 from core.errors import InputError
+from core.session.events import Change, ReviewChanged
 from core.session.review import (
     FILL_CODES,
     MEASURED,
@@ -104,10 +105,12 @@ def decode_array(data: dict[str, Any], blobs: BlobStore | None = None) -> np.nda
 
 class Command(ABC):
     """Base of every undoable edit. Subclasses set ``kind``, implement :meth:`_extent`, :meth:`_apply`,
-    :meth:`params` and (for arrays) :meth:`_from_params`; ``whole = True`` captures the whole state."""
+    :meth:`params` and (for arrays) :meth:`_from_params`; ``whole = True`` captures the whole state;
+    ``changes`` says what kind of data it changes (what its :class:`ReviewChanged` event announces)."""
 
     kind: ClassVar[str] = ""
     whole: ClassVar[bool] = False
+    changes: ClassVar[Change] = Change.ALL
     registry: ClassVar[dict[str, type[Command]]] = {}
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
@@ -298,6 +301,8 @@ def _release_points(review: ReviewTake, frames: np.ndarray, columns: np.ndarray,
 class _PointCommand(Command):
     """A command on the points selected by (frame, column) or label, and a scope."""
 
+    changes = Change.LABELS | Change.FILLS | Change.SOLVE   # a label losing its point loses its fill and residual
+
     def __init__(self, frame: int | None = None, column: int | None = None, *, label: str | None = None,
                  scope: str = "fragment", start: int | None = None, stop: int | None = None) -> None:
         super().__init__()
@@ -388,6 +393,7 @@ class SwapLabels(Command):
     """Exchange two labels over frames ``start .. stop - 1``: points, fills, confidence, residuals."""
 
     kind = "swap_labels"
+    changes = Change.LABELS | Change.FILLS | Change.SOLVE
 
     def __init__(self, first_label: str, second_label: str, start: int, stop: int) -> None:
         super().__init__()
@@ -443,6 +449,7 @@ class AcceptFills(Command):
     """
 
     kind = "accept_fills"
+    changes = Change.FILLS
 
     def __init__(self, fills: list[GapFill]) -> None:
         super().__init__()
@@ -503,6 +510,7 @@ class RejectFills(Command):
     """Remove accepted fills of ``label`` (None: every label) over frames ``start .. stop - 1``."""
 
     kind = "reject_fills"
+    changes = Change.FILLS
 
     def __init__(self, label: str | None, start: int, stop: int) -> None:
         super().__init__()
@@ -539,6 +547,7 @@ class SetSolve(Command):
     Usually attached to the edit that caused the re-solve (:meth:`UndoStack.attach`)."""
 
     kind = "set_solve"
+    changes = Change.SOLVE
 
     def __init__(self, hand: int, start: int, joint_angles: np.ndarray, residuals_mm: np.ndarray | None = None,
                  ) -> None:
@@ -750,6 +759,14 @@ class CompoundCommand(Command):
         self._saved = None
         return span
 
+    @property
+    def changes(self) -> Change:  # type: ignore[override]
+        """What the children change together."""
+        combined = Change.NONE
+        for child in self.children:
+            combined |= child.changes
+        return combined
+
     def append_done(self, child: Command) -> None:
         """Add a child that was just done on the review (used by :meth:`UndoStack.attach`)."""
         self.children.append(child)
@@ -773,6 +790,8 @@ class CompoundCommand(Command):
 
 Recorder = Callable[[str, "Command | None"], None]
 """Called after each successful operation: ("do" | "attach" | "undo" | "redo", command or None)."""
+Listener = Callable[[ReviewChanged], None]
+"""Told what changed after each successful operation."""
 
 
 class UndoStack:
@@ -782,8 +801,9 @@ class UndoStack:
     done one (a re-solve after an edit is undone with it); ``undo``/``redo`` return the frames to
     re-solve. ``recorder`` (the journal) is told about every operation after it succeeded in memory;
     if it fails, the operation is reverted and the error raised, so memory and journal never
-    disagree. Listeners ``callback(event, span)`` hear every change ("do", "attach", "undo", "redo",
-    "clean"). At most ``limit`` steps are kept (the oldest are dropped).
+    disagree. Listeners ``callback(change)`` hear a :class:`~core.session.events.ReviewChanged` after
+    every change ("do", "attach", "undo", "redo"; "clean" when only the history changed). At most
+    ``limit`` steps are kept (the oldest are dropped).
     """
 
     def __init__(self, review: ReviewTake, recorder: Recorder | None = None, limit: int = 200) -> None:
@@ -793,7 +813,7 @@ class UndoStack:
         self._commands: list[Command] = []
         self._index = 0
         self._clean_index: int | None = 0
-        self._listeners: list[Callable[[str, FrameSpan], None]] = []
+        self._listeners: list[Listener] = []
 
     # -- queries --
     @property
@@ -827,13 +847,13 @@ class UndoStack:
 
     def set_clean(self) -> None:
         self._clean_index = self._index
-        self._notify("clean", EMPTY_SPAN)
+        self._notify("clean", EMPTY_SPAN, Change.NONE)
 
-    def add_listener(self, callback: Callable[[str, FrameSpan], None]) -> None:
-        """``callback(event, span)`` after every change."""
+    def add_listener(self, callback: Listener) -> None:
+        """``callback(change)`` after every change."""
         self._listeners.append(callback)
 
-    def remove_listener(self, callback: Callable[[str, FrameSpan], None]) -> None:
+    def remove_listener(self, callback: Listener) -> None:
         if callback in self._listeners:
             self._listeners.remove(callback)
 
@@ -852,7 +872,7 @@ class UndoStack:
         self._commands.append(command)
         self._index += 1
         self._trim()
-        self._notify("do", span)
+        self._notify("do", span, command.changes)
         return span
 
     def attach(self, command: Command) -> FrameSpan:
@@ -870,7 +890,7 @@ class UndoStack:
                 top = _wrap(top)
                 self._commands[self._index - 1] = top
             top.append_done(command)
-        self._notify("attach", span)
+        self._notify("attach", span, command.changes)
         return span
 
     def undo(self) -> FrameSpan:
@@ -885,7 +905,7 @@ class UndoStack:
             command.do(self.review)
             raise
         self._index -= 1
-        self._notify("undo", span)
+        self._notify("undo", span, command.changes)
         return span
 
     def redo(self) -> FrameSpan:
@@ -900,7 +920,7 @@ class UndoStack:
             command.undo(self.review)
             raise
         self._index += 1
-        self._notify("redo", span)
+        self._notify("redo", span, command.changes)
         return span
 
     def clear(self) -> None:
@@ -908,7 +928,7 @@ class UndoStack:
         self._commands.clear()
         self._index = 0
         self._clean_index = 0
-        self._notify("clean", EMPTY_SPAN)
+        self._notify("clean", EMPTY_SPAN, Change.NONE)
 
     def restore_history(self, commands: list[Command], index: int, clean_index: int | None) -> None:
         """Install an undo history read from a snapshot (commands already carry their saved states)."""
@@ -929,9 +949,10 @@ class UndoStack:
             if self._clean_index is not None:
                 self._clean_index = self._clean_index - excess if self._clean_index >= excess else None
 
-    def _notify(self, event: str, span: FrameSpan) -> None:
+    def _notify(self, operation: str, span: FrameSpan, what: Change) -> None:
+        change = ReviewChanged(operation, span, what)
         for callback in list(self._listeners):
-            callback(event, span)
+            callback(change)
 
 
 def _wrap(command: Command) -> CompoundCommand:
