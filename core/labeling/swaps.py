@@ -24,7 +24,7 @@ from core.labeling.take_statistics import unambiguous_links
 
 NEIGHBOURS = 3
 """Each marker is tested against its this many nearest markers on the hand (mean posture of the prior)."""
-SUSPECT_RATIO = 1.5
+SUSPECT_RATIO = 1.25
 """A fragment is tested when the two markers' mean residual there exceeds this times the hand's typical one."""
 ENERGY_RATIO = 0.75
 """The swapped labelling is kept when its IK energy over the sampled frames is below this share of the
