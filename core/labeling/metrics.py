@@ -6,8 +6,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from core.labeling.tracker import LabelingResult
-
 if TYPE_CHECKING:
     from core.labeling.scene import SceneLabeling
 
@@ -22,9 +20,9 @@ def _longest_run(flags: np.ndarray) -> int:
     return longest
 
 
-def labelling_accuracy(result: LabelingResult | SceneLabeling, truth_point_marker: np.ndarray) -> dict[str, float]:
-    """Compare ``result`` (one-hand or scene labelling: ``assignment (F,M)`` and ``ghost_points (F,P)``
-    are used) with the true marker index per point ``truth_point_marker (F,P)`` (-1 ghost or padding).
+def labelling_accuracy(result: SceneLabeling, truth_point_marker: np.ndarray) -> dict[str, float]:
+    """Compare ``result`` (a scene labelling, or anything with its ``assignment (F,M)`` and
+    ``ghost_points (F,P)``) with the true marker index per point ``truth_point_marker (F,P)`` (-1 ghost or padding).
 
     Keys: ``correct_share`` share of observed hand-marker samples (a marker present as a point in a
     frame) labelled with their own point; ``missed_share`` share of them left unlabelled;
