@@ -23,6 +23,9 @@ from core.errors import InputError
 from core.labeling.initialise import clusters_of, fit_hand
 from core.labeling.models import HandTrack, SceneSettings
 
+Start = tuple[np.ndarray, np.ndarray]
+"""Where a hand starts: point column per marker (K,) (-1 none) and θ (26,)."""
+
 SIDE_MARGIN = 0.5
 """A side decided by a cost margin (mm-equivalent of eq. 2 per frame) below this is reported as
 uncertain: half a millimetre of mean residual, or half a marker lost per frame."""
@@ -38,7 +41,7 @@ class SideDecision:
     frame: int
     margins: dict[str, float]
     #: per side, the winning start: point column per marker (K,) (-1 none) and θ (26,) in ``frame``
-    starts: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    starts: dict[str, Start] = field(default_factory=dict)
 
     @property
     def uncertain(self) -> list[str]:
@@ -58,31 +61,31 @@ def decide_sides(positions: np.ndarray, make_track: Callable[[str], HandTrack], 
         if len(columns) < least:
             continue
         points = positions[frame, columns]
-        costs: list[dict[str, float]] = []
+        clusters: list[tuple[dict[str, float], dict[str, Start]]] = []     # per hand cluster: cost, start per side
         for members in clusters_of(points, cut_mm):
             if len(members) < least:
                 continue
-            per_side: dict[str, float] = {}
-            starts: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+            costs: dict[str, float] = {}
+            starts: dict[str, Start] = {}
             for side, probe in probes.items():
                 for fit in fit_hand(probe, points[members], settings):
                     if fit[3] > settings.init_max_residual_mm or fit[2] < least:
                         continue
                     labels = np.where(fit[4] >= 0, columns[members][np.maximum(fit[4], 0)], -1)
                     tracked = cost(make_track(side), frame, labels, fit[1])
-                    if tracked < per_side.get(side, np.inf):
-                        per_side[side], starts[side] = tracked, (labels, fit[1])
-            if per_side:
-                costs.append(({side: per_side.get(side, np.inf) for side in probes}, starts))
-        if not costs:
+                    if tracked < costs.get(side, np.inf):
+                        costs[side], starts[side] = tracked, (labels, fit[1])
+            if costs:
+                clusters.append(({side: costs.get(side, np.inf) for side in probes}, starts))
+        if not clusters:
             continue
-        costs.sort(key=lambda entry: min(entry[0].values()))
-        if len(costs) == 1:
-            tracked, starts = costs[0]
-            best = min(tracked, key=tracked.get)
+        clusters.sort(key=lambda cluster: min(cluster[0].values()))
+        if len(clusters) == 1:
+            costs, starts = clusters[0]
+            best = min(costs, key=lambda side: costs[side])
             other = "left" if best == "right" else "right"
-            return SideDecision([best], frame, {best: tracked[other] - tracked[best]}, {best: starts[best]})
-        (first, first_starts), (second, second_starts) = costs[0], costs[1]
+            return SideDecision([best], frame, {best: costs[other] - costs[best]}, {best: starts[best]})
+        (first, first_starts), (second, second_starts) = clusters[0], clusters[1]
         straight = first["right"] + second["left"]
         crossed = first["left"] + second["right"]
         margin = float(abs(straight - crossed))
