@@ -2,17 +2,19 @@
 
 from __future__ import annotations
 
+from contextlib import suppress
 from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 
 from core.batch.resolve import subject_markers
+from core.errors import HandMocapError
 from core.ik import IKResult
 from core.io import Take, looks_unlabelled
 from core.io.labelled_c3d import SubjectCalibration
 from core.model import HandModel, MarkerSet, best_layout_for, load_layout, load_template, marker_columns
-from core.session import Command, FrameSpan, OpenTake, ReviewTake, UndoStack
+from core.session import Command, CompoundCommand, DefineHand, FrameSpan, OpenTake, ReviewTake, SetSolve, UndoStack
 
 
 @dataclass(eq=False)
@@ -84,6 +86,33 @@ class TakeDocument:
     def redo(self) -> FrameSpan:
         return self.open_take.redo() if self.open_take is not None else self.stack.redo()
 
+    def has_labels(self) -> bool:
+        """Whether the review has labels (after auto-label, or a labelled take)."""
+        return self.review is not None and self.review.n_labels > 0
+
+    def has_solved_hands(self) -> bool:
+        """Whether a hand of the review is solved in some frame."""
+        return self.review is not None and any(np.isfinite(hand.joint_angles).any() for hand in self.review.hands)
+
+    def record_solve(self, result: IKResult) -> None:
+        """Keep an IK solve in the review as one undoable (and, in a session, journalled) step, defining the
+        hand from the layout's labels first when the review has none; nothing when the review has no labels
+        or they do not cover the layout (the solve then stays on :attr:`result` only)."""
+        review = self.ensure_review()
+        if not review.n_labels:
+            return
+        names = [name.lower() for name in result.marker_names]
+        number = next((index for index, hand in enumerate(review.hands)
+                       if hand.side == result.hand_side and len(hand.labels) == len(names)
+                       and [review.label_names[label].lower() for label in hand.labels] == names), None)
+        steps: list[Command] = []
+        if number is None:
+            steps.append(DefineHand(result.hand_side, result.hand_side, list(result.marker_names), self.layout_name))
+            number = len(review.hands)
+        steps.append(SetSolve(number, 0, result.joint_angles, result.residuals_mm))
+        with suppress(HandMocapError):
+            self.push(CompoundCommand(steps, f"{result.method} IK solve ({result.hand_side} hand)"))
+
     def model_for(self, side: str) -> HandModel:
         """The hand model of ``side``: the subject's (calibrated) model when known, else the template."""
         if side not in self.hand_models:
@@ -147,6 +176,14 @@ class TakeDocument:
         counts = observed.sum(axis=1)
         sums = np.where(observed, residuals, 0.0).sum(axis=1)
         return np.where(counts > 0, sums / np.maximum(counts, 1), np.nan)
+
+    def review_residual_per_frame(self) -> np.ndarray:
+        """Mean residual (mm) of the review's solved hands over the labelled samples of each frame ``(F,)``,
+        NaN where none."""
+        review = self.ensure_review()
+        residuals = np.where(review.assignment >= 0, review.residuals_mm, np.nan)
+        counts = np.isfinite(residuals).sum(axis=1)
+        return np.where(counts > 0, np.nansum(residuals, axis=1) / np.maximum(counts, 1), np.nan)
 
     def effector_targets(self, frame: int) -> tuple[np.ndarray, np.ndarray] | None:
         """Effector positions ``(K,3)`` and the measured positions of their markers ``(K,3)`` mm."""

@@ -1,4 +1,11 @@
-"""The main window: 3D viewport, timeline, marker table, take list; opening and IK solving on workers."""
+"""The main window: 3D viewport, timeline, marker table, take list; opening and IK solving on workers.
+
+The window holds the :class:`~app.application.Application` (the open takes, the shown one, the session,
+the selection, the running jobs) and places the views of its controllers (review, session). Views follow
+the application's events: the window sets up its own views for a shown take first, the controllers
+theirs next, then the window draws the frame, so that the review's drawing comes on top of the raw
+markers.
+"""
 
 from __future__ import annotations
 
@@ -7,7 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from PySide6.QtCore import Qt, QTimer
+from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QAction, QCloseEvent, QDragEnterEvent, QDropEvent, QImage, QKeySequence
 from PySide6.QtWidgets import (
     QComboBox,
@@ -23,7 +30,19 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from app.actions import make_action
+from app.application import (
+    Application,
+    CurrentDocumentChanged,
+    DocumentClosed,
+    DocumentClosing,
+    DocumentOpened,
+    Job,
+    JobsChanged,
+    SessionChanged,
+)
 from app.document import TakeDocument
+from app.load_queue import LoadQueue
 from app.review_controller import ReviewController
 from app.session_controller import SessionController
 from app.workers import TaskRunner, one_line
@@ -32,6 +51,7 @@ from core.errors import CancelledError, HandMocapError
 from core.ik import METHODS, IKResult
 from core.io import READ_SUFFIXES, TAKE_FILE_FILTER, Take, load_take
 from core.model import layout_names, load_layout, skin_vertices
+from core.session.events import ReviewChanged
 from widgets.marker_panel import MarkerPanel
 from widgets.timeline import TimelineWidget
 from widgets.viewport import HandViewport
@@ -44,6 +64,7 @@ OTHER_MARKER_COLOR = (0.62, 0.62, 0.66)    # arm, body and object markers
 FRAMING_RADIUS_MM = 90.0                   # half-size of the box the camera frames around the hand
 TAKE_SUFFIXES = READ_SUFFIXES
 TAKE_FILTER = TAKE_FILE_FILTER
+SOLVE_JOB = "solve"                        # the IK solver's worker in Application.jobs
 
 
 @dataclass
@@ -78,19 +99,15 @@ def _open_files_task(paths: list[Path], solve: bool) -> Callable:
 class MainWindow(QMainWindow):
     """Review takes: scrub the markers, solve IK on a worker, watch the hand follow the data."""
 
+    frame_drawn = Signal(int)   # a frame's raw markers were drawn: the review draws its part now
+
     def __init__(self, off_screen: bool | None = None) -> None:
         super().__init__()
         self.setWindowTitle(APP_NAME)
         self.resize(1500, 950)
         self.setAcceptDrops(True)
-        self.documents: list[TakeDocument] = []
-        self.document: TakeDocument | None = None
-        self._pending_opens: list[tuple[str, Callable, Callable[[object], None]]] = []
-        self._on_loaded: Callable[[object], None] = lambda _result: None
-        self._render_timer = QTimer(self)
-        self._render_timer.setSingleShot(True)
-        self._render_timer.setInterval(0)
-        self._render_timer.timeout.connect(self._render)
+        self.app = Application()
+        self.app.add_listener(self._set_up_views)        # before the controllers' listeners (module docstring)
 
         self.runner = TaskRunner(self)        # IK solves
         self.runner.progressed.connect(self._solve_progressed)
@@ -98,9 +115,8 @@ class MainWindow(QMainWindow):
         self.runner.failed.connect(self._solve_failed)
         self.runner.cancelled.connect(self._solve_cancelled)
         self.runner.busy_changed.connect(self._solver_busy_changed)
-        self.loader = TaskRunner(self)        # opening files and the demo session
-        self.loader.succeeded.connect(self._opened)
-        self.loader.failed.connect(self._open_failed)
+        self.loader = LoadQueue(self)         # opening files and session takes, the demo session
+        self.loader.failed.connect(lambda message: self.show_error("Cannot open", message))
         self.loader.busy_changed.connect(self._loader_busy_changed)
 
         self.viewport = HandViewport(self, off_screen=off_screen)
@@ -115,19 +131,21 @@ class MainWindow(QMainWindow):
         self._build_actions()
         self._build_toolbar()
         self._build_status_bar()
-        self.review = ReviewController(self)
-        self.sessions = SessionController(self)
-        first = self.file_menu.actions()[0]
-        for action in (self.sessions.new_action, self.sessions.open_action, self.sessions.add_action,
-                       self.sessions.close_action):
-            self.file_menu.insertAction(first, action)
-        self.file_menu.insertSeparator(first)
-        self.file_menu.insertAction(self.export_action, self.close_take_action)
-        self.file_menu.insertMenu(self.export_action, self.review.export_menu)
-        self.view_menu.addAction(self.sessions.dock.toggleViewAction())
-        self.resizeDocks([self.timeline_dock, self.review.tracks_dock], [140, 190], Qt.Orientation.Vertical)
-        self.resizeDocks([self.sessions.dock, self.markers_dock], [280, 640], Qt.Orientation.Horizontal)
+        self.loader.started.connect(self.opening_label.setText)
+        self.review = ReviewController(self.app, self, self.viewport, self.timeline)
+        self.sessions = SessionController(self.app, self, self.loader)
+        self._place_review()
+        self._place_sessions()
+        self._connect_controllers()
+        self.app.add_listener(self._draw_views)           # after the controllers' listeners
+        self.resizeDocks([self.timeline_dock, self.tracks_dock], [140, 190], Qt.Orientation.Vertical)
+        self.resizeDocks([self.session_dock, self.markers_dock], [280, 640], Qt.Orientation.Horizontal)
         self._update_enabled()
+
+    @property
+    def document(self) -> TakeDocument | None:
+        """The shown take."""
+        return self.app.document
 
     # ------------------------------------------------------------------------------------ building
     def _add_dock(self, title: str, widget: QWidget, area: Qt.DockWidgetArea) -> QDockWidget:
@@ -143,18 +161,7 @@ class MainWindow(QMainWindow):
     def _action(self, text: str, slot: Callable, shortcut: QKeySequence | str | None = None,
                 checkable: bool = False, checked: bool = False,
                 icon: QStyle.StandardPixmap | None = None) -> QAction:
-        action = QAction(text, self)
-        if icon is not None:
-            action.setIcon(self.style().standardIcon(icon))
-        if shortcut is not None:
-            action.setShortcut(QKeySequence(shortcut))
-        action.setCheckable(checkable)
-        if checkable:
-            action.setChecked(checked)
-            action.toggled.connect(slot)
-        else:
-            action.triggered.connect(slot)
-        return action
+        return make_action(self, text, slot, shortcut, checkable, checked, icon)
 
     def _build_actions(self) -> None:
         pixmap = QStyle.StandardPixmap
@@ -264,6 +271,51 @@ class MainWindow(QMainWindow):
         for widget in (self.opening_label, self.progress_bar, self.cancel_button):
             widget.hide()
 
+    def _place_review(self) -> None:
+        """The review's docks (Labels and Gaps beside Markers, Tracks under the timeline), menus, toolbar."""
+        review, area = self.review, Qt.DockWidgetArea
+        self.labels_dock = self._add_dock("Labels", review.table, area.RightDockWidgetArea)
+        self.tabifyDockWidget(self.markers_dock, self.labels_dock)
+        self.tracks_dock = self._add_dock("Tracks", review.lanes, area.BottomDockWidgetArea)
+        self.splitDockWidget(self.timeline_dock, self.tracks_dock, Qt.Orientation.Vertical)
+        self.gaps_dock = self._add_dock("Gaps", review.gaps_panel, area.RightDockWidgetArea)
+        self.tabifyDockWidget(self.labels_dock, self.gaps_dock)
+        self.labels_dock.raise_()
+        menus = self.menuBar()
+        menus.insertMenu(menus.actions()[1], review.edit_menu)       # after File
+        menus.insertMenu(menus.actions()[-1], review.review_menu)    # before Solve
+        for dock in (self.labels_dock, self.tracks_dock, self.gaps_dock):
+            self.view_menu.addAction(dock.toggleViewAction())
+        self.addToolBar(review.toolbar)
+        self.file_menu.insertAction(self.export_action, self.close_take_action)
+        self.file_menu.insertMenu(self.export_action, review.export_menu)
+
+    def _place_sessions(self) -> None:
+        """The session browser dock (shown while a session is open) and the session actions."""
+        sessions = self.sessions
+        self.session_dock = self._add_dock("Session", sessions.browser, Qt.DockWidgetArea.LeftDockWidgetArea)
+        self.session_dock.hide()
+        first = self.file_menu.actions()[0]
+        for action in (sessions.new_action, sessions.open_action, sessions.add_action, sessions.close_action):
+            self.file_menu.insertAction(first, action)
+        self.file_menu.insertSeparator(first)
+        self.view_menu.addAction(self.session_dock.toggleViewAction())
+
+    def _connect_controllers(self) -> None:
+        """Show what the controllers tell, and pass on what one asks of the other."""
+        review, sessions = self.review, self.sessions
+        for controller in (review, sessions):
+            controller.status_message.connect(self.statusBar().showMessage)
+            controller.error_raised.connect(self.show_error)
+        review.progress_started.connect(self.show_progress)
+        review.progressed.connect(self.set_progress)
+        review.progress_ended.connect(self.hide_progress)
+        review.auto_label_applied.connect(sessions.keep_labelling)
+        review.exported.connect(sessions.export_done)
+        sessions.layouts_changed.connect(self.refresh_layout_names)
+        sessions.auto_label_requested.connect(review.start_auto_label)
+        self.frame_drawn.connect(review.draw_frame)
+
     # ---------------------------------------------------------------------------------- documents
     def choose_files(self) -> None:
         """Ask for take files and open them."""
@@ -280,75 +332,98 @@ class MainWindow(QMainWindow):
         at once when ``solve``), each bad one a one-line message; what is open stays open."""
         files = [Path(path) for path in paths]
         title = files[0].name if len(files) == 1 else f"{len(files)} takes"
-        self._queue_open(f"Opening {title}…", _open_files_task(files, solve))
+        self.loader.queue(f"Opening {title}…", _open_files_task(files, solve), self._apply_opened)
 
     def open_demo(self) -> None:
         """Open the demo session (made on the loader thread the first time): the labelled takes are
         solved with IK and the raw take is auto-labelled, one after the other."""
         from app.demo import prepare_demo_session
 
-        self.queue_load("Preparing the demo session…", lambda progress, cancelled: prepare_demo_session(),
-                        self._demo_ready)
+        self.loader.queue("Preparing the demo session…", lambda progress, cancelled: prepare_demo_session(),
+                          self._demo_ready)
 
     def _demo_ready(self, folder: Path) -> None:
         if self.sessions.open_session(folder):
             for entry in self.sessions.session.takes:
                 self.sessions.open_take(entry.id, automatic=True)
 
-    def _queue_open(self, text: str, task: Callable) -> None:
-        self.queue_load(text, task, self._apply_opened)
-
-    def queue_load(self, text: str, task: Callable, on_success: Callable[[object], None]) -> None:
-        """Run ``task`` on the loader thread after those queued before it; ``on_success(result)`` on the
-        GUI thread when it succeeds (a failure is a one-line message)."""
-        self._pending_opens.append((text, task, on_success))
-        self._start_next_open()
-
-    def _start_next_open(self) -> None:
-        if self.loader.is_busy() or not self._pending_opens:
-            return
-        text, task, self._on_loaded = self._pending_opens.pop(0)
-        self.opening_label.setText(text)
-        self.loader.start(task)
-
-    def _opened(self, _request: int, result: object) -> None:
-        self._on_loaded(result)
-        QTimer.singleShot(0, self._start_next_open)
-
-    def _open_failed(self, _request: int, message: str) -> None:
-        self.show_error("Cannot open", message)
-        QTimer.singleShot(0, self._start_next_open)
-
     def _apply_opened(self, opened: OpenedTakes) -> None:
         if opened.documents:
-            first = len(self.documents)
+            first = len(self.app.documents)
             for document in opened.documents:
-                self.add_document(document, make_current=False)
-            self.take_box.setCurrentIndex(first)
+                self.app.open_document(document)
+            self.app.show(self.app.documents[first])
         self._solve_next_pending()
         if opened.errors:
             self.show_error("Cannot open", "\n".join(opened.errors))
 
-    def add_document(self, document: TakeDocument, make_current: bool = True) -> None:
-        """Add an open take to the take list (and show it)."""
-        self.documents.append(document)
-        self.take_box.addItem(document.title)
-        self.take_box.setItemData(self.take_box.count() - 1, str(document.take.source_path or document.title),
-                                  Qt.ItemDataRole.ToolTipRole)
-        if make_current:
-            self.take_box.setCurrentIndex(len(self.documents) - 1)
+    def add_document(self, document: TakeDocument) -> None:
+        """Add an open take to the take list and show it."""
+        self.app.open_document(document)
+        self.app.show(document)
 
     def _take_chosen(self, index: int) -> None:
-        if 0 <= index < len(self.documents):
-            self.set_document(self.documents[index])
+        if 0 <= index < len(self.app.documents) and self.app.documents[index] is not self.document:
+            self.app.show(self.app.documents[index])
 
-    def set_document(self, document: TakeDocument) -> None:
-        """Show ``document``: markers, table, timeline at the frame it was left at; the hand if solved.
-        A solve running for another take goes on."""
-        if self.document is not None:
-            self.document.current_frame = self.timeline.frame
-        self.document = document
+    # ----------------------------------------------------------------------------- following the app
+    def _set_up_views(self, event: object) -> None:
+        """The window's part before the controllers': the take list, a shown take's markers, table and
+        timeline, the solver stopping for a closing take, the session dock, the actions."""
+        if isinstance(event, DocumentOpened):
+            document = event.document
+            self.take_box.blockSignals(True)
+            self.take_box.addItem(document.title)
+            self.take_box.setItemData(self.take_box.count() - 1, str(document.take.source_path or document.title),
+                                      Qt.ItemDataRole.ToolTipRole)
+            self.take_box.blockSignals(False)
+        elif isinstance(event, DocumentClosing):
+            if event.document.solve_request:
+                self.runner.stop()
+        elif isinstance(event, DocumentClosed):
+            self.take_box.blockSignals(True)
+            self.take_box.removeItem(event.index)
+            self.take_box.blockSignals(False)
+            self._update_enabled()
+        elif isinstance(event, CurrentDocumentChanged):
+            if event.previous is not None:
+                event.previous.current_frame = self.timeline.frame
+            if event.document is None:
+                self._show_no_take()
+            else:
+                self._set_up_take(event.document)
+        elif isinstance(event, SessionChanged):
+            self.session_dock.setVisible(event.session is not None)
+            if event.session is not None:
+                self.session_dock.raise_()
+        elif isinstance(event, JobsChanged):
+            self._update_enabled()
+
+    def _draw_views(self, event: object) -> None:
+        """The window's part after the controllers': draw the frame of a newly shown take (and point the
+        camera at its hand), or the frame again after a change of its review."""
+        document = self.document
+        if document is None:
+            return
+        if isinstance(event, CurrentDocumentChanged):
+            self._show_review_residuals()
+            self._show_result_geometry()
+            self.show_frame(self.timeline.frame)
+            self.frame_hand()
+            self._update_enabled()
+            if document.auto_solve and document.result is None:
+                self._solve_next_pending()
+        elif isinstance(event, ReviewChanged) and event.operation != "clean":
+            self._show_review_residuals()
+            self.show_frame(self.timeline.frame)
+            self._update_enabled()
+
+    def _set_up_take(self, document: TakeDocument) -> None:
+        """Show ``document``'s markers, table and timeline at the frame it was left at, and its IK result."""
         take = document.take
+        self.take_box.blockSignals(True)
+        self.take_box.setCurrentIndex(self.app.documents.index(document))
+        self.take_box.blockSignals(False)
         if document.layout_name:
             self.layout_box.blockSignals(True)
             self.layout_box.setCurrentText(document.layout_name)
@@ -367,15 +442,21 @@ class MainWindow(QMainWindow):
         self.timeline.set_residuals(document.mean_residual_per_frame())
         self.info_label.setText(self._take_summary(take))
         self.setWindowTitle(f"{document.title} — {APP_NAME}")
-        self.review.attach(document)
-        if document.session_take_id:
-            self.sessions.browser.set_current(document.session_take_id)
-        self._show_result_geometry()
-        self.show_frame(self.timeline.frame)
-        self.frame_hand()
+
+    def _show_no_take(self) -> None:
+        self.viewport.set_markers([], np.zeros((0, 3)))
+        self.viewport.set_hand_mesh(None)
+        self.viewport.set_effectors(None)
+        self.marker_panel.set_markers([], np.zeros(0), np.zeros((0, 3)))
+        self.info_label.setText("No take open — File ▸ Open… or File ▸ Open demo session")
+        self.setWindowTitle(APP_NAME)
+        self.viewport.request_render()
         self._update_enabled()
-        if document.auto_solve and document.result is None:
-            self._solve_next_pending()
+
+    def _show_review_residuals(self) -> None:
+        """The timeline's residual curve from the review's solved hands, when it has some."""
+        if self.document.has_solved_hands():
+            self.timeline.set_residuals(self.document.review_residual_per_frame())
 
     def _marker_colors(self, document: TakeDocument) -> np.ndarray:
         colors = np.tile(OTHER_MARKER_COLOR, (document.take.n_markers, 1))
@@ -402,38 +483,31 @@ class MainWindow(QMainWindow):
             self.viewport.frame_bounds(current, min_radius=FRAMING_RADIUS_MM * 1.3)
         else:
             self.viewport.frame_bounds(everything)
-        self._schedule_render()
+        self.viewport.request_render()
 
     # --------------------------------------------------------------------------------------- frame
     def show_frame(self, frame: int) -> None:
-        """Show ``frame`` (0-based): markers, table values, and the solved hand when there is one. The
-        3D view redraws once the events waiting now are handled, so fast scrubbing skips frames."""
+        """Show ``frame`` (0-based): markers, table values, the review's drawing (:attr:`frame_drawn`), and
+        the IK result's hand when the review has no solved hand. The 3D view redraws once the events
+        waiting now are handled, so fast scrubbing skips frames."""
         document = self.document
         if document is None or not 0 <= frame < document.take.n_frames:
             return
         positions = document.take.marker_positions[frame]
         self.viewport.update_markers(positions)
         self.marker_panel.set_frame_values(positions, document.residuals_per_take_marker(frame))
-        if self.review.document is document and (self.review.has_labels() or document.is_raw):
-            self.review.show_frame(frame)
-        if document.result is not None and not self.review.has_solved_hands():
+        self.frame_drawn.emit(frame)
+        if document.result is not None and not document.has_solved_hands():
             theta = document.result.joint_angles[frame]
             if np.isfinite(theta).all():
                 self.viewport.update_hand_vertices(skin_vertices(document.model_for(document.result.hand_side), theta))
             self.viewport.set_effectors(*document.effector_targets(frame))
-        self._schedule_render()
-
-    def _schedule_render(self) -> None:
-        if not self._render_timer.isActive():
-            self._render_timer.start()
-
-    def _render(self) -> None:
-        self.viewport.render()
+        self.viewport.request_render()
 
     def _show_result_geometry(self) -> None:
+        """The IK result's hand surface, unless the review's solved hands are drawn (by the review)."""
         document = self.document
-        if self.review.document is document and self.review.has_solved_hands():
-            self.review._set_hand_meshes()
+        if document is not None and document.has_solved_hands():
             return
         if document is None or document.result is None:
             self.viewport.set_hand_mesh(None)
@@ -444,11 +518,10 @@ class MainWindow(QMainWindow):
 
     def _marker_selected(self, row: int) -> None:
         self.viewport.set_selected_marker(None if row < 0 else row)
-        self._schedule_render()
+        self.viewport.request_render()
 
     def _marker_clicked(self, index: int) -> None:
         self.marker_panel.select_marker(index)
-        self.review.point_clicked(index)
 
     def _side_chosen(self, side: str) -> None:
         if self.document is not None and side:
@@ -494,15 +567,15 @@ class MainWindow(QMainWindow):
             return result
 
         document.solve_request = self.runner.start(task)
+        self.app.job_started(SOLVE_JOB, Job("solve", document, self.cancel_solve))
         self.statusBar().showMessage(f"Solving {document.title} with {method} IK ({layout.name})…")
         self._update_enabled()
 
     def cancel_work(self) -> None:
         """Stop what the progress bar shows: the IK solve, or the review job (auto-label, fill, re-solve)."""
-        if self.runner.is_busy():
-            self.cancel_solve()
-        else:
-            self.review.jobs.cancel()
+        job = self.app.jobs.get(SOLVE_JOB) or next(iter(self.app.jobs.values()), None)
+        if job is not None:
+            job.cancel()
 
     def cancel_solve(self) -> None:
         """Stop the running solve; its take stays as it was and is not solved automatically again."""
@@ -514,7 +587,7 @@ class MainWindow(QMainWindow):
     def _owner(self, request_id: int) -> TakeDocument | None:
         if request_id == 0:
             return None
-        return next((d for d in self.documents if d.solve_request == request_id), None)
+        return next((d for d in self.app.documents if d.solve_request == request_id), None)
 
     def _solve_progressed(self, request_id: int, fraction: float) -> None:
         owner = self._owner(request_id)
@@ -529,7 +602,7 @@ class MainWindow(QMainWindow):
             return
         document.solve_request = 0
         document.set_result(result)
-        self.review.record_solve(document, result)
+        document.record_solve(result)
         self.statusBar().showMessage(f"{document.title}: {result.method} IK done, mean residual "
                                      f"{result.mean_residual_mm:.2f} mm", 15000)
         if document is self.document:
@@ -559,13 +632,15 @@ class MainWindow(QMainWindow):
         """Start the next automatic solve (the current take first), one at a time."""
         if self.runner.is_busy():
             return
-        waiting = [d for d in self.documents if d.auto_solve and d.result is None and d.solve_request == 0]
+        waiting = [d for d in self.app.documents if d.auto_solve and d.result is None and d.solve_request == 0]
         if self.document in waiting:
             self.solve(self.document)
         elif waiting:
             self.solve(waiting[0])
 
     def _solver_busy_changed(self, busy: bool) -> None:
+        if not busy:
+            self.app.job_ended(SOLVE_JOB)
         self.progress_bar.setValue(0)
         self.progress_bar.setVisible(busy)
         self.cancel_button.setVisible(busy)
@@ -578,18 +653,17 @@ class MainWindow(QMainWindow):
     def _update_enabled(self) -> None:
         document = self.document
         self.solve_action.setEnabled(document is not None and document.solve_request == 0)
-        self.cancel_action.setEnabled(self.runner.is_busy() or self.review.jobs.is_busy())
+        self.cancel_action.setEnabled(self.app.is_busy())
         self.export_action.setEnabled(document is not None and document.result is not None)
         self.frame_action.setEnabled(document is not None)
         self.close_take_action.setEnabled(document is not None)
 
     def is_busy(self) -> bool:
         """Whether takes are being opened or solved."""
-        return (self.loader.is_busy() or bool(self._pending_opens) or self.runner.is_busy()
-                or self.review.jobs.is_busy())
+        return self.loader.is_busy() or self.app.is_busy()
 
-    # ------------------------------------------------------------------------------ review hooks
-    def show_progress(self, text: str, cancel: Callable[[], None]) -> None:
+    # ------------------------------------------------------------------------------ review jobs
+    def show_progress(self, text: str) -> None:
         """Show the status-bar progress bar for a review job (its Cancel stops it)."""
         self.progress_bar.setFormat(text)
         self.progress_bar.setValue(0)
@@ -606,15 +680,6 @@ class MainWindow(QMainWindow):
             self.cancel_button.hide()
             self.progress_bar.setFormat("Solving… %p %")
         self._update_enabled()
-
-    def auto_label_finished(self, document: TakeDocument) -> None:
-        """An auto-label was applied to ``document``: a session take is saved (it is now labelled)."""
-        self.sessions.save_document(document)
-        self._update_enabled()
-
-    def export_done(self, document: TakeDocument, kind: str, path: str) -> None:
-        """``document`` was exported (``kind`` c3d, csv or bvh) to ``path``: the session records it."""
-        self.sessions.export_done(document, kind, path)
 
     def refresh_layout_names(self) -> None:
         """List the shipped layouts and those of the open session in the layout choice."""
@@ -645,35 +710,9 @@ class MainWindow(QMainWindow):
 
     def close_document(self, document: TakeDocument) -> None:
         """Close an open take (a session take is saved first); another open take is shown."""
-        if document.solve_request:
-            self.runner.stop()
-        if self.review.document is document:
-            self.review.stop()
-        if document.open_take is not None and not document.open_take.closed:
-            try:
-                document.open_take.close(save=True)
-            except HandMocapError as error:
-                self.show_error("Cannot save", f"{document.title}: {error}; the edits stay in its journal")
-        index = self.documents.index(document)
-        self.documents.pop(index)
-        if self.document is document:
-            self.document = None
-        self.take_box.blockSignals(True)
-        self.take_box.removeItem(index)
-        self.take_box.blockSignals(False)
-        if self.documents:
-            self.take_box.setCurrentIndex(min(index, len(self.documents) - 1))
-            self._take_chosen(self.take_box.currentIndex())
-        else:
-            self.review.detach()
-            self.viewport.set_markers([], np.zeros((0, 3)))
-            self.viewport.set_hand_mesh(None)
-            self.viewport.set_effectors(None)
-            self.marker_panel.set_markers([], np.zeros(0), np.zeros((0, 3)))
-            self.info_label.setText("No take open — File ▸ Open… or File ▸ Open demo session")
-            self.setWindowTitle(APP_NAME)
-            self._schedule_render()
-        self._update_enabled()
+        problem = self.app.close_document(document)
+        if problem:
+            self.show_error("Cannot save", problem)
 
     # -------------------------------------------------------------------------------------- output
     def choose_screenshot(self) -> None:
@@ -727,11 +766,9 @@ class MainWindow(QMainWindow):
     def closeEvent(self, event: QCloseEvent) -> None:
         """Cancel and wait for the workers, release the render window."""
         self.timeline.pause()
-        self._pending_opens.clear()
         self.sessions.close()
         self.runner.stop()
         self.loader.stop()
         self.review.stop()
-        self._render_timer.stop()
         self.viewport.close_viewport()
         super().closeEvent(event)

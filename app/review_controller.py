@@ -1,10 +1,13 @@
-"""Take review in the main window: auto-label, the Labels/Tracks/Gaps docks, undoable label edits with a
-re-solve of the touched frames, gap fills, "next problem", and the exports of a review.
+"""Take review: auto-label, the review views (label table, marker lanes, gap list and fill preview, the
+review's drawing in the 3D view), undoable label edits with a re-solve of the touched frames, gap fills,
+"next problem", and the exports of a review.
 
 Every change of a review goes through a command on the document's undo stack (journalled when the take
-belongs to a session). Long work runs on workers: ``jobs`` (auto-label, re-solves, fill all) and
-``checks`` (fill checks and previews of the selected gap), so checking a gap never cancels a re-solve.
-Workers only read copies; results are applied on the GUI thread if the review has not changed since.
+belongs to a session); the views follow the stack's change events (passed on by the
+:class:`~app.application.Application`), whoever made the change. Long work runs on workers: ``jobs``
+(auto-label, re-solves, fill all) and ``checks`` (fill checks and previews of the selected gap), so
+checking a gap never cancels a re-solve. Workers only read copies; results are applied on the GUI
+thread if the review has not changed since.
 """
 
 from __future__ import annotations
@@ -12,10 +15,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
-from PySide6.QtCore import QObject, Qt
+from PySide6.QtCore import QObject, Qt, Signal
 from PySide6.QtGui import QCursor, QKeySequence
 from PySide6.QtWidgets import (
     QApplication,
@@ -37,6 +39,15 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from app.actions import make_action
+from app.application import (
+    Application,
+    CurrentDocumentChanged,
+    DocumentClosing,
+    Job,
+    Selection,
+    SelectionChanged,
+)
 from app.document import TakeDocument
 from app.workers import TaskRunner
 from core.batch import (
@@ -54,7 +65,6 @@ from core.batch import (
 )
 from core.errors import HandMocapError
 from core.gaps import FILL_METHODS, FillCheck
-from core.ik import IKResult
 from core.labeling.objects import load_scene_spec, rigid_body_from_points, save_scene_spec
 from core.model import layout_names, marker_positions, skin_vertices
 from core.session import (
@@ -62,31 +72,29 @@ from core.session import (
     AcceptFills,
     AssignLabel,
     Command,
-    CompoundCommand,
-    DefineHand,
     FrameSpan,
     GapFill,
     MarkGhost,
     RejectFills,
-    SetSolve,
     SwapLabels,
     Unlabel,
     export_bvh,
     export_joint_angles_csv,
     export_labelled_c3d,
 )
+from core.session.events import ReviewChanged
 from widgets.fill_preview import FillPreview
 from widgets.gap_list import GapList, GapRow
 from widgets.marker_lanes import MarkerLanes, lanes_from_review
 from widgets.review_table import ReviewTable
-
-if TYPE_CHECKING:
-    from app.main_window import MainWindow
+from widgets.timeline import TimelineWidget
+from widgets.viewport import HandViewport
 
 UNLABELLED_COLOR = (0.62, 0.62, 0.64)
 GHOST_COLOR = (0.55, 0.22, 0.22)
 FILL_COLOR = (0.45, 0.95, 0.55)
 RIGID_SELECTION_COLOR = (1.0, 1.0, 1.0)
+JOB_NAME = "review"                # the worker of auto-label, re-solves and fills in Application.jobs
 TRAIL_FRAMES = 60                  # frames of trail on each side of the current frame
 SCOPE_TITLES = {"fragment": "to end of fragment", "range": "in the marked range", "take": "whole take"}
 PALETTE = np.array([                # Tableau-like qualitative colours, distinct on a dark background
@@ -164,17 +172,21 @@ class AutoLabelDialog(QDialog):
 
 
 class ReviewController(QObject):
-    """The review side of :class:`~app.main_window.MainWindow` (see the module docstring)."""
+    """The review of the shown take (see the module docstring). It builds its views and actions; the
+    window places them (:attr:`table`, :attr:`lanes`, :attr:`gaps_panel`, the menus and :attr:`toolbar`)
+    and shows what the signals below tell."""
 
-    def __init__(self, window: MainWindow) -> None:
-        super().__init__(window)
-        self.window = window
-        self.document: TakeDocument | None = None
-        self.selected_label = -1
-        self.selected_column = -1
-        self.rigid_points: list[int] = []
-        self.range_in: int | None = None
-        self.range_out: int | None = None
+    status_message = Signal(str, int)             # text, milliseconds to show it (0: until replaced)
+    error_raised = Signal(str, str)               # title, message
+    progress_started = Signal(str)                # progress bar format of a review job
+    progressed = Signal(float)                    # its fraction 0..1
+    progress_ended = Signal()
+    auto_label_applied = Signal(object, object, object)  # document, hand models and marker sets it calibrated
+    exported = Signal(object, str, str)           # document, kind ("c3d", "csv" or "bvh"), path
+
+    def __init__(self, app: Application, host: QWidget, viewport: HandViewport, timeline: TimelineWidget) -> None:
+        super().__init__(host)
+        self.app, self.host, self.viewport, self.timeline = app, host, viewport, timeline
         self.auto_settings = AutoLabelSettings()
         self._groups: list[GapGroup] = []
         self._gaps: list[ReviewGap] = []
@@ -188,36 +200,33 @@ class ReviewController(QObject):
         self._check_key: tuple | None = None
 
         self.jobs = TaskRunner(self)
-        self.jobs.progressed.connect(self._job_progressed)
+        self.jobs.progressed.connect(lambda _request, fraction: self.progressed.emit(fraction))
         self.jobs.succeeded.connect(self._job_succeeded)
         self.jobs.failed.connect(self._job_failed)
         self.jobs.cancelled.connect(self._job_cancelled)
-        self.jobs.busy_changed.connect(lambda _busy: self.update_enabled())
+        self.jobs.busy_changed.connect(self._jobs_busy_changed)
         self.checks = TaskRunner(self)
         self.checks.succeeded.connect(self._check_done)
         self.checks.failed.connect(self._check_failed)
 
-        self._build_docks()
+        self._build_views()
         self._build_actions()
+        viewport.marker_clicked.connect(self.point_clicked)
+        app.add_listener(self._app_changed)
 
     # ---------------------------------------------------------------------------------- building
-    def _build_docks(self) -> None:
-        window = self.window
-        area = Qt.DockWidgetArea
-        self.table = ReviewTable(window)
+    def _build_views(self) -> None:
+        host = self.host
+        self.table = ReviewTable(host)
         self.table.marker_selected.connect(self.select_label)
-        self.labels_dock = window._add_dock("Labels", self.table, area.RightDockWidgetArea)
-        window.tabifyDockWidget(window.markers_dock, self.labels_dock)
-        self.lanes = MarkerLanes(window)
-        self.lanes.frame_clicked.connect(window.timeline.set_frame)
+        self.lanes = MarkerLanes(host)
+        self.lanes.frame_clicked.connect(self.timeline.set_frame)
         self.lanes.marker_clicked.connect(self.select_label)
         self.lanes.stretch_clicked.connect(self._stretch_clicked)
-        self.tracks_dock = window._add_dock("Tracks", self.lanes, area.BottomDockWidgetArea)
-        window.splitDockWidget(window.timeline_dock, self.tracks_dock, Qt.Orientation.Vertical)
-        self.lanes.link_x(window.timeline.plot.getPlotItem().vb)
-        self.gap_list = GapList(window)
-        self.preview = FillPreview(window)
-        splitter = QSplitter(Qt.Orientation.Vertical, window)
+        self.lanes.link_x(self.timeline.plot.getPlotItem().vb)
+        self.gap_list = GapList(host)
+        self.preview = FillPreview(host)
+        splitter = QSplitter(Qt.Orientation.Vertical, host)
         splitter.addWidget(self.gap_list)
         splitter.addWidget(self.preview)
         splitter.setSizes([560, 200])
@@ -227,17 +236,17 @@ class ReviewController(QObject):
         self.gap_list.accept_requested.connect(self.accept_fill)
         self.gap_list.reject_requested.connect(self.reject_gap)
         self.gap_list.fill_all_requested.connect(self.fill_all)
-        scroller = QScrollArea(window)           # the gap table, check and preview need more height than
-        scroller.setWidgetResizable(True)        # a small screen has: scroll rather than grow the window
-        scroller.setFrameShape(QScrollArea.Shape.NoFrame)
-        scroller.setWidget(splitter)
-        self.gaps_dock = window._add_dock("Gaps", scroller, area.RightDockWidgetArea)
-        window.tabifyDockWidget(self.labels_dock, self.gaps_dock)
-        self.labels_dock.raise_()
+        self.gaps_panel = QScrollArea(host)           # the gap table, check and preview need more height than
+        self.gaps_panel.setWidgetResizable(True)      # a small screen has: scroll rather than grow the window
+        self.gaps_panel.setFrameShape(QScrollArea.Shape.NoFrame)
+        self.gaps_panel.setWidget(splitter)
 
     def _build_actions(self) -> None:
-        window = self.window
-        action = window._action
+        host = self.host
+
+        def action(text: str, slot: Callable, shortcut: QKeySequence | str | None = None):
+            return make_action(host, text, slot, shortcut)
+
         self.auto_label_action = action("&Auto-label…", self.choose_auto_label, "Ctrl+L")
         self.auto_label_action.setToolTip("Label the take's raw points automatically (Ctrl+L)")
         self.undo_action = action("&Undo", self.undo, QKeySequence.StandardKey.Undo)
@@ -262,30 +271,23 @@ class ReviewController(QObject):
         self.export_csv_action = action("Joint angles (CS&V)…", self.choose_export_csv)
         self.export_bvh_action = action("Joint angles (&BVH)…", self.choose_export_bvh)
 
-        menus = window.menuBar()
-        edit_menu = QMenu("&Edit", window)
-        menus.insertMenu(menus.actions()[1], edit_menu)
+        self.edit_menu = QMenu("&Edit", host)
         for item in (self.undo_action, self.redo_action, None, self.assign_action, self.swap_action,
                      self.unlabel_action, self.ghost_action, None, self.range_in_action, self.range_out_action,
                      self.clear_range_action):
-            edit_menu.addSeparator() if item is None else edit_menu.addAction(item)
-        review_menu = QMenu("&Review", window)
-        menus.insertMenu(menus.actions()[-1], review_menu)
+            self.edit_menu.addSeparator() if item is None else self.edit_menu.addAction(item)
+        self.review_menu = QMenu("&Review", host)
         for item in (self.auto_label_action, self.cancel_job_action, self.rigid_body_action, None,
                      self.next_problem_action,
                      self.previous_problem_action, None, self.fill_all_action):
-            review_menu.addSeparator() if item is None else review_menu.addAction(item)
-        self.export_menu = QMenu("E&xport", window)
+            self.review_menu.addSeparator() if item is None else self.review_menu.addAction(item)
+        self.export_menu = QMenu("E&xport", host)
         for item in (self.export_c3d_action, self.export_csv_action, self.export_bvh_action):
             self.export_menu.addAction(item)
-        window.view_menu.addAction(self.labels_dock.toggleViewAction())
-        window.view_menu.addAction(self.tracks_dock.toggleViewAction())
-        window.view_menu.addAction(self.gaps_dock.toggleViewAction())
 
-        toolbar = QToolBar("Review", window)
+        toolbar = self.toolbar = QToolBar("Review", host)
         toolbar.setObjectName("review-toolbar")
         toolbar.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextOnly)
-        window.addToolBar(toolbar)
         toolbar.addAction(self.auto_label_action)
         toolbar.addSeparator()
         toolbar.addAction(self.undo_action)
@@ -296,54 +298,69 @@ class ReviewController(QObject):
         toolbar.addAction(self.unlabel_action)
         toolbar.addAction(self.ghost_action)
         toolbar.addWidget(QLabel(" Scope "))
-        self.scope_box = QComboBox(window)
+        self.scope_box = QComboBox(host)
         for scope, title in SCOPE_TITLES.items():
             self.scope_box.addItem(title, scope)
         self.scope_box.setToolTip("Which frames an edit changes: from the current frame to the end of the "
                                   "point's fragment, the range marked with I and O, or the whole take")
         toolbar.addWidget(self.scope_box)
-        self.range_label = QLabel("", window)
+        self.range_label = QLabel("", host)
         toolbar.addWidget(self.range_label)
         toolbar.addSeparator()
         toolbar.addAction(self.previous_problem_action)
         toolbar.addAction(self.next_problem_action)
-        self.problem_label = QLabel("", window)
+        self.problem_label = QLabel("", host)
         toolbar.addWidget(self.problem_label)
 
     # ------------------------------------------------------------------------------- documents
     @property
+    def document(self) -> TakeDocument | None:
+        """The shown take."""
+        return self.app.document
+
+    @property
     def review(self):
         return None if self.document is None else self.document.review
 
-    def attach(self, document: TakeDocument) -> None:
-        """Show the review of ``document`` (creating an empty one for a new take)."""
-        self.document = document
-        document.ensure_review()
-        self.selected_label = -1
-        self.selected_column = -1
-        self.rigid_points = []
-        self.range_in = self.range_out = None
+    @property
+    def selection(self) -> Selection:
+        return self.app.selection
+
+    def _app_changed(self, event: object) -> None:
+        """Follow the application: another take shown, a take closing, a change of the shown take's review,
+        another selection."""
+        if isinstance(event, CurrentDocumentChanged):
+            self._show_document(event.document)
+        elif isinstance(event, DocumentClosing) and event.document is self.document:
+            self.stop()
+        elif isinstance(event, ReviewChanged) and event.operation != "clean":
+            if event.operation != "attach":       # a re-solve attached to an edit leaves the gaps as they are
+                self._previews = {}
+            self._refresh(structure=event.structure)
+        elif isinstance(event, SelectionChanged):
+            self._show_selection()
+
+    def _show_document(self, document: TakeDocument | None) -> None:
+        """Show the review of ``document`` (None: no take is shown any more, the views are cleared)."""
         self._rejected = set()
         self._previews = {}
         self._pending_span = FrameSpan(0, 0)
-        self.refresh(structure=True)
-        if document.review.health:
-            self.window.statusBar().showMessage(document.review.health_summary())
-
-    def detach(self) -> None:
-        """No take is shown any more: clear the review views."""
+        if document is not None:
+            self._refresh(structure=True)
+            if document.review.health:
+                self.status_message.emit(document.review.health_summary(), 0)
+            return
         self.stop()
-        self.document = None
         self.lanes.set_lanes([], np.zeros((0, 0), dtype=np.int8))
         self.gap_list.set_gaps([], [], 1)
         self.preview.clear()
-        self.window.viewport.set_trails([])
-        self.window.viewport.set_loose_points(None)
-        self.window.viewport.set_rigid_bodies(None)
+        self.viewport.set_trails([])
+        self.viewport.set_loose_points(None)
+        self.viewport.set_rigid_bodies(None)
         self.update_enabled()
 
-    def refresh(self, structure: bool = False) -> None:
-        """Redraw the review views after a change; ``structure``: labels or hands may have changed."""
+    def _refresh(self, structure: bool = False) -> None:
+        """Redraw the review views; ``structure``: labels or hands may have changed."""
         review = self.review
         if review is None:
             return
@@ -360,21 +377,12 @@ class ReviewController(QObject):
             self.lanes.set_states(states)
             self.lanes.set_x_range(*x_range)
             self.table.update_stats(stats)
-        self.lanes.set_frame(self.window.timeline.frame)
-        if self.selected_label >= 0:
-            self.lanes.set_selected_marker(self.selected_label)
+        self.lanes.set_frame(self.timeline.frame)
+        if self.selection.label >= 0:
+            self.lanes.set_selected_marker(self.selection.label)
         self._refresh_gaps()
         self._refresh_problem_count()
-        if self.has_solved_hands():
-            self.window.timeline.set_residuals(self._mean_residual_per_frame())
         self.update_enabled()
-        self.window.show_frame(self.window.timeline.frame)
-
-    def _mean_residual_per_frame(self) -> np.ndarray:
-        """Mean residual (mm) over the labelled samples of each frame ``(F,)``, NaN where none."""
-        residuals = np.where(self.review.assignment >= 0, self.review.residuals_mm, np.nan)
-        counts = np.isfinite(residuals).sum(axis=1)
-        return np.where(counts > 0, np.nansum(residuals, axis=1) / np.maximum(counts, 1), np.nan)
 
     def _set_hand_meshes(self) -> None:
         document = self.document
@@ -383,47 +391,44 @@ class ReviewController(QObject):
             model = document.model_for(hand.side)
             meshes.append((model.vertices, model.faces))
         if meshes:
-            self.window.viewport.set_hand_meshes(meshes)
-
-    def has_solved_hands(self) -> bool:
-        review = self.review
-        return review is not None and any(np.isfinite(hand.joint_angles).any() for hand in review.hands)
-
-    def has_labels(self) -> bool:
-        return self.review is not None and self.review.n_labels > 0
+            self.viewport.set_hand_meshes(meshes)
 
     def update_enabled(self) -> None:
-        review, busy = self.review, self.jobs.is_busy()
-        stack = None if self.document is None else self.document.stack
+        document, review, busy = self.document, self.review, self.jobs.is_busy()
+        stack = None if document is None else document.stack
+        selection = self.selection
         self.auto_label_action.setEnabled(review is not None and not busy)
-        self.rigid_body_action.setEnabled(review is not None and len(self.rigid_points) >= 3)
+        self.rigid_body_action.setEnabled(review is not None and len(selection.rigid_points) >= 3)
         self.cancel_job_action.setEnabled(busy)
         self.undo_action.setEnabled(stack is not None and stack.can_undo() and not busy)
         self.redo_action.setEnabled(stack is not None and stack.can_redo() and not busy)
         self.undo_action.setText(f"&Undo {stack.undo_text()}" if stack is not None and stack.can_undo() else "&Undo")
         self.redo_action.setText(f"&Redo {stack.redo_text()}" if stack is not None and stack.can_redo() else "&Redo")
-        editable = self.has_labels() and not (busy and self._job_kind == "auto-label")
+        editable = (document is not None and document.has_labels()
+                    and not (busy and self._job_kind == "auto-label"))
         for action in (self.assign_action, self.swap_action, self.ghost_action, self.unlabel_action,
                        self.next_problem_action, self.previous_problem_action, self.fill_all_action,
                        self.export_c3d_action):
             action.setEnabled(editable)
         for action in (self.export_csv_action, self.export_bvh_action):
-            action.setEnabled(self.has_solved_hands())
+            action.setEnabled(document is not None and document.has_solved_hands())
         text = ""
-        if self.range_in is not None or self.range_out is not None:
+        if selection.range_in is not None or selection.range_out is not None:
             first = review.take.first_frame if review is not None else 0
-            start = "…" if self.range_in is None else str(self.range_in + first)
-            stop = "…" if self.range_out is None else str(self.range_out + first)
+            start = "…" if selection.range_in is None else str(selection.range_in + first)
+            stop = "…" if selection.range_out is None else str(selection.range_out + first)
             text = f" range {start}–{stop} "
         self.range_label.setText(text)
 
     # ---------------------------------------------------------------------------------- frames
-    def show_frame(self, frame: int) -> None:
-        """Draw ``frame`` of the review: every raw point coloured by the label it holds (grey when
-        unlabelled, dark red for ghosts), accepted fills as green dots, the solved hands with their
-        effectors and residual lines, and the trail of the selected label."""
+    def draw_frame(self, frame: int) -> None:
+        """Draw ``frame`` of the review when the take has labels or is raw: every raw point coloured by the
+        label it holds (grey when unlabelled, dark red for ghosts), accepted fills as green dots, the solved
+        hands with their effectors and residual lines, and the trail of the selected label."""
         document, review = self.document, self.review
-        viewport = self.window.viewport
+        if document is None or not (document.has_labels() or document.is_raw):
+            return
+        viewport = self.viewport
         labels = review.assignment[frame]
         point_label = np.full(review.n_points, -1, dtype=np.int64)
         taken = labels >= 0
@@ -432,7 +437,7 @@ class ReviewController(QObject):
         colors[review.ghost[frame]] = GHOST_COLOR
         palette = label_colors(review.n_labels)
         colors[point_label >= 0] = palette[point_label[point_label >= 0]]
-        colors[self.rigid_points] = RIGID_SELECTION_COLOR
+        colors[self.selection.rigid_points] = RIGID_SELECTION_COLOR
         names = [review.label_names[label] if label >= 0 else f"*{column}"
                  for column, label in enumerate(point_label)]
         viewport.set_marker_names(names)
@@ -461,85 +466,79 @@ class ReviewController(QObject):
         self.lanes.set_frame(frame)
 
     def _draw_trail(self, frame: int) -> None:
-        review = self.review
-        if self.selected_label < 0 or self.selected_label >= review.n_labels:
-            self.window.viewport.set_trails([])
+        review, label = self.review, self.selection.label
+        if label < 0 or label >= review.n_labels:
+            self.viewport.set_trails([])
             return
         first, last = max(0, frame - TRAIL_FRAMES), min(review.n_frames, frame + TRAIL_FRAMES + 1)
-        trail = review.labelled_positions()[first:last, self.selected_label]
-        self.window.viewport.set_trails([trail], label_colors(review.n_labels)[[self.selected_label]])
+        trail = review.labelled_positions()[first:last, label]
+        self.viewport.set_trails([trail], label_colors(review.n_labels)[[label]])
 
     # ------------------------------------------------------------------------------- selection
+    def _show_selection(self) -> None:
+        """Show the selection everywhere: table row, lane, the selected point, its trail, the points picked
+        for a rigid body, the marked range."""
+        if self.review is None:
+            return
+        label, column = self.selection.label, self.selection.column
+        self.table.select_marker(label)
+        self.lanes.set_selected_marker(label)
+        self.viewport.set_selected_marker(column if column >= 0 else None)
+        self.update_enabled()
+        self.draw_frame(self.timeline.frame)
+        self.viewport.request_render()
+
     def select_label(self, label: int) -> None:
-        """Select ``label`` everywhere: table row, lane, the point holding it now, its trail."""
+        """Select ``label`` and the point holding it now."""
         review = self.review
         if review is None:
             return
-        self.selected_label = label if 0 <= label < review.n_labels else -1
-        frame = self.window.timeline.frame
-        self.selected_column = int(review.assignment[frame, label]) if self.selected_label >= 0 else -1
-        self.table.select_marker(self.selected_label)
-        self.lanes.set_selected_marker(self.selected_label)
-        self.window.viewport.set_selected_marker(self.selected_column if self.selected_column >= 0 else None)
-        self._draw_trail(frame)
-        self.window._schedule_render()
+        label = label if 0 <= label < review.n_labels else -1
+        self.app.select(label, int(review.assignment[self.timeline.frame, label]) if label >= 0 else -1)
 
     def point_clicked(self, column: int) -> None:
-        """The operator clicked raw point ``column`` in the 3D view (-1: empty space)."""
+        """The operator clicked raw point ``column`` in the 3D view (-1: empty space); with Ctrl, the point
+        is picked for a rigid body."""
         review = self.review
         if review is None:
             return
-        frame = self.window.timeline.frame
         if QApplication.keyboardModifiers() & Qt.KeyboardModifier.ControlModifier and column >= 0:
             self.toggle_rigid_point(column)
             return
-        self.selected_column = column
-        label = review.label_of_point(frame, column) if column >= 0 else -1
-        self.selected_label = label
-        self.table.select_marker(label)
-        self.lanes.set_selected_marker(label)
-        self.window.viewport.set_selected_marker(column if column >= 0 else None)
-        self._draw_trail(frame)
-        self.window._schedule_render()
+        self.app.select(review.label_of_point(self.timeline.frame, column) if column >= 0 else -1, column)
 
     def toggle_rigid_point(self, column: int) -> None:
         """Add raw point ``column`` to the points of a new rigid body (or take it out again)."""
-        if column in self.rigid_points:
-            self.rigid_points.remove(column)
-        else:
-            self.rigid_points.append(column)
-        self.update_enabled()
-        self.window.statusBar().showMessage(f"{len(self.rigid_points)} points selected for a rigid body "
-                                            "(Review ▸ Define rigid body…)", 5000)
-        self.window.show_frame(self.window.timeline.frame)
+        self.app.toggle_rigid_point(column)
+        self.status_message.emit(f"{len(self.selection.rigid_points)} points selected for a rigid body "
+                                 "(Review ▸ Define rigid body…)", 5000)
 
     def choose_rigid_body_name(self) -> None:
-        name, accepted = QInputDialog.getText(self.window, "Rigid body", "Name of the object:", text="object")
+        name, accepted = QInputDialog.getText(self.host, "Rigid body", "Name of the object:", text="object")
         if accepted and name.strip():
             self.define_rigid_body(name.strip())
 
     def define_rigid_body(self, name: str) -> Path | None:
         """Make a rigid body named ``name`` from the selected points in the current frame and add it to the
         scene spec auto-label uses (in the session folder, or next to the take file). Returns the spec."""
-        review = self.review
-        frame = self.window.timeline.frame
+        review, points = self.review, self.selection.rigid_points
+        frame = self.timeline.frame
         try:
-            if len(self.rigid_points) < 3:
+            if len(points) < 3:
                 raise HandMocapError("Ctrl+click at least 3 points of the object in the 3D view first")
-            markers = [f"{name}{number + 1}" for number in range(len(self.rigid_points))]
-            spec = rigid_body_from_points(name, markers, review.take.marker_positions[frame, self.rigid_points])
+            markers = [f"{name}{number + 1}" for number in range(len(points))]
+            spec = rigid_body_from_points(name, markers, review.take.marker_positions[frame, points])
             path = Path(self.auto_settings.objects) if self.auto_settings.objects else self._default_spec_path()
             objects = [item for item in (load_scene_spec(path) if path.exists() else []) if item.name != name]
             path.parent.mkdir(parents=True, exist_ok=True)
             save_scene_spec([*objects, spec], path)
         except (HandMocapError, OSError) as error:
-            self.window.show_error("Cannot define the rigid body", str(error))
+            self.error_raised.emit("Cannot define the rigid body", str(error))
             return None
         self.auto_settings.objects = str(path)
-        self.rigid_points = []
-        self.window.statusBar().showMessage(f"Rigid body '{name}' ({len(markers)} markers) added to the scene "
-                                            f"{path.name}; the next auto-label tracks it", 8000)
-        self.window.show_frame(frame)
+        self.app.clear_rigid_points()
+        self.status_message.emit(f"Rigid body '{name}' ({len(markers)} markers) added to the scene "
+                                 f"{path.name}; the next auto-label tracks it", 8000)
         return path
 
     def _default_spec_path(self) -> Path:
@@ -550,34 +549,32 @@ class ReviewController(QObject):
         folder = Path(source).parent if source else Path.home() / ".cache" / "handmocap"
         return folder / f"{Path(document.title).stem}_objects.json"
 
-    def _stretch_clicked(self, marker: int, first: int, _last: int) -> None:
+    def _stretch_clicked(self, marker: int, first: int, last: int) -> None:
         self.select_label(marker)
-        frame = self.window.timeline.frame
-        if not first <= frame <= _last:
-            self.window.timeline.set_frame(first)
+        if not first <= self.timeline.frame <= last:
+            self.timeline.set_frame(first)
 
     # -------------------------------------------------------------------------------- editing
     def _scope(self) -> tuple[str, int | None, int | None]:
-        scope = self.scope_box.currentData()
+        scope, selection = self.scope_box.currentData(), self.selection
         if scope != "range":
             return scope, None, None
-        if self.range_in is None or self.range_out is None:
+        if selection.range_in is None or selection.range_out is None:
             raise HandMocapError("mark the range first: I at its first frame, O at its last")
-        start, stop = sorted((self.range_in, self.range_out))
+        start, stop = sorted((selection.range_in, selection.range_out))
         return scope, start, stop + 1
 
     def _selected_point(self) -> tuple[int, int]:
-        frame = self.window.timeline.frame
-        column = self.selected_column
-        if column < 0 and self.selected_label >= 0:
-            column = int(self.review.assignment[frame, self.selected_label])
+        frame, label, column = self.timeline.frame, self.selection.label, self.selection.column
+        if column < 0 and label >= 0:
+            column = int(self.review.assignment[frame, label])
         if column < 0 or not np.isfinite(self.review.take.marker_positions[frame, column]).all():
             raise HandMocapError("select a point in the 3D view (or a label that has a point in this frame) first")
         return frame, column
 
     def run_edit(self, make: Callable[[], Command]) -> FrameSpan | None:
-        """Build a command, push it on the undo stack, refresh, and re-solve the frames it touched.
-        A problem becomes a one-line message; the review stays as it was."""
+        """Build a command, push it on the undo stack (the views follow its change event), and re-solve
+        the frames it touched. A problem becomes a one-line message; the review stays as it was."""
         document = self.document
         if document is None or document.review is None:
             return None
@@ -585,12 +582,10 @@ class ReviewController(QObject):
             command = make()
             span = document.push(command)
         except HandMocapError as error:
-            self.window.show_error("Cannot edit", str(error))
+            self.error_raised.emit("Cannot edit", str(error))
             return None
-        self._previews = {}
-        self.refresh(structure=False)
         self.queue_resolve(span)
-        self.window.statusBar().showMessage(command.text, 5000)
+        self.status_message.emit(command.text, 5000)
         return span
 
     def _point_edit(self, command: type, *arguments: str) -> FrameSpan | None:
@@ -620,22 +615,22 @@ class ReviewController(QObject):
     def swap_labels(self, other: str) -> FrameSpan | None:
         """Swap the selected label with ``other`` over the marked range (or from here to the end)."""
         def make() -> Command:
-            if self.selected_label < 0:
+            selection = self.selection
+            if selection.label < 0:
                 raise HandMocapError("select the label to swap first (click its point, lane or row)")
-            frame = self.window.timeline.frame
-            if self.range_in is not None and self.range_out is not None:
-                start, stop = sorted((self.range_in, self.range_out))
+            if selection.range_in is not None and selection.range_out is not None:
+                start, stop = sorted((selection.range_in, selection.range_out))
                 stop += 1
             else:
-                start, stop = frame, self.review.n_frames
-            return SwapLabels(self.review.label_names[self.selected_label], other, start, stop)
+                start, stop = self.timeline.frame, self.review.n_frames
+            return SwapLabels(self.review.label_names[selection.label], other, start, stop)
         return self.run_edit(make)
 
     def _label_menu(self, title: str, slot: Callable[[str], object], exclude: int = -1) -> None:
         review = self.review
         if review is None or not review.n_labels:
             return
-        menu = QMenu(title, self.window)
+        menu = QMenu(title, self.host)
         groups: dict[str, QMenu] = {}
         for label, name in enumerate(review.label_names):
             if label == exclude:
@@ -656,10 +651,10 @@ class ReviewController(QObject):
         self._label_menu("Assign label", self.assign_label)
 
     def choose_label_to_swap(self) -> None:
-        if self.selected_label < 0:
-            self.window.show_error("Cannot swap", "select the label to swap first (click its point, lane or row)")
+        if self.selection.label < 0:
+            self.error_raised.emit("Cannot swap", "select the label to swap first (click its point, lane or row)")
             return
-        self._label_menu("Swap with", self.swap_labels, exclude=self.selected_label)
+        self._label_menu("Swap with", self.swap_labels, exclude=self.selection.label)
 
     def undo(self) -> None:
         self._step(self.document.undo if self.document else None)
@@ -673,22 +668,16 @@ class ReviewController(QObject):
         try:
             operation()
         except HandMocapError as error:
-            self.window.show_error("Cannot undo", str(error))
-            return
-        self._previews = {}
-        self.refresh(structure=True)
+            self.error_raised.emit("Cannot undo", str(error))
 
     def set_range_in(self) -> None:
-        self.range_in = self.window.timeline.frame
-        self.update_enabled()
+        self.app.mark_range(self.timeline.frame, self.selection.range_out)
 
     def set_range_out(self) -> None:
-        self.range_out = self.window.timeline.frame
-        self.update_enabled()
+        self.app.mark_range(self.selection.range_in, self.timeline.frame)
 
     def clear_range(self) -> None:
-        self.range_in = self.range_out = None
-        self.update_enabled()
+        self.app.mark_range(None, None)
 
     # ------------------------------------------------------------------------------- problems
     def _refresh_problem_count(self) -> None:
@@ -709,13 +698,13 @@ class ReviewController(QObject):
         review = self.review
         if review is None:
             return
-        problem = review.next_problem(self.window.timeline.frame, forward=forward)
+        problem = review.next_problem(self.timeline.frame, forward=forward)
         if problem is None:
-            self.window.statusBar().showMessage("No problems left in this take", 5000)
+            self.status_message.emit("No problems left in this take", 5000)
             return
-        self.window.timeline.set_frame(problem.frame)
+        self.timeline.set_frame(problem.frame)
         self.select_label(problem.label)
-        self.window.statusBar().showMessage(problem.text, 8000)
+        self.status_message.emit(problem.text, 8000)
 
     # ----------------------------------------------------------------------------------- gaps
     def _refresh_gaps(self) -> None:
@@ -747,7 +736,7 @@ class ReviewController(QObject):
             self.preview.clear()
             return
         gap = self._gaps[index]
-        self.window.timeline.set_frame(gap.start)
+        self.timeline.set_frame(gap.start)
         self.select_label(gap.label)
         self._show_preview(index)
         if not self._rows[index].checked:
@@ -820,7 +809,7 @@ class ReviewController(QObject):
         try:
             self._fill_values(index, method, donor)
         except HandMocapError as error:
-            self.window.show_error("Cannot preview", str(error))
+            self.error_raised.emit("Cannot preview", str(error))
             return
         self._show_preview(index)
         self.preview.set_selected(method)
@@ -856,10 +845,10 @@ class ReviewController(QObject):
             gaps = [gap for gap in short_open_gaps(review, self._groups, max_length)
                     if (gap.label, gap.start) not in self._rejected]
         except HandMocapError as error:
-            self.window.show_error("Cannot fill", str(error))
+            self.error_raised.emit("Cannot fill", str(error))
             return
         if not gaps:
-            self.window.statusBar().showMessage(f"No open gap of at most {max_length} frames", 5000)
+            self.status_message.emit(f"No open gap of at most {max_length} frames", 5000)
             return
         groups = self._groups
         self._start_job("fill", lambda progress, cancelled: fill_gaps(groups, gaps, "auto", progress, cancelled))
@@ -870,7 +859,7 @@ class ReviewController(QObject):
             return
         if self.document.layout_name:
             self.auto_settings.layout = self.document.layout_name
-        dialog = AutoLabelDialog(self.window, self.auto_settings)
+        dialog = AutoLabelDialog(self.host, self.auto_settings)
         if dialog.exec() == QDialog.DialogCode.Accepted:
             self.auto_settings = dialog.settings()
             self.start_auto_label(self.auto_settings)
@@ -889,29 +878,6 @@ class ReviewController(QObject):
                               cancelled=cancelled)
 
         self._start_job("auto-label", task, document=document)
-
-    def record_solve(self, document: TakeDocument, result: IKResult) -> None:
-        """Keep an IK solve of ``document`` in its review as one undoable (and, in a session, journalled
-        and saved) step, defining the hand from the layout's labels first when the review has none."""
-        review = document.ensure_review()
-        if not review.n_labels:
-            return
-        names = list(result.marker_names)
-        number = next((index for index, hand in enumerate(review.hands)
-                       if hand.side == result.hand_side and len(hand.labels) == len(names)
-                       and [review.label_names[label].lower() for label in hand.labels] == [n.lower() for n in names]),
-                      None)
-        steps: list[Command] = []
-        if number is None:
-            steps.append(DefineHand(result.hand_side, result.hand_side, names, document.layout_name))
-            number = len(review.hands)
-        steps.append(SetSolve(number, 0, result.joint_angles, result.residuals_mm))
-        try:
-            document.push(CompoundCommand(steps, f"{result.method} IK solve ({result.hand_side} hand)"))
-        except HandMocapError:
-            return          # the take's labels do not cover the layout: the solve stays on the document
-        if document is self.document:
-            self.refresh(structure=True)
 
     # ------------------------------------------------------------------------------ re-solves
     def queue_resolve(self, span: FrameSpan) -> None:
@@ -939,14 +905,17 @@ class ReviewController(QObject):
         self._job_version = self._job_document.review.version
         self._job_span = keep_span
         self.jobs.start(task)
-        self.window.show_progress(f"{kind.capitalize()}… %p %", self.jobs.cancel)
+        self.app.job_started(JOB_NAME, Job(kind, self._job_document, self.jobs.cancel))
+        self.progress_started.emit(f"{kind.capitalize()}… %p %")
         self.update_enabled()
 
-    def _job_progressed(self, _request: int, fraction: float) -> None:
-        self.window.set_progress(fraction)
+    def _jobs_busy_changed(self, busy: bool) -> None:
+        if not busy:
+            self.app.job_ended(JOB_NAME)
+        self.update_enabled()
 
     def _job_finished(self) -> None:
-        self.window.hide_progress()
+        self.progress_ended.emit()
         if not self._pending_span.empty and self.document is self._job_document:
             self._start_resolve()
         self.update_enabled()
@@ -964,26 +933,25 @@ class ReviewController(QObject):
                 for side in result.models:
                     document.subjects.pop(side, None)
                 document.subjects.update({subject.side: subject for subject in result.subjects})
-                self.window.sessions.save_take_models(document, result.models, result.marker_sets)
+                if document is self.document:            # a new labelling: start afresh on it
+                    self._rejected, self._pending_span = set(), FrameSpan(0, 0)
+                    self.app.clear_selection()
                 document.push(result.command)
                 document.last_report = result.report
-                if document is self.document:
-                    self.attach(document)
                 report, known = result.report, result.report["file_labels"]
                 kept = (f"; kept from the file: {len(known['kept_labels'])} labels outside the layout, its hand "
                         f"labels ({known['disagreed_samples']} samples differed from auto-label)"
                         if known["kept_labels"] or known["file_label_samples"] else "")
-                self.window.statusBar().showMessage(
+                self.status_message.emit(
                     document.review.health_summary() or
                     f"Auto-labelled {report['frames']} frames: {100 * report['labelled_share']:.1f} % of label "
                     f"samples found, {report['ghost_points']} ghost points left unlabelled{kept}",
                     0 if report["health"] else 10000)
-                self.window.auto_label_finished(document)
+                self.auto_label_applied.emit(document, result.models, result.marker_sets)
             elif kind == "fill" and result is not None:
                 span = document.push(result)
-                self.window.statusBar().showMessage(result.text, 8000)
+                self.status_message.emit(result.text, 8000)
                 if document is self.document:
-                    self.refresh()
                     self.queue_resolve(span)
             elif kind == "re-solve":
                 if document.review.version != self._job_version:
@@ -991,25 +959,23 @@ class ReviewController(QObject):
                 else:
                     for command in result:
                         document.attach(command)
-                    if document is self.document:
-                        self.refresh()
         except HandMocapError as error:
-            self.window.show_error(f"Cannot apply the {kind}", str(error))
+            self.error_raised.emit(f"Cannot apply the {kind}", str(error))
         self._job_finished()
 
     def _job_failed(self, _request: int, message: str) -> None:
         kind = self._job_kind
         self._job_document = None
         self._job_finished()
-        self.window.show_error(f"{kind.capitalize()} failed", message)
+        self.error_raised.emit(f"{kind.capitalize()} failed", message)
 
     def _job_cancelled(self, _request: int) -> None:
         kind = self._job_kind
         if kind == "re-solve" and self._job_span is not None:
             self._pending_span = self._pending_span.union(self._job_span)
         self._job_document = None
-        self.window.hide_progress()
-        self.window.statusBar().showMessage(f"{kind.capitalize()} cancelled; the take is unchanged", 5000)
+        self.progress_ended.emit()
+        self.status_message.emit(f"{kind.capitalize()} cancelled; the take is unchanged", 5000)
         self.update_enabled()
 
     def stop(self) -> None:
@@ -1023,16 +989,16 @@ class ReviewController(QObject):
         if document is None:
             return
         stem = document.title.rsplit(".", 1)[0]
-        path, _ = QFileDialog.getSaveFileName(self.window, title, f"{stem}{suffix}", filter_text)
+        path, _ = QFileDialog.getSaveFileName(self.host, title, f"{stem}{suffix}", filter_text)
         if not path:
             return
         try:
             write(path)
         except (HandMocapError, OSError) as error:
-            self.window.show_error("Cannot export", str(error))
+            self.error_raised.emit("Cannot export", str(error))
             return
-        self.window.export_done(document, kind, path)
-        self.window.statusBar().showMessage(f"Exported {path}", 5000)
+        self.exported.emit(document, kind, path)
+        self.status_message.emit(f"Exported {path}", 5000)
 
     def export_c3d(self, path: str) -> None:
         """The review as a labelled C3D, with the subject calibrations auto-label made (``HAND_SUBJECT``)."""

@@ -1,5 +1,5 @@
-"""Sessions in the main window: create/open a session folder, the session browser dock, adding takes,
-opening a take for review (its journal replayed), take states, autosave, and closing cleanly.
+"""Sessions: create/open a session folder, the session browser, adding takes, opening a take for review
+(its journal replayed), take states, autosave, and closing cleanly.
 
 A take opened from the session is a document whose review lives in the session (:class:`OpenTake`):
 every edit is journalled at once, the snapshot is written every ``AUTOSAVE_MS`` when there are edits
@@ -12,12 +12,14 @@ import json
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
-from PySide6.QtCore import QObject, Qt, QTimer
-from PySide6.QtWidgets import QFileDialog
+from PySide6.QtCore import QObject, QTimer, Signal
+from PySide6.QtWidgets import QFileDialog, QWidget
 
+from app.actions import make_action
+from app.application import Application, CurrentDocumentChanged
 from app.document import TakeDocument
+from app.load_queue import LoadQueue
 from app.review_controller import AutoLabelSettings
 from core.errors import HandMocapError
 from core.io import Take, load_take
@@ -26,9 +28,6 @@ from core.model import HandModel, MarkerSet, add_layout_folder, best_layout_for,
 from core.session import OpenTake, Session
 from core.session.storage import read_marker_set, write_atomic, write_marker_set
 from widgets.session_browser import SessionBrowser, TakeRow
-
-if TYPE_CHECKING:
-    from app.main_window import MainWindow
 
 AUTOSAVE_MS = 15_000
 TAKE_MODEL_NAME = "labelling_hand_{side}.npz"   # the hand model auto-label calibrated to the take
@@ -46,38 +45,52 @@ class LoadedTakes:
 
 
 class SessionController(QObject):
-    """The session side of :class:`~app.main_window.MainWindow` (see the module docstring)."""
+    """The open session (see the module docstring). It builds the session :attr:`browser` and the session
+    actions; the window places them and shows what the signals below tell."""
 
-    def __init__(self, window: MainWindow) -> None:
-        super().__init__(window)
-        self.window = window
-        self.session: Session | None = None
-        self.browser = SessionBrowser(window)
+    status_message = Signal(str, int)              # text, milliseconds to show it (0: until replaced)
+    error_raised = Signal(str, str)                # title, message
+    layouts_changed = Signal()                     # the session's layouts came or went
+    auto_label_requested = Signal(object, object)  # AutoLabelSettings, the document to label
+
+    def __init__(self, app: Application, host: QWidget, loads: LoadQueue) -> None:
+        super().__init__(host)
+        self.app, self.host, self.loads = app, host, loads
+        self.browser = SessionBrowser(host)
         self.browser.add_requested.connect(self.add_takes)
         self.browser.open_requested.connect(self.open_take)
         self.browser.state_change_requested.connect(self.set_state)
         self.browser.remove_requested.connect(self.remove_take)
-        self.dock = window._add_dock("Session", self.browser, Qt.DockWidgetArea.LeftDockWidgetArea)
-        self.dock.hide()
-        action = window._action
-        self.new_action = action("&New session…", self.choose_new_session, "Ctrl+Shift+N")
-        self.open_action = action("Open s&ession…", self.choose_session, "Ctrl+Shift+O")
-        self.add_action = action("&Add takes to session…", self.browser.choose_files, "Ctrl+Shift+A")
-        self.close_action = action("C&lose session", self.close_session)
+        self.new_action = make_action(host, "&New session…", self.choose_new_session, "Ctrl+Shift+N")
+        self.open_action = make_action(host, "Open s&ession…", self.choose_session, "Ctrl+Shift+O")
+        self.add_action = make_action(host, "&Add takes to session…", self.browser.choose_files, "Ctrl+Shift+A")
+        self.close_action = make_action(host, "C&lose session", self.close_session)
+        app.add_listener(self._app_changed)
         self.autosave_timer = QTimer(self)
         self.autosave_timer.setInterval(AUTOSAVE_MS)
         self.autosave_timer.timeout.connect(self.autosave)
         self.autosave_timer.start()
         self.update_enabled()
 
+    @property
+    def session(self) -> Session | None:
+        """The open session."""
+        return self.app.session
+
+    def _app_changed(self, event: object) -> None:
+        """Mark the shown take in the browser when it is a session take."""
+        if isinstance(event, CurrentDocumentChanged) and event.document is not None \
+                and event.document.session_take_id:
+            self.browser.set_current(event.document.session_take_id)
+
     # -------------------------------------------------------------------------------- sessions
     def choose_new_session(self) -> None:
-        folder = QFileDialog.getExistingDirectory(self.window, "New session: choose an empty folder")
+        folder = QFileDialog.getExistingDirectory(self.host, "New session: choose an empty folder")
         if folder:
             self.create_session(folder)
 
     def choose_session(self) -> None:
-        folder = QFileDialog.getExistingDirectory(self.window, "Open session folder")
+        folder = QFileDialog.getExistingDirectory(self.host, "Open session folder")
         if folder:
             self.open_session(folder)
 
@@ -86,7 +99,7 @@ class SessionController(QObject):
         try:
             session = Session.create(folder)
         except HandMocapError as error:
-            self.window.show_error("Cannot create the session", str(error))
+            self.error_raised.emit("Cannot create the session", str(error))
             return False
         self._set_session(session)
         return True
@@ -100,42 +113,42 @@ class SessionController(QObject):
             try:
                 session = Session.open(folder, read_only=True)
             except HandMocapError:
-                self.window.show_error("Cannot open the session", str(error))
+                self.error_raised.emit("Cannot open the session", str(error))
                 return False
-            self.window.show_error("Session opened read-only", f"{error}; edits cannot be saved")
+            self.error_raised.emit("Session opened read-only", f"{error}; edits cannot be saved")
         self._set_session(session)
         return True
 
     def _set_session(self, session: Session) -> None:
         self.close_session()
-        self.session = session
         add_layout_folder(session.folder / "layouts")
-        self.window.refresh_layout_names()
+        self.layouts_changed.emit()
+        self.app.set_session(session)
         self.refresh()
-        self.dock.show()
-        self.dock.raise_()
-        self.window.statusBar().showMessage(f"Session {session.name}: {len(session.takes)} takes", 8000)
+        self.status_message.emit(f"Session {session.name}: {len(session.takes)} takes", 8000)
         self.update_enabled()
 
     def close_session(self) -> None:
         """Save and close the session's open takes (their documents are closed too)."""
-        if self.session is None:
+        session = self.session
+        if session is None:
             return
-        for document in [d for d in self.window.documents if d.open_take is not None]:
-            self.window.close_document(document)
-        self.session.close()
-        remove_layout_folder(self.session.folder / "layouts")
-        self.window.refresh_layout_names()
-        self.session = None
+        for document in [d for d in self.app.documents if d.open_take is not None]:
+            problem = self.app.close_document(document)
+            if problem:
+                self.error_raised.emit("Cannot save", problem)
+        session.close()
+        remove_layout_folder(session.folder / "layouts")
+        self.layouts_changed.emit()
+        self.app.set_session(None)
         self.browser.set_takes([])
-        self.dock.hide()
         self.update_enabled()
 
     def refresh(self) -> None:
         """Show the session's takes and states in the browser."""
         if self.session is not None:
             self.browser.set_takes([TakeRow.from_entry(entry) for entry in self.session.takes])
-            current = self.window.document
+            current = self.app.document
             if current is not None and current.session_take_id:
                 self.browser.set_current(current.session_take_id)
 
@@ -148,9 +161,9 @@ class SessionController(QObject):
     def add_takes(self, paths: list[str]) -> None:
         """Read the take files on the loader thread, then add them to the session."""
         if self.session is None:
-            if not self.window.documents and not paths:
+            if not self.app.documents and not paths:
                 return
-            self.window.show_error("No session", "create or open a session first (File ▸ New session…)")
+            self.error_raised.emit("No session", "create or open a session first (File ▸ New session…)")
             return
 
         def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> LoadedTakes:
@@ -163,7 +176,7 @@ class SessionController(QObject):
                 progress((number + 1) / len(paths))
             return LoadedTakes(loaded, failures)
 
-        self.window.queue_load("Adding takes…", task, self._takes_loaded)
+        self.loads.queue("Adding takes…", task, self._takes_loaded)
 
     def _takes_loaded(self, loaded: LoadedTakes) -> None:
         takes, failures = loaded.takes, list(loaded.failures)
@@ -174,23 +187,24 @@ class SessionController(QObject):
                 failures.append(f"{path.name}: {error}")
         self.refresh()
         if failures:
-            self.window.show_error("Some takes were not added", "\n".join(failures))
+            self.error_raised.emit("Some takes were not added", "\n".join(failures))
 
     def open_take(self, take_id: str, automatic: bool = False) -> None:
         """Open a session take for review (switch to it when it is open already). ``automatic``: then
         solve a labelled take with IK, or auto-label a raw one that was never labelled (the demo)."""
         if self.session is None:
             return
-        for document in self.window.documents:
-            if document.session_take_id == take_id:
-                self.window.take_box.setCurrentIndex(self.window.documents.index(document))
-                return
+        document = self.app.document_of_session_take(take_id)
+        if document is not None:
+            if document is not self.app.document:
+                self.app.show(document)
+            return
         session = self.session
 
         def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> OpenTake:
             return session.open_take(take_id)
 
-        self.window.queue_load("Opening take…", task, lambda opened: self._take_opened(opened, automatic))
+        self.loads.queue("Opening take…", task, lambda opened: self._take_opened(opened, automatic))
 
     def _take_opened(self, opened: OpenTake, automatic: bool = False) -> None:
         entry = opened.entry
@@ -216,16 +230,24 @@ class SessionController(QObject):
                     if subject.exists():
                         document.subjects[side] = SubjectCalibration.from_dict(json.loads(subject.read_text()))
                 except (HandMocapError, OSError, ValueError, KeyError):
-                    self.window.statusBar().showMessage(f"{path.name} is damaged; the template is used", 10000)
+                    self.status_message.emit(f"{path.name} is damaged; the template is used", 10000)
                     document.hand_models.pop(side, None)
-        self.window.add_document(document)
+        self.app.open_document(document)
+        self.app.show(document)
         if automatic and not entry.labelled_source and not opened.review.n_labels:
-            self.window.review.start_auto_label(AutoLabelSettings(layout=entry.layout or "dense",
-                                                                  hands="both" if len(entry.hands) > 1
-                                                                  else entry.hands[0]), document)
+            self.auto_label_requested.emit(AutoLabelSettings(layout=entry.layout or "dense",
+                                                             hands="both" if len(entry.hands) > 1
+                                                             else entry.hands[0]), document)
         if opened.replayed or opened.warnings:
             lines = [f"recovered {opened.replayed} edits from the journal"] if opened.replayed else []
-            self.window.show_error("Take recovered", "\n".join(lines + opened.warnings))
+            self.error_raised.emit("Take recovered", "\n".join(lines + opened.warnings))
+
+    def keep_labelling(self, document: TakeDocument, models: dict[str, HandModel],
+                       marker_sets: dict[str, MarkerSet]) -> None:
+        """Auto-label was applied to ``document``: keep the hand models and markers it calibrated, and save a
+        session take now (it is labelled)."""
+        self.save_take_models(document, models, marker_sets)
+        self.save_document(document)
 
     def save_take_models(self, document: TakeDocument, models: dict[str, HandModel],
                          marker_sets: dict[str, MarkerSet] | None = None) -> None:
@@ -249,23 +271,23 @@ class SessionController(QObject):
                 else:
                     subject.unlink(missing_ok=True)
         except (OSError, HandMocapError) as error:
-            self.window.statusBar().showMessage(f"Cannot keep the calibrated hand model: {error}", 10000)
+            self.status_message.emit(f"Cannot keep the calibrated hand model: {error}", 10000)
 
     def set_state(self, take_id: str, state: str) -> None:
         try:
             self.session.set_state(take_id, state)
         except HandMocapError as error:
-            self.window.show_error("Cannot change the state", str(error))
+            self.error_raised.emit("Cannot change the state", str(error))
         self.refresh()
 
     def remove_take(self, take_id: str) -> None:
-        if any(document.session_take_id == take_id for document in self.window.documents):
-            self.window.show_error("Cannot remove", "close the take first")
+        if self.app.document_of_session_take(take_id) is not None:
+            self.error_raised.emit("Cannot remove", "close the take first")
             return
         try:
             self.session.remove_take(take_id)
         except HandMocapError as error:
-            self.window.show_error("Cannot remove the take", str(error))
+            self.error_raised.emit("Cannot remove the take", str(error))
         self.refresh()
 
     # ---------------------------------------------------------------------------------- saving
@@ -276,25 +298,25 @@ class SessionController(QObject):
         try:
             document.open_take.save()
         except HandMocapError as error:
-            self.window.show_error("Cannot save", str(error))
+            self.error_raised.emit("Cannot save", str(error))
         self.refresh()
 
     def autosave(self) -> None:
         """Snapshot the session takes with edits older than ``SNAPSHOT_INTERVAL_S`` (the journal has them
         already; the snapshot keeps replay short)."""
-        for document in self.window.documents:
+        for document in self.app.documents:
             if document.open_take is not None and not document.open_take.closed:
                 try:
                     document.open_take.autosave(SNAPSHOT_INTERVAL_S)
                 except HandMocapError as error:
-                    self.window.statusBar().showMessage(f"Autosave failed: {error}", 10000)
+                    self.status_message.emit(f"Autosave failed: {error}", 10000)
 
     def export_done(self, document: TakeDocument, kind: str, path: str) -> None:
         if document.session_take_id and self.session is not None and not self.session.read_only:
             try:
                 self.session.record_export(document.session_take_id, kind, path)
             except HandMocapError as error:
-                self.window.show_error("Cannot record the export", str(error))
+                self.error_raised.emit("Cannot record the export", str(error))
             self.refresh()
 
     def save_layout(self, layout) -> None:
@@ -302,16 +324,16 @@ class SessionController(QObject):
         if self.session is None:
             raise HandMocapError("open or create a session first to keep layouts in it")
         self.session.save_layout(layout)
-        self.window.refresh_layout_names()
+        self.layouts_changed.emit()
 
     def close(self) -> None:
         """The window is closing: save every open take and release the journals."""
         self.autosave_timer.stop()
-        for document in self.window.documents:
+        for document in self.app.documents:
             if document.open_take is not None and not document.open_take.closed:
                 try:
                     document.open_take.close(save=True)
                 except HandMocapError as error:
-                    self.window.statusBar().showMessage(f"Cannot save {document.title}: {error}")
+                    self.status_message.emit(f"Cannot save {document.title}: {error}", 0)
         if self.session is not None:
             self.session.close()

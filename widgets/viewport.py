@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pyvista as pv
-from PySide6.QtCore import QEvent, QObject, QPointF, Qt, Signal
+from PySide6.QtCore import QEvent, QObject, QPointF, Qt, QTimer, Signal
 from PySide6.QtGui import QMouseEvent
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 from pyvistaqt import QtInteractor
@@ -146,6 +146,10 @@ class HandViewport(QWidget):
         self._clicks = ClickFilter()
         layout.addWidget(self._plotter)
         self.setMinimumSize(320, 240)
+        self._render_timer = QTimer(self)
+        self._render_timer.setSingleShot(True)
+        self._render_timer.setInterval(0)
+        self._render_timer.timeout.connect(self.render)
 
         plotter = self._plotter
         plotter.set_background(BACKGROUND_BOTTOM, top=BACKGROUND_TOP)
@@ -615,10 +619,17 @@ class HandViewport(QWidget):
         """Redraw now."""
         self._plotter.render()
 
+    def request_render(self) -> None:
+        """Redraw once the events waiting now are handled (many requests, one redraw: fast scrubbing
+        skips frames)."""
+        if not self._render_timer.isActive():
+            self._render_timer.start()
+
     def save_screenshot(self, path: str | Path) -> None:
         """Write the current 3D view to an image file (PNG/JPEG by extension)."""
         self._plotter.screenshot(str(path))
 
     def close_viewport(self) -> None:
         """Release the render window (call when the owning window closes)."""
+        self._render_timer.stop()
         self._plotter.close()

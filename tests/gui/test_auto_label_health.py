@@ -102,7 +102,7 @@ def test_labelling_warning_in_status_bar_problem_list_and_screenshot(window, qtb
     window.timeline.set_frame(1500)
     window.review.next_problem_action.trigger()
     assert window.timeline.frame > 1500 or window.timeline.frame == review.problems()[0].start
-    window.review.attach(window.document)                            # the summary comes back with the take
+    window.app.show(window.document)                                 # the summary comes back with the take
     window.timeline.set_frame(1200)
     QApplication.processEvents()
     assert window.statusBar().currentMessage().startswith("Auto-label: ")
@@ -116,10 +116,10 @@ def test_session_take_keeps_the_subject_markers_and_exports_the_calibration(wind
     folder = tmp_path / "session"
     assert window.sessions.create_session(folder)
     window.sessions.add_takes([str(path)])
-    qtbot.waitUntil(lambda: not window.loader.is_busy() and not window._pending_opens, timeout=30_000)
+    qtbot.waitUntil(lambda: not window.loader.is_busy(), timeout=30_000)
     take_id = window.sessions.session.takes[0].id
     window.sessions.open_take(take_id)
-    qtbot.waitUntil(lambda: not window.loader.is_busy() and not window._pending_opens, timeout=30_000)
+    qtbot.waitUntil(lambda: not window.loader.is_busy(), timeout=30_000)
     window.review.start_auto_label(AutoLabelSettings(layout="dense", hands="right"))
     qtbot.waitUntil(lambda: not window.review.jobs.is_busy(), timeout=120_000)
     assert not window.messages, window.messages

@@ -73,8 +73,8 @@ def test_label_edits_undo_redo(window, qtbot, raw_take):
     assert column >= 0
     before = review.assignment.copy()
     # click the point in the 3D view, then unlabel it over the whole take
-    window._marker_clicked(column)
-    assert controller.selected_label == label
+    window.viewport.marker_clicked.emit(column)
+    assert window.app.selection.label == label
     controller.scope_box.setCurrentIndex(controller.scope_box.findData("take"))
     controller.unlabel()
     assert (review.assignment[:, label] == -1).all()
@@ -85,7 +85,7 @@ def test_label_edits_undo_redo(window, qtbot, raw_take):
     assert (review.assignment[:, label] == -1).all()
     controller.undo_action.trigger()
     # assign another label to the point from here to the end of its fragment; undo restores it exactly
-    window._marker_clicked(column)
+    window.viewport.marker_clicked.emit(column)
     controller.scope_box.setCurrentIndex(controller.scope_box.findData("fragment"))
     other = review.label_names[8]
     controller.assign_label(other)
@@ -129,7 +129,7 @@ def test_gap_fill_accept_fill_all_and_problems(window, qtbot, raw_take, tmp_path
     table.selectRow(0)                                      # what a click on the first row does
     gap = controller.gap_list.rows()[controller.gap_list.selected_gap()]
     index = controller.gap_list.selected_gap()
-    assert window.timeline.frame == gap.start and controller.selected_label == gap.marker
+    assert window.timeline.frame == gap.start and window.app.selection.label == gap.marker
     qtbot.waitUntil(lambda: controller.gap_list.rows()[index].checked, timeout=60_000)
     assert controller.gap_list.rows()[index].errors_mm
     assert controller.preview.methods()                     # the fills are drawn in the preview

@@ -22,7 +22,7 @@ def raw_file(tmp_path_factory):
 
 
 def wait_loader(window, qtbot):
-    qtbot.waitUntil(lambda: not window.loader.is_busy() and not window._pending_opens, timeout=30_000)
+    qtbot.waitUntil(lambda: not window.loader.is_busy(), timeout=30_000)
 
 
 def test_session_take_edits_survive_a_crash(window, qtbot, raw_file, tmp_path):

@@ -1,0 +1,97 @@
+"""Views follow the model: an edit made on the document itself (no controller, no refresh call) shows in
+the review views, its undo and redo too; the application object announces takes, selection and jobs."""
+
+import numpy as np
+import pytest
+
+from app.application import (
+    Application,
+    CurrentDocumentChanged,
+    DocumentClosed,
+    DocumentClosing,
+    DocumentOpened,
+    Job,
+    JobsChanged,
+    SelectionChanged,
+)
+from app.document import TakeDocument
+from core.session import AcceptFills, GapFill, Unlabel
+from core.session.events import Change, ReviewChanged
+from core.simulate import simulate_take
+from widgets.marker_lanes import EDITED
+from widgets.review_table import OBSERVED_COLUMN
+
+pytestmark = pytest.mark.gui
+
+FRAMES = 80
+
+
+@pytest.fixture
+def labelled_document():
+    return TakeDocument(simulate_take(layout="dense", n_frames=FRAMES, seed=6, noise_mm=0.3).take, "labelled")
+
+
+def test_review_views_follow_an_edit_its_undo_and_its_redo(window, labelled_document):
+    window.add_document(labelled_document)
+    window.timeline.set_frame(30)
+    controller, document = window.review, labelled_document
+    label, name = 5, document.review.label_names[5]
+    column = int(document.review.assignment[30, label])
+    assert controller.table.model.value(label, OBSERVED_COLUMN) == pytest.approx(100.0)
+    assert window.viewport.marker_names()[column] == name
+    document.push(Unlabel(label=name, scope="range", start=20, stop=60))   # straight on the model
+    assert controller.table.model.value(label, OBSERVED_COLUMN) == pytest.approx(100.0 * (FRAMES - 40) / FRAMES)
+    assert (controller.lanes.states()[20:60, label] == EDITED).all()
+    assert window.viewport.marker_names()[column] == f"*{column}"        # the 3D view: the point lost its label
+    assert controller.undo_action.text() == f"&Undo unlabel '{name}' at frames 21-60"
+    document.undo()
+    assert controller.table.model.value(label, OBSERVED_COLUMN) == pytest.approx(100.0)
+    assert (controller.lanes.states()[20:60, label] != EDITED).all()
+    assert window.viewport.marker_names()[column] == name
+    assert controller.redo_action.isEnabled() and controller.undo_action.text() == "&Undo"
+    document.redo()
+    assert window.viewport.marker_names()[column] == f"*{column}"
+    fill = GapFill(name, 20, "linear", np.tile(document.review.take.marker_positions[19, column], (40, 1)))
+    document.push(AcceptFills([fill]))
+    assert controller.table.model.value(label, 2) == pytest.approx(100.0 * 40 / FRAMES)     # Filled %
+    assert not window.messages, window.messages
+
+
+def test_only_the_shown_take_reaches_the_views(window, labelled_document):
+    other = TakeDocument(labelled_document.take, "other")
+    window.add_document(labelled_document)
+    window.add_document(other)
+    assert window.document is other
+    name = labelled_document.review.label_names[2]
+    labelled_document.push(Unlabel(label=name, scope="take"))          # a take that is not shown
+    assert window.review.table.model.value(2, OBSERVED_COLUMN) == pytest.approx(100.0)
+    window.take_box.setCurrentIndex(0)
+    assert window.review.table.model.value(2, OBSERVED_COLUMN) == 0.0
+
+
+def test_application_announces_takes_selection_jobs_and_the_shown_take_edits(labelled_document):
+    app, heard = Application(), []
+    app.add_listener(heard.append)
+    other = TakeDocument(labelled_document.take, "other")
+    app.open_document(labelled_document)
+    app.open_document(other)
+    app.show(labelled_document)
+    assert heard == [DocumentOpened(labelled_document), DocumentOpened(other),
+                     CurrentDocumentChanged(labelled_document, None)]
+    app.select(3, 7)
+    assert heard[-1] == SelectionChanged() and (app.selection.label, app.selection.column) == (3, 7)
+    labelled_document.push(Unlabel(label=labelled_document.review.label_names[3], scope="take"))
+    assert heard[-1] == ReviewChanged("do", (0, FRAMES), Change.LABELS | Change.FILLS | Change.SOLVE)
+    app.show(other)
+    assert heard[-1] == CurrentDocumentChanged(other, labelled_document) and app.selection.label == -1
+    labelled_document.undo()                                        # no longer shown: not passed on
+    assert heard[-1] == CurrentDocumentChanged(other, labelled_document)
+    app.job_started("solve", Job("solve", other, lambda: None))
+    assert heard[-1] == JobsChanged() and app.is_busy()
+    app.job_ended("solve")
+    assert not app.is_busy()
+    del heard[:]
+    assert app.close_document(other) is None
+    assert heard == [DocumentClosing(other), DocumentClosed(other, 1),
+                     CurrentDocumentChanged(labelled_document, other)]
+    assert app.documents == [labelled_document]
