@@ -95,3 +95,16 @@ def test_application_announces_takes_selection_jobs_and_the_shown_take_edits(lab
     assert heard == [DocumentClosing(other), DocumentClosed(other, 1),
                      CurrentDocumentChanged(labelled_document, other)]
     assert app.documents == [labelled_document]
+
+
+def test_the_application_object_and_the_events_need_no_qt():
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    code = ("import sys, app.application, core.session.events; "
+            "bad = [m for m in ('PySide6', 'pyvista', 'pyqtgraph', 'widgets') if m in sys.modules]; "
+            "print(bad); sys.exit(1 if bad else 0)")
+    root = Path(__file__).resolve().parents[2]
+    completed = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True, text=True, timeout=120)
+    assert completed.returncode == 0, completed.stdout + completed.stderr
