@@ -377,6 +377,8 @@ class ReviewController(QObject):
             self.lanes.set_states(states)
             self.lanes.set_x_range(*x_range)
             self.table.update_stats(stats)
+            if self.document.has_solved_hands() and self.viewport.hand_count() != len(review.hands):
+                self._set_hand_meshes()     # the first solve of a hand: the view showed another surface
         self.lanes.set_frame(self.timeline.frame)
         if self.selection.label >= 0:
             self.lanes.set_selected_marker(self.selection.label)
