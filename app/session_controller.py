@@ -79,9 +79,9 @@ class SessionController(QObject):
 
     def _app_changed(self, event: object) -> None:
         """Mark the shown take in the browser when it is a session take."""
-        if isinstance(event, CurrentDocumentChanged) and event.document is not None \
-                and event.document.session_take_id:
-            self.browser.set_current(event.document.session_take_id)
+        document = event.document if isinstance(event, CurrentDocumentChanged) else None
+        if document is not None and document.session_take_id:
+            self.browser.set_current(document.session_take_id)
 
     # -------------------------------------------------------------------------------- sessions
     def choose_new_session(self) -> None:
