@@ -18,7 +18,6 @@ from core.simulate import simulate_take
 pytestmark = pytest.mark.gui
 
 REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "real" / "dfki_glove_right_hand_frames_0001_3000.tsv"
-SCREENSHOT = Path("/tmp/handmocap-auto-label-warning.png")
 OTHER = ["right_elbow", "back_top", "back_left", "back_right", "right_shoulder", "pillow_top", "pillow_left",
          "pillow_right"]
 needs_real = pytest.mark.skipif(not REAL.exists(), reason="the real recording is not in ../shared")
@@ -87,7 +86,7 @@ def test_real_take_keeps_its_other_markers_and_solves_with_the_subject(window, q
 
 
 @needs_real
-def test_labelling_warning_in_status_bar_problem_list_and_screenshot(window, qtbot):
+def test_labelling_warning_in_status_bar_problem_list_and_screenshot(window, qtbot, tmp_path):
     open_and_wait(window, qtbot, REAL)
     label_through_dialog(window, qtbot, "glove-13", relabel=True)    # the arm, back and pillow become ghosts
     review = window.document.review
@@ -106,7 +105,8 @@ def test_labelling_warning_in_status_bar_problem_list_and_screenshot(window, qtb
     window.timeline.set_frame(1200)
     QApplication.processEvents()
     assert window.statusBar().currentMessage().startswith("Auto-label: ")
-    assert window.save_screenshot(SCREENSHOT) and SCREENSHOT.stat().st_size > 10_000
+    screenshot = tmp_path / "auto-label-warning.png"
+    assert window.save_screenshot(screenshot) and screenshot.stat().st_size > 10_000
 
 
 def test_session_take_keeps_the_subject_markers_and_exports_the_calibration(window, qtbot, tmp_path):
