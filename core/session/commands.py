@@ -615,7 +615,7 @@ class LabellingArrays:
 class ApplyLabelling(Command):
     """Replace the whole labelling by a result (auto-label is undoable like any edit).
 
-    ``result``: anything :meth:`ReviewTake.from_labelling` accepts (e.g. ``core.labeling.LabelingResult``);
+    ``result``: anything :meth:`ReviewTake.from_labelling` accepts (e.g. ``core.labeling.SceneLabeling``);
     ``hands``/``side``/``layout`` as there. Edit flags are cleared; undo brings back the previous
     labels, fills, edits and solves exactly.
     """

@@ -301,8 +301,8 @@ class ReviewTake:
 
         ``result`` has ``marker_names (M,)``, ``assignment (F, M)``, ``confidence (F, M)``,
         ``residuals_mm (F, M)``, ``ghost_points (F, P)`` and ``joint_angles`` — ``(F, 26)`` for one hand
-        (``core.labeling.LabelingResult``: then ``side``/``layout`` describe it and every label belongs
-        to it) or a dict ``{hand name: (F, 26)}`` with the labels of each hand given by ``hands`` (a
+        (e.g. :class:`core.session.synthetic.SyntheticLabelling`: then ``side``/``layout`` describe it and
+        every label belongs to it) or a dict ``{hand name: (F, 26)}`` with the labels of each hand given by ``hands`` (a
         list of :class:`HandTrack`), a ``result.hands`` list, or ``result.models`` whose hand models
         (``kind`` "right"/"left") have a ``markers`` slice (``core.labeling.SceneLabeling``; rigid
         objects' markers are plain labels, grouped by ``result.rigid_bodies`` ``{name: [label index]}``

@@ -17,7 +17,8 @@ from core.io import Take
 @dataclass
 class SyntheticLabelling:
     """``marker_names (M,)``, ``assignment (F, M)``, ``confidence (F, M)`` mm, ``residuals_mm (F, M)``,
-    ``ghost_points (F, P)``, ``joint_angles (F, 26)``: the fields of ``core.labeling.LabelingResult``."""
+    ``ghost_points (F, P)``, ``joint_angles (F, 26)``: a one-hand labelling result for
+    :meth:`ReviewTake.from_labelling`."""
 
     marker_names: list[str]
     assignment: np.ndarray
