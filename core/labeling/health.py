@@ -101,8 +101,8 @@ def assess_labelling(result: SceneLabeling, frame_rate: float) -> list[HealthWar
             continue
         for frame in sorted(model.reinitialised):
             warnings.append(HealthWarning("reinitialised", model.name, frame, frame,
-                                          f"the {model.name} hand was lost and fitted afresh here: check the labels "
-                                          "on either side"))
+                                          f"the {model.name} hand was fitted afresh here (it was lost, or fitted much "
+                                          "worse than elsewhere) and its labels changed: check them on either side"))
         labelled = (result.assignment[:, model.markers] >= 0).mean(axis=1).astype(float)
         labelled[:model.init_frame] = np.nan
         shares = _windows(labelled, size)

@@ -746,6 +746,7 @@ class _Run:
             if refit is None:
                 continue
             labels, state = refit
+            before = self.assignment[:, part].copy()
             columns = np.flatnonzero(self.present[start])
             index = np.searchsorted(columns, labels)
             index = np.where(labels >= 0, index, -1)
@@ -759,7 +760,8 @@ class _Run:
                 self.states[track_index][start + 1] = state
             self.retrack(track_index, self.make_track(track_index), start, frames - 1, +1, converge=size)
             self.retrack(track_index, self.make_track(track_index), start, 0, -1, converge=size)
-            self.reinitialised.setdefault(track_index, []).append(start)
+            if not np.array_equal(before, self.assignment[:, part]):      # the labels changed: the operator checks
+                self.reinitialised.setdefault(track_index, []).append(start)
 
     def ghost_points(self) -> np.ndarray:
         ghosts = self.present.copy()
