@@ -677,14 +677,15 @@ class _Run:
             self.retrack(track_index, track, min(init + self.settings.verify_frames, len(self.positions) - 2), init)
 
     def retrack(self, track_index: int, track: Track, end: int, stop: int, direction: int = -1,
-                converge: int | None = None) -> None:
+                converge: int | None = None, still: bool = False) -> None:
         """Offline: track the frames from ``end + direction`` to ``stop`` (inclusive) again, in
         ``direction`` (-1 backwards, +1 forwards), from the states of ``end`` and the frame before it in
-        that direction, and keep per frame whichever labelling of the model has the lower eq. 2 cost
-        (mean residual + α · markers left unlabelled); with ``converge``, stop once that many
-        consecutive frames agree with the labels already there (the two labellings have met)."""
+        that direction (``still``: from ``end`` alone, with no velocity), and keep per frame whichever
+        labelling of the model has the lower eq. 2 cost (mean residual + α · markers left unlabelled);
+        with ``converge``, stop once that many consecutive frames agree with the labels already there
+        (the two labellings have met)."""
         states = self.states[track_index]
-        before = end - direction
+        before = end if still else end - direction
         if (stop - end) * direction < 1 or not 0 <= before < len(states) or not (
                 np.isfinite(states[end]).all() and np.isfinite(states[before]).all()):
             return
@@ -756,10 +757,8 @@ class _Run:
                 state, effectors, fitted = self._solve(track, points, index, state)
             self.record(start, [track_index], columns, index,
                         _margins(pair_distances(effectors, points), index, track.thresholds()), fitted, [state])
-            if start + 1 < frames:
-                self.states[track_index][start + 1] = state
-            self.retrack(track_index, self.make_track(track_index), start, frames - 1, +1, converge=size)
-            self.retrack(track_index, self.make_track(track_index), start, 0, -1, converge=size)
+            self.retrack(track_index, self.make_track(track_index), start, frames - 1, +1, converge=size, still=True)
+            self.retrack(track_index, self.make_track(track_index), start, 0, -1, converge=size, still=True)
             if not np.array_equal(before, self.assignment[:, part]):      # the labels changed: the operator checks
                 self.reinitialised.setdefault(track_index, []).append(start)
 
