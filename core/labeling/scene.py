@@ -189,6 +189,14 @@ class _Run:
     def columns(self, index: int) -> slice:
         return slice(int(self.offsets[index]), int(self.offsets[index + 1]))
 
+    def free_columns(self, frame: int, track_index: int) -> np.ndarray:
+        """The point columns of ``frame`` present and not taken by a model other than ``track_index``."""
+        others = np.ones(self.assignment.shape[1], dtype=bool)
+        others[self.columns(track_index)] = False
+        foreign = self.assignment[frame, others]
+        columns = np.flatnonzero(self.present[frame])
+        return columns[~np.isin(columns, foreign[foreign >= 0])]
+
     def step(self, tracks: Sequence[Track], points: np.ndarray
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list]:
         """Track one frame of ``points (N,3)`` with ``tracks`` (all active). Returns, over the tracks'
@@ -394,13 +402,11 @@ class _Run:
             return
         labels, state = refit
         columns = np.flatnonzero(self.present[frame])
-        part = self.columns(number)
-        others = np.ones(self.assignment.shape[1], dtype=bool)
-        others[part] = False
-        foreign = self.assignment[frame, others]
-        first_init = self.init_frames[number]
-        self._start_with(frame, number, columns, labels, state, np.isin(columns, foreign[foreign >= 0]))
-        self.init_frames[number] = first_init
+        taken = ~np.isin(columns, self.free_columns(frame, number))
+        state, observed, residuals = self._record_start(frame, number, self.tracks[number], columns, labels, state,
+                                                        taken)
+        self.tracks[number].start(state, observed)
+        self.tracks[number].remember(residuals[observed])
         self.reinitialised.setdefault(number, []).append(frame)
 
     def _refit(self, frame: int, number: int) -> tuple[np.ndarray, np.ndarray] | None:
@@ -408,11 +414,7 @@ class _Run:
         took, when it beats the labelling the hand has there: offline, when one of its hypotheses holds up
         better over the next ``hypothesis_frames`` frames (:func:`window_cost`); online (no look-ahead), when
         it labels more markers. Returns (point column per marker (K,), θ) or None."""
-        columns = np.flatnonzero(self.present[frame])
-        others = np.ones(self.assignment.shape[1], dtype=bool)
-        others[self.columns(number)] = False
-        foreign = self.assignment[frame, others]
-        free = columns[~np.isin(columns, foreign[foreign >= 0])]
+        free = self.free_columns(frame, number)
         state = self.states[number][frame]
         if len(free) < 3 or not np.isfinite(state).all():
             return None
@@ -436,21 +438,29 @@ class _Run:
         """Start track ``number`` in ``frame`` with known labels (point column per marker, -1 none) and
         a starting state; returns the frame's points (mask over ``columns``) it took."""
         track = self.tracks[number]
-        lookup = {int(column): local for local, column in enumerate(columns)}
-        index = np.array([lookup.get(int(label), -1) if label >= 0 else -1 for label in labels], dtype=np.int64)
-        index[(index >= 0) & taken[np.maximum(index, 0)]] = -1
-        points = self.positions[frame, columns]
-        for _ in range(3):
-            state, effectors, residuals = self._solve(track, points, index, state)
-        observed = index >= 0
+        state, observed, residuals = self._record_start(frame, number, track, columns, labels, state, taken)
         track.start(state, observed)
         track.remember(residuals[observed])
         self.init_frames[number] = frame
+        return np.isin(columns, self.assignment[frame, self.columns(number)])
+
+    def _record_start(self, frame: int, number: int, track: Track, columns: np.ndarray, labels: np.ndarray,
+                      state, taken: np.ndarray | None = None) -> tuple[object, np.ndarray, np.ndarray]:
+        """Solve ``track`` in ``frame`` from ``state`` with ``labels`` (point column per marker, -1 none; a
+        column not among the frame's sorted ``columns`` or ``taken`` (mask over them) is dropped) and record
+        it as track ``number``'s labelling there. Returns the state, the observed markers (K,) and their
+        residuals (K,) mm."""
+        found = np.searchsorted(columns, labels)
+        inside = (labels >= 0) & (found < len(columns))
+        index = np.where(inside & (columns[np.minimum(found, len(columns) - 1)] == labels), found, -1)
+        if taken is not None:
+            index[(index >= 0) & taken[np.maximum(index, 0)]] = -1
+        points = self.positions[frame, columns]
+        for _ in range(3):
+            state, effectors, residuals = self._solve(track, points, index, state)
         self.record(frame, [number], columns, index, _margins(pair_distances(effectors, points), index,
                                                               track.thresholds()), residuals, [state])
-        used = np.zeros(len(columns), dtype=bool)
-        used[index[observed]] = True
-        return used
+        return state, index >= 0, residuals
 
     def _start(self, frame: int, candidate: Candidate, columns: np.ndarray, points: np.ndarray) -> None:
         track = self.tracks[candidate.track_index]
@@ -503,17 +513,13 @@ class _Run:
         track.start(seeds[0], labelled[begin] if len(seeds) == 1 else labelled[begin + 1])
         if len(seeds) == 2:
             track.commit(seeds[1], np.nan_to_num(self.residuals[begin, part]), labelled[begin])
-        others = np.ones(self.assignment.shape[1], dtype=bool)
-        others[part] = False
         for frame in range(begin - 1, -1, -1):
-            columns = np.flatnonzero(self.present[frame])
-            foreign = self.assignment[frame, others]
-            free = ~np.isin(columns, foreign[foreign >= 0])
+            free = self.free_columns(frame, track_index)
             own = self.assignment[frame, part]
-            index, confidence, residuals, states = self.step([track], self.positions[frame, columns[free]])
-            taken = np.where(index >= 0, columns[free][np.maximum(index, 0)], -1)
+            index, confidence, residuals, states = self.step([track], self.positions[frame, free])
+            taken = _columns_of(index, free)
             if frame < init:
-                self.record(frame, [track_index], columns[free], index, confidence, residuals, states)
+                self.record(frame, [track_index], free, index, confidence, residuals, states)
                 continue
             add = (own < 0) & (taken >= 0) & (frame < first_seen) & ~np.isin(taken, own)
             if add.any():
@@ -693,8 +699,6 @@ class _Run:
         labelled = self.assignment[:, part] >= 0
         track.start(states[before], labelled[before])
         track.commit(states[end], np.nan_to_num(self.residuals[end, part]), labelled[end])
-        others = np.ones(self.assignment.shape[1], dtype=bool)
-        others[part] = False
         alpha = self.settings.alpha
 
         def cost(index: np.ndarray, residuals: np.ndarray) -> float:
@@ -703,13 +707,10 @@ class _Run:
 
         agreeing = 0
         for frame in range(end + direction, stop + direction, direction):
-            columns = np.flatnonzero(self.present[frame])
-            foreign = self.assignment[frame, others]
-            free = columns[~np.isin(columns, foreign[foreign >= 0])]
+            free = self.free_columns(frame, track_index)
             index, confidence, residuals, states_now = self.step([track], self.positions[frame, free])
             own = self.assignment[frame, part]
-            new_columns = np.where(index >= 0, free[np.maximum(index, 0)], -1)
-            if np.array_equal(new_columns, own):
+            if np.array_equal(_columns_of(index, free), own):
                 agreeing += 1
                 if converge is not None and agreeing >= converge:
                     return
@@ -748,15 +749,8 @@ class _Run:
                 continue
             labels, state = refit
             before = self.assignment[:, part].copy()
-            columns = np.flatnonzero(self.present[start])
-            index = np.searchsorted(columns, labels)
-            index = np.where(labels >= 0, index, -1)
-            track = self.make_track(track_index)
-            points = self.positions[start, columns]
-            for _ in range(3):
-                state, effectors, fitted = self._solve(track, points, index, state)
-            self.record(start, [track_index], columns, index,
-                        _margins(pair_distances(effectors, points), index, track.thresholds()), fitted, [state])
+            self._record_start(start, track_index, self.make_track(track_index), np.flatnonzero(self.present[start]),
+                               labels, state)
             self.retrack(track_index, self.make_track(track_index), start, frames - 1, +1, converge=size, still=True)
             self.retrack(track_index, self.make_track(track_index), start, 0, -1, converge=size, still=True)
             if not np.array_equal(before, self.assignment[:, part]):      # the labels changed: the operator checks
