@@ -335,7 +335,7 @@ def test_calibrate_from_files(tmp_path, moved_scan):
 
 def test_marker_alignment_error_sees_a_wrong_hand_size():
     from core.calibration.align import scaled_model
-    from core.calibration.evaluate import marker_alignment_error
+    from core.evaluation.calibration import marker_alignment_error
 
     template = load_template()
     subject = scaled_model(template, 1.12)

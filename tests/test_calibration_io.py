@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app import cli_calibrate
+from app.cli import calibrate as calibrate_commands
 from core.calibration.landmarks import landmarks_from_truth, save_landmarks
 from core.calibration.pipeline import calibrate_scan, load_template_file
 from core.calibration.scan import save_ply
@@ -137,7 +137,7 @@ def _parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(dest="command")
     bench = commands.add_parser("bench").add_subparsers(dest="bench_command")
     evaluate = commands.add_parser("evaluate").add_subparsers(dest="evaluate_command")
-    cli_calibrate.register(commands, bench, evaluate)
+    calibrate_commands.register(commands, bench, evaluate)
     return parser
 
 

@@ -8,14 +8,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.cli import build_parser, main
+from app.cli.main import build_parser, main
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 REAL_TSV = SHARED / "real" / "dfki_glove_right_hand_frames_0001_3000.tsv"
 
 
 def run(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "app.cli", *args], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "app.cli.main", *args], capture_output=True, text=True,
                           timeout=600, cwd=Path(__file__).resolve().parents[1])
 
 

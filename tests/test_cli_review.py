@@ -7,7 +7,7 @@ import ezc3d
 import numpy as np
 import pytest
 
-from app.cli import main
+from app.cli.main import main
 from core.io import load_take, save_take
 from core.simulate import simulate_take
 

@@ -14,7 +14,7 @@ from core.io.bvh import read_bvh, write_bvh
 from core.io.errors import TakeFormatError
 from core.io.labelled_c3d import decode_runs, encode_runs, read_labelled_c3d, write_labelled_c3d
 from core.model import load_template
-from core.session import (
+from core.review import (
     AcceptFills,
     AssignLabel,
     GapFill,
@@ -25,8 +25,9 @@ from core.session import (
     export_bvh,
     export_joint_angles_csv,
     export_labelled_c3d,
+    review_from_labelled_c3d,
 )
-from core.session.synthetic import synthetic_labelling
+from core.review.synthetic import synthetic_labelling
 from core.simulate.motion import simulate_joint_angles
 
 REAL_TSV = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / \
@@ -93,7 +94,7 @@ def test_labelled_c3d_round_trip_into_a_review(tmp_path, reviewed):
     review, _ = reviewed
     path = tmp_path / "labelled.c3d"
     export_labelled_c3d(review, path)
-    back = ReviewTake.from_labelled_c3d(path)
+    back = review_from_labelled_c3d(path)
     assert back.label_names == review.label_names
     assert np.array_equal(back.provenance, review.provenance)
     assert np.array_equal(back.edited, review.edited)
@@ -152,7 +153,7 @@ def test_a_foreign_labelled_c3d_reads_as_measured_labels(tmp_path):
     from core.io import save_take
 
     save_take(take, path)
-    back = ReviewTake.from_labelled_c3d(path)
+    back = review_from_labelled_c3d(path)
     assert back.label_names == take.marker_names
     assert (back.provenance[np.isfinite(take.marker_positions).all(axis=2)] == 0).all()
 
@@ -265,7 +266,7 @@ def test_vendor_files_export_unchanged_with_their_parameter_groups(tmp_path, nam
 
 
 def test_two_hands_export_prefixed_columns_and_joints(tmp_path, reviewed):
-    from core.session import HandTrack
+    from core.review import HandTrack
 
     review, _ = reviewed
     angles = simulate_joint_angles(FRAMES, 2, "mixed", 100.0)

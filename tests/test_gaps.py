@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from core.errors import InputError
+from core.evaluation.gaps import evaluate_gap_fill
 from core.gaps import (
     FILL_METHODS,
     METHOD_CODES,
     ModelContext,
     check_gap,
-    evaluate_gap_fill,
     fill_all,
     fill_gap,
     fill_linear,

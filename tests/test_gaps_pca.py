@@ -6,8 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.batch.filling import evaluate_hidden_gaps, hide_gaps
 from core.errors import InputError
+from core.evaluation.gaps import evaluate_hidden_gaps, hide_gaps
 from core.gaps import FillCheck, Gap, fill_gap, fill_linear, fill_pca, fill_spline
 from core.gaps.check import LOCAL_HORIZON_S
 from core.io import Take, load_take

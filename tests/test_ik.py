@@ -104,7 +104,7 @@ def test_solve_take_matches_names_and_rejects_foreign_takes(model, dense_take, t
 
 
 def test_layered_beats_standard_ik_on_held_out_grasps_with_four_markers():
-    from core.evaluation import evaluate_ik
+    from core.evaluation.ik import evaluate_ik
 
     figures = evaluate_ik()
     assert figures["grasp4_layered_mean_mm"] <= 0.6 * figures["grasp4_standard_mean_mm"]

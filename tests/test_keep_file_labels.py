@@ -8,9 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.cli import main
-from core.batch.labelling import auto_label, subject_model
-from core.batch.resolve import solve_labelled_take
+from app.cli.main import main
 from core.errors import InputError
 from core.io import Take, TakeFormatError, is_marker_label, load_take, save_take
 from core.io.labelled_c3d import (
@@ -21,8 +19,10 @@ from core.io.labelled_c3d import (
     subject_group,
 )
 from core.model import load_layout, load_template, resolve_layout
-from core.session import MEASURED, ReviewTake, export_labelled_c3d
+from core.review import MEASURED, ReviewTake, export_labelled_c3d
 from core.simulate import simulate_take
+from core.workflows.labelling import auto_label, subject_model
+from core.workflows.resolve import solve_labelled_take
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "dfki_glove_right_hand_frames_0001_3000.tsv"
 OTHER = ["right_elbow", "back_top", "back_left", "back_right", "right_shoulder", "pillow_top", "pillow_left",
@@ -113,7 +113,7 @@ def test_a_take_labelled_for_another_layout_is_refused_unless_relabelled(tmp_pat
 
 
 def test_cli_label_hands_auto_default_relabel_and_solve_with_the_subject(raw_with_body, tmp_path, capsys):
-    from app.cli import build_parser
+    from app.cli.main import build_parser
 
     args = build_parser().parse_args(["label", "x.c3d", "--layout", "glove-13", "--out", "y.c3d"])
     assert args.hands == "auto" and args.relabel is False
@@ -194,8 +194,8 @@ def test_subject_calibration_round_trips_and_a_damaged_group_is_one_line():
 
 
 def test_cli_label_claims_nothing_when_only_stray_points_fit_a_hand(tmp_path, capsys, monkeypatch):
-    import core.batch.labelling as labelling
-    from core.labeling.scene import SceneLabeling, SceneModel
+    import core.workflows.labelling as labelling
+    from core.labelling.scene import SceneLabelling, SceneModel
 
     rng = np.random.default_rng(2)
     frames, count = 200, 13
@@ -206,7 +206,7 @@ def test_cli_label_claims_nothing_when_only_stray_points_fit_a_hand(tmp_path, ca
         assignment = np.full((frames, count), -1)
         assignment[:4, :7] = np.arange(7)                    # a hand fitted to stray points in 4 frames
         shape = (frames, count)
-        return SceneLabeling(list(load_layout("glove-13").names), np.zeros(count, np.int64),
+        return SceneLabelling(list(load_layout("glove-13").names), np.zeros(count, np.int64),
                              [SceneModel("right", "right", slice(0, count), init_frame=0)], assignment,
                              np.ones(shape), np.ones(shape), np.zeros(shape, bool),
                              {"right": np.zeros((frames, 26))}, {}, offered.marker_positions)

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from core.errors import CancelledError, InputError
+from core.evaluation.labelling_metrics import labelling_accuracy
 from core.io import Take
-from core.labeling import label_scene, labelling_accuracy
+from core.labelling import label_scene
 from core.model import load_layout, load_template, marker_positions, resolve_layout
 from core.simulate import simulate_take
 

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.labeling.evaluate import evaluate_real_recording, unlabelled_real_take
+from core.evaluation.labelling import evaluate_real_recording, unlabelled_real_take
 
 REAL_TSV = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / \
     "dfki_glove_right_hand_frames_0001_3000.tsv"

@@ -8,11 +8,12 @@ import numpy as np
 import pytest
 
 from core.errors import InputError
-from core.labeling import SceneSettings, label_scene, labelling_accuracy
-from core.labeling.evaluate import REAL_RECORDING
-from core.labeling.robustness import Condition, evaluate_condition, hide_runs
-from core.labeling.sides import SIDE_MARGIN
-from core.labeling.take_statistics import TakeStatistics, measure_take
+from core.evaluation.labelling import REAL_RECORDING
+from core.evaluation.labelling_metrics import labelling_accuracy
+from core.evaluation.labelling_robustness import Condition, evaluate_condition, hide_runs
+from core.labelling import SceneSettings, label_scene
+from core.labelling.sides import SIDE_MARGIN
+from core.labelling.take_statistics import TakeStatistics, measure_take
 from core.simulate import simulate_scene
 
 needs_real = pytest.mark.skipif(not REAL_RECORDING.exists(), reason="shared real recording absent")
@@ -101,7 +102,7 @@ def test_real_recording_with_two_millimetres_of_noise_and_mirrored():
 @needs_real
 def test_the_whole_real_recording_labels_at_least_as_well_as_its_halves():
     """Subject calibration pooled over windows across the take, refreshed where the markers moved."""
-    from core.labeling.robustness import evaluate_long_take
+    from core.evaluation.labelling_robustness import evaluate_long_take
 
     figures = evaluate_long_take(seed=0)
     assert figures["whole_at_least_halves"], figures

@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 
 from core.errors import CancelledError, InputError
+from core.evaluation.labelling_metrics import labelling_accuracy
 from core.io import Take
-from core.labeling import SceneSettings, label_scene, labelling_accuracy
-from core.labeling.fragments import extend_trajectories, free_fragments
+from core.labelling import SceneSettings, label_scene
+from core.labelling.fragments import extend_trajectories, free_fragments
 from core.simulate import simulate_scene, simulate_take
 
 

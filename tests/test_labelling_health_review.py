@@ -4,12 +4,13 @@ it, journalled, kept in snapshots, listed as problems (F3) and summed up for the
 import numpy as np
 import pytest
 
-from core.batch.labelling import result_health
 from core.io import save_take
-from core.labeling.health import HealthWarning
-from core.labeling.scene import SceneLabeling, SceneModel
-from core.session import ApplyLabelling, LabellingArrays, ReviewTake, Session, UndoStack, command_from_json
-from core.session.synthetic import synthetic_labelling
+from core.labelling.health import HealthWarning
+from core.labelling.scene import SceneLabelling, SceneModel
+from core.review import ApplyLabelling, LabellingArrays, ReviewTake, UndoStack, command_from_json
+from core.review.synthetic import synthetic_labelling
+from core.session import Session
+from core.workflows.labelling import result_health
 
 FRAMES = 200
 WARNINGS = [HealthWarning("side_uncertain", "right", 0, 0, "the right hand was told from its mirror image by a "
@@ -78,10 +79,10 @@ def test_health_survives_journal_replay_snapshot_and_undo(tmp_path, labelled):
     assert reopened.review.health == WARNINGS
 
 
-def _scene(assignment: np.ndarray, points: int) -> SceneLabeling:
+def _scene(assignment: np.ndarray, points: int) -> SceneLabelling:
     frames, markers = assignment.shape
     model = SceneModel("right", "right", slice(0, markers), init_frame=0)
-    return SceneLabeling([f"m{i}" for i in range(markers)], np.zeros(markers, np.int64), [model], assignment,
+    return SceneLabelling([f"m{i}" for i in range(markers)], np.zeros(markers, np.int64), [model], assignment,
                          np.zeros(assignment.shape), np.zeros(assignment.shape), np.zeros((frames, points), bool),
                          {"right": np.zeros((frames, 26))}, {}, np.zeros((frames, points, 3)))
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from core.errors import InputError
-from core.session import (
+from core.review import (
     LANE_EDITED,
     LANE_FILLED,
     LANE_GAP,
@@ -28,8 +28,8 @@ from core.session import (
     Unlabel,
     command_from_json,
 )
-from core.session.events import Change, ReviewChanged
-from core.session.synthetic import synthetic_labelling
+from core.review.events import Change, ReviewChanged
+from core.review.synthetic import synthetic_labelling
 
 FRAMES = 60
 
@@ -444,7 +444,7 @@ def test_undo_keeps_only_what_changed(labelled):
 
 
 def test_define_a_hand_on_a_labelled_take(labelled):
-    from core.session import DefineHand
+    from core.review import DefineHand
 
     review, _, _ = labelled
     take = review.labelled_take()

@@ -17,21 +17,21 @@ import pytest
 from core.errors import InputError
 from core.io import save_take
 from core.model import load_layout
-from core.session import (
+from core.review import (
     AcceptFills,
     ApplyLabelling,
     AssignLabel,
     GapFill,
     LabellingArrays,
     ReviewTake,
-    Session,
     SetSolve,
     SwapLabels,
     UndoStack,
     Unlabel,
 )
+from core.review.synthetic import synthetic_labelling
+from core.session import Session
 from core.session.journal import JOURNAL_NAME
-from core.session.synthetic import synthetic_labelling
 
 ROOT = Path(__file__).resolve().parents[1]
 FRAMES = 200
@@ -249,8 +249,9 @@ def test_torn_and_damaged_journal_lines(tmp_path, raw):
 KILL_CHILD = textwrap.dedent("""
     import sys
     import numpy as np
-    from core.session import Session, ApplyLabelling, AssignLabel, SwapLabels, Unlabel, AcceptFills, GapFill
-    from core.session.synthetic import synthetic_labelling
+    from core.review import ApplyLabelling, AssignLabel, SwapLabels, Unlabel, AcceptFills, GapFill
+    from core.session import Session
+    from core.review.synthetic import synthetic_labelling
 
     def operations(count):
         rng = np.random.default_rng(7)

@@ -35,14 +35,7 @@ from PySide6.QtWidgets import (
 )
 
 from core.gaps import FILL_METHODS, METHOD_CODES, MISSING
-from core.session import (
-    LANE_EDITED,
-    LANE_FILLED,
-    LANE_GAP,
-    LANE_LOW_CONFIDENCE,
-    LANE_NONE,
-    LANE_OBSERVED,
-)
+from core.review import LANE_EDITED, LANE_FILLED, LANE_GAP, LANE_LOW_CONFIDENCE, LANE_NONE, LANE_OBSERVED
 
 NO_DATA = -2                  # before the first or after the last sample of the marker
 GAP = MISSING                 # -1: no sample (not filled)

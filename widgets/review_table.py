@@ -13,7 +13,7 @@ from PySide6.QtCore import QModelIndex, QObject, Qt, Signal
 from PySide6.QtGui import QBrush, QColor, QIcon
 from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
-from core.session import MarkerStats, ReviewSettings
+from core.review import MarkerStats, ReviewSettings
 from widgets.marker_lanes import LOW_CONFIDENCE_COLOR
 from widgets.marker_panel import MISSING_TEXT, SORT_ROLE, ColumnTableModel, filtered_table, swatch
 

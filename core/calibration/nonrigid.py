@@ -17,7 +17,7 @@ Schedule (paper): landmarks only with λ_reg halved every iteration from 1 to 1e
 fitting (λ_fit = 1) with λ_reg halved from 1e-6 to 1e-8.
 
 Where this implementation settles what the paper leaves open (each measured on synthetic scans with
-holes, see ``core.calibration.evaluate``):
+holes, see ``core.evaluation.calibration``):
 
 * ``R_v`` is a rotation times a per-vertex scale (clamped to :data:`SCALE_RANGE`): subjects' fingers
   differ in length by ±15 %, and a pure rotation makes the surface over a scan hole in a stretched

@@ -13,7 +13,6 @@ from core.gaps.check import (
     recommend,
 )
 from core.gaps.detect import Gap, find_gaps
-from core.gaps.evaluate import evaluate_gap_fill, format_gap_fill_table
 from core.gaps.fills import (
     fill_linear,
     fill_model,
@@ -26,7 +25,7 @@ from core.gaps.pca import fill_pca
 
 __all__ = [
     "FILL_METHODS", "METHOD_CODES", "MISSING", "FillCheck", "Gap", "ModelContext", "check_gap",
-    "evaluate_gap_fill", "fill_all", "fill_gap", "fill_linear", "fill_model", "fill_pattern", "fill_pca",
-    "fill_rigid", "fill_spline", "find_gaps", "format_gap_fill_table", "minimum_acceleration_interpolation",
+    "fill_all", "fill_gap", "fill_linear", "fill_model", "fill_pattern", "fill_pca",
+    "fill_rigid", "fill_spline", "find_gaps", "minimum_acceleration_interpolation",
     "recommend",
 ]

@@ -10,7 +10,6 @@ in layered IK it holds only the digits whose three segments are not all observed
 
 from __future__ import annotations
 
-import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,9 +18,11 @@ import numpy as np
 
 from core.errors import CancelledError, InputError
 from core.ik.kernel import frame_energy_kernel, solve_frame_kernel
+from core.io.joint_angles import write_joint_angles_csv
 from core.model import HandModel, MarkerLayout, MarkerSet, marker_columns, marker_positions, resolve_layout
 from core.model.kinematics import ANCESTOR, vector_from_rotation
 from core.model.skeleton import N_PARAMS, PARAM_NAMES, default_joint_limits
+from core.prior import load_default_prior
 
 METHODS = ("layered", "subspace", "full")
 LOST_TRACK_MM = 30.0
@@ -71,30 +72,9 @@ class IKResult:
                             param_names=np.array(PARAM_NAMES))
         temporary.replace(path)
 
-    @staticmethod
-    def read_joint_angles(path: str | Path) -> np.ndarray:
-        """``joint_angles (F,26)`` of a result file written by :meth:`save`; InputError if unreadable."""
-        try:
-            with np.load(path, allow_pickle=False) as data:
-                angles = np.asarray(data["joint_angles"], dtype=float)
-        except (OSError, KeyError, ValueError, TypeError, zipfile.BadZipFile) as error:
-            raise InputError(f"{Path(path).name}: not an IK result with joint angles ({error})") from error
-        if angles.ndim != 2 or angles.shape[1] != N_PARAMS:
-            raise InputError(f"{Path(path).name}: joint_angles must be (F, 26), got {angles.shape}")
-        return angles
-
     def save_csv(self, path: str | Path) -> None:
-        """Joint angles as CSV: frame, time (s), 3 translations (mm), 23 angles (deg)."""
-        angles = self.joint_angles.copy()
-        angles[:, 3:] = np.degrees(angles[:, 3:])
-        frames = np.arange(len(angles)) + self.first_frame
-        table = np.column_stack([frames, (frames - self.first_frame) / self.frame_rate, angles])
-        header = ",".join(["frame", "time_s"] + [f"{name}_{'mm' if i < 3 else 'deg'}"
-                                                 for i, name in enumerate(PARAM_NAMES)])
-        path = Path(path)
-        temporary = path.with_name(path.name + ".tmp")
-        np.savetxt(temporary, table, delimiter=",", header=header, comments="", fmt="%.6g")
-        temporary.replace(path)
+        """Joint angles as CSV (see :func:`core.io.joint_angles.write_joint_angles_csv`)."""
+        write_joint_angles_csv(path, [("", self.joint_angles)], self.first_frame, self.frame_rate)
 
 
 def kabsch(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -115,7 +95,6 @@ class IKSolver:
         if self.settings.method not in METHODS:
             raise InputError(f"unknown IK method '{self.settings.method}' (use {', '.join(METHODS)})")
         if self.settings.method != "full" and prior is None:
-            from core.prior import load_default_prior
             prior = load_default_prior()
         self.model, self.markers, self.prior = model, markers, prior
         lower, upper = default_joint_limits()

@@ -14,10 +14,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from core.errors import InputError
-from core.evaluation import mean_vertex_error
 from core.ik import IKSettings, solve_positions
 from core.layout.objective import RANK_TOLERANCE
-from core.model import HandModel, MarkerLayout, marker_jacobian, marker_positions_batch, resolve_layout
+from core.model import (
+    HandModel,
+    MarkerLayout,
+    marker_jacobian,
+    marker_positions_batch,
+    mean_vertex_error,
+    resolve_layout,
+)
 from core.model.skeleton import N_GLOBAL
 from core.prior import PosturePrior, load_default_prior
 from core.simulate import simulate_joint_angles

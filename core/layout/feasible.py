@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
-from core.ik import IKResult
+from core.io.joint_angles import read_result_joint_angles
 from core.model import HandModel
 from core.model.skeleton import N_GLOBAL, N_PARAMS, N_POSTURE
 from core.prior import canonical_postures
@@ -55,7 +55,7 @@ def gesture_motion(n_frames: int, seed: int = 0, frame_rate: float = 100.0) -> n
 
 def motion_from_results(paths: list[str | Path]) -> np.ndarray:
     """``theta (F, 26)`` of solved takes (result ``.npz`` files with ``joint_angles``), NaN frames dropped."""
-    motions = [angles[np.isfinite(angles).all(axis=1)] for angles in map(IKResult.read_joint_angles, paths)]
+    motions = [angles[np.isfinite(angles).all(axis=1)] for angles in map(read_result_joint_angles, paths)]
     motion = np.vstack(motions) if motions else np.empty((0, N_PARAMS))
     if len(motion) == 0:
         raise InputError("the motion set is empty: no solved frames in the given results")

@@ -6,7 +6,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from core.errors import InputError
-from core.model.hand_model import HandModel, skin_vertices
+from core.model.hand_model import HandModel, mean_vertex_error, skin_vertices
 from core.model.markers import (
     MarkerLayout,
     MarkerSet,
@@ -43,6 +43,7 @@ __all__ = [
     "HandModel", "MarkerLayout", "MarkerSet", "MarkerSpec", "N_PARAMS", "PARAM_NAMES", "TEMPLATE_PATH",
     "add_layout_folder", "best_layout_for",
     "default_joint_limits", "layout_names", "load_layout", "load_template", "marker_columns", "marker_jacobian",
-    "marker_positions", "marker_positions_batch", "remove_layout_folder", "resolve_layout", "save_layout",
+    "marker_positions", "marker_positions_batch", "mean_vertex_error", "remove_layout_folder", "resolve_layout",
+    "save_layout",
     "skin_vertices",
 ]

@@ -138,3 +138,16 @@ def skin_vertices(model: HandModel, theta: np.ndarray) -> np.ndarray:
         moved = np.einsum("vab,vb->va", linear[joints], model.vertices) + translation[joints]
         posed += weights * moved
     return posed
+
+
+def mean_vertex_error(model: HandModel, estimated: np.ndarray, truth: np.ndarray, step: int = 5) -> tuple[float, float]:
+    """Mean and max over frames of the per-frame mean vertex distance (mm) between two poses sets
+    ``(F,26)``, every ``step``-th frame."""
+    errors = []
+    for frame in range(0, len(truth), step):
+        if not np.isfinite(estimated[frame]).all():
+            continue
+        difference = skin_vertices(model, estimated[frame]) - skin_vertices(model, truth[frame])
+        errors.append(np.linalg.norm(difference, axis=1).mean())
+    errors = np.asarray(errors)
+    return float(errors.mean()), float(errors.max())

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
-from core.ik import IKResult
+from core.io.joint_angles import read_result_joint_angles
 from core.model.skeleton import N_GLOBAL, N_POSTURE, default_joint_limits
 from core.prior.canonical_postures import prior_postures
 
@@ -197,7 +197,7 @@ def build_prior_from_results(paths: list[str | Path]) -> PosturePrior:
     if not paths:
         raise InputError("no result files given to build a posture prior from")
     postures = [angles[np.all(np.isfinite(angles), axis=1), N_GLOBAL:]
-                for angles in map(IKResult.read_joint_angles, paths)]
+                for angles in map(read_result_joint_angles, paths)]
     names = ", ".join(Path(path).name for path in paths)
     return build_prior(np.vstack(postures), f"results: {names}")
 

@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 
 from core.errors import InputError
-from core.session.commands import Command, UndoStack, command_from_json
-from core.session.storage import fsync_folder, write_atomic
+from core.io.durable import fsync_folder, write_atomic
+from core.review.commands import Command, UndoStack, command_from_json
 
 _log = logging.getLogger(__name__)
 

@@ -46,11 +46,12 @@ import numpy as np
 
 from core.errors import InputError
 from core.io import Take, load_take, looks_unlabelled
+from core.io.durable import write_atomic
 from core.model import HandModel, MarkerLayout, best_layout_for, load_layout, marker_columns
-from core.session.commands import Command, FrameSpan, UndoStack
+from core.review.commands import Command, FrameSpan, UndoStack
+from core.review.take import HandTrack, ReviewTake
 from core.session.journal import Journal
-from core.session.review import HandTrack, ReviewTake
-from core.session.storage import load_snapshot, snapshot_bytes, write_atomic
+from core.session.storage import load_snapshot, snapshot_bytes
 
 MANIFEST_NAME = "session.json"
 BACKUP_SUFFIX = ".bak"
@@ -460,7 +461,7 @@ class OpenTake:
     ``replayed``: journal entries applied on open (edits recovered after a crash).
 
     Undo and redo restore the solved joint angles and residuals too, so only :meth:`push` needs a
-    re-solve (attach its :class:`~core.session.commands.SetSolve` result with :meth:`attach`, after
+    re-solve (attach its :class:`~core.review.commands.SetSolve` result with :meth:`attach`, after
     checking ``review.version`` did not change meanwhile).
     """
 

@@ -1,7 +1,4 @@
-"""Durable files of a session: atomic replace with fsync, and ``.npz`` snapshots of a review.
-
-Every file is written to a temporary name in the same folder, flushed and fsync'ed, then renamed over
-the target, and the folder is fsync'ed: a crash leaves either the old or the new file, never a mix.
+"""Snapshots of a review (``.npz``) and the session's marker sets; written with :mod:`core.io.durable`.
 
 A review snapshot (``review.npz``) holds the state arrays of a :class:`ReviewTake`, a JSON ``meta``
 entry (format version, label names, hands, settings, the journal sequence number it includes, the
@@ -14,7 +11,6 @@ from __future__ import annotations
 import io
 import json
 import os
-import secrets
 import zipfile
 from dataclasses import asdict
 from pathlib import Path
@@ -24,42 +20,13 @@ import numpy as np
 
 from core.errors import InputError
 from core.io import Take
+from core.io.durable import write_atomic
 from core.model import MarkerSet
-from core.session.commands import Command, CompoundCommand, FrameSpan, UndoStack, command_from_json
-from core.session.review import FRAME_ARRAYS, HandTrack, ReviewSettings, ReviewTake, copy_health, copy_rigid_bodies
+from core.review.commands import Command, CompoundCommand, FrameSpan, UndoStack, command_from_json
+from core.review.take import FRAME_ARRAYS, HandTrack, ReviewSettings, ReviewTake, copy_health, copy_rigid_bodies
 
 SNAPSHOT_FORMAT = "handmocap-review"
 SNAPSHOT_VERSION = 1
-
-
-def fsync_folder(folder: Path) -> None:
-    """Make a rename or a new file in ``folder`` durable (no-op where folders cannot be opened)."""
-    try:
-        descriptor = os.open(folder, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(descriptor)
-    except OSError:
-        pass
-    finally:
-        os.close(descriptor)
-
-
-def write_atomic(path: str | os.PathLike[str], data: bytes) -> None:
-    """Replace ``path`` by ``data`` atomically and durably (temporary file, fsync, rename, fsync folder).
-    Raises OSError (callers turn it into an InputError naming what was being saved)."""
-    path = Path(path)
-    temporary = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
-    try:
-        with open(temporary, "wb") as handle:
-            handle.write(data)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(temporary, path)
-    finally:
-        temporary.unlink(missing_ok=True)
-    fsync_folder(path.parent)
 
 
 def npz_bytes(arrays: dict[str, np.ndarray], compress_level: int = 1) -> bytes:
@@ -104,7 +71,7 @@ def read_marker_set(path: str | os.PathLike[str]) -> MarkerSet:
 
 
 class DictBlobs:
-    """A :class:`~core.session.commands.BlobStore` over a dict of arrays (keys ``prefix<n>``)."""
+    """A :class:`~core.review.commands.BlobStore` over a dict of arrays (keys ``prefix<n>``)."""
 
     def __init__(self, arrays: dict[str, np.ndarray], prefix: str = "blob") -> None:
         self.arrays, self.prefix = arrays, prefix

@@ -9,7 +9,7 @@ drop out in random gaps (5-30 frames, about 3 % of their samples). Gaussian nois
 coordinate, ghosts in about ``ghost_rate`` of the frames next to random markers of the scene, and the
 points are shuffled per frame. ``truth["point_marker"] (F,P)`` indexes the scene's marker list
 (``R_``/``L_``-prefixed hand markers when both hands are in, then the objects' markers), the order
-:func:`core.labeling.label_scene` uses.
+:func:`core.labelling.label_scene` uses.
 """
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ from scipy.spatial.transform import Rotation
 
 from core.errors import InputError
 from core.io import Take
-from core.labeling.objects import ObjectSpec, object_from_json
 from core.model import MarkerLayout, load_layout, load_template, marker_positions_batch, resolve_layout
+from core.model.objects import ObjectSpec, object_from_json
 from core.model.skeleton import HandProportions
 from core.simulate.motion import DEFAULT_FRAME_RATE, WORKSPACE_CENTRE, simulate_joint_angles
 from core.simulate.take import _ghosts, _shuffled_points, _visibility
@@ -30,7 +30,7 @@ from core.simulate.take import _ghosts, _shuffled_points, _visibility
 SIDE_OFFSET_MM = 400.0
 OBJECT_ROW_Y_MM = 520.0
 
-#: the objects of a simulated scene, in their own frames (see :mod:`core.labeling.objects`)
+#: the objects of a simulated scene, in their own frames (see :mod:`core.model.objects`)
 SCENE_OBJECTS = (
     {"name": "box", "type": "box", "size_mm": [90.0, 60.0, 40.0],
      "markers": {"box1": [45.0, -20.0, 24.0], "box2": [10.0, 30.0, 24.0], "box3": [-45.0, 5.0, 24.0],

@@ -1,5 +1,5 @@
 """Scan calibration benchmark and figures: the whole pipeline on a 200 000-point synthetic scan (one core),
-then the accuracy over the five re-proportioned synthetic subjects of ``core.calibration.evaluate``
+then the accuracy over the five re-proportioned synthetic subjects of ``core.evaluation.calibration``
 (surface and joint errors against the truth, marker alignment gain over the template on simulated takes).
 
 Run: taskset -c 0 python tests/bench/bench_calibrate.py [--points 200000] [--subjects 5] [--skip-evaluation]
@@ -14,7 +14,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from core.calibration.evaluate import SUBJECTS, bench_calibrate, evaluate_subject  # noqa: E402
+from core.evaluation.calibration import SUBJECTS, bench_calibrate, evaluate_subject  # noqa: E402
 
 
 def main() -> None:

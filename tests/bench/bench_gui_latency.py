@@ -1,6 +1,6 @@
 """GUI responsiveness while a worker solves: how late the GUI thread serves a 10 ms timer and how long
 one repaint of the main window takes, with the interpreter's default switch interval (5 ms) and with
-the interval the task runner sets (``app.workers.GUI_SWITCH_INTERVAL_S``).
+the interval the task runner sets (``app.gui.workers.GUI_SWITCH_INTERVAL_S``).
 
 Run (needs a display or QT_QPA_PLATFORM=offscreen): python tests/bench/bench_gui_latency.py [frames]
 """
@@ -18,9 +18,9 @@ import numpy as np  # noqa: E402
 from PySide6.QtCore import QElapsedTimer, QTimer  # noqa: E402
 from PySide6.QtWidgets import QApplication  # noqa: E402
 
-from app.document import TakeDocument  # noqa: E402
-from app.main_window import MainWindow  # noqa: E402
-from app.workers import GUI_SWITCH_INTERVAL_S  # noqa: E402
+from app.gui.document import TakeDocument  # noqa: E402
+from app.gui.main_window import MainWindow  # noqa: E402
+from app.gui.workers import GUI_SWITCH_INTERVAL_S  # noqa: E402
 from core.simulate import simulate_take  # noqa: E402
 
 TICK_MS = 10

@@ -10,7 +10,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from core.labeling.bench import bench_label  # noqa: E402
+from core.evaluation.labelling_bench import bench_label  # noqa: E402
 
 
 def main() -> None:

@@ -17,15 +17,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 import numpy as np  # noqa: E402
 
 from core.io import save_take  # noqa: E402
-from core.session import (  # noqa: E402
+from core.review import (
     ApplyLabelling,
     AssignLabel,
-    ReviewTake,
-    Session,
     SwapLabels,
     export_labelled_c3d,
+    review_from_labelled_c3d,
 )
-from core.session.synthetic import synthetic_labelling  # noqa: E402
+from core.review.synthetic import synthetic_labelling  # noqa: E402
+from core.session import Session
 
 
 def timed(figures: dict, name: str, operation):
@@ -63,7 +63,7 @@ def main() -> None:
                      .open_take(entry.id))
     assert np.array_equal(reopened.review.assignment, review.assignment)
     timed(figures, "export_c3d_ms", lambda: export_labelled_c3d(review, folder / "labelled.c3d"))
-    timed(figures, "import_c3d_ms", lambda: ReviewTake.from_labelled_c3d(folder / "labelled.c3d"))
+    timed(figures, "import_c3d_ms", lambda: review_from_labelled_c3d(folder / "labelled.c3d"))
     for key, value in figures.items():
         print(f"  {key:<36} {value}")
     print(json.dumps(figures))

@@ -10,7 +10,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from core.evaluation import evaluate_ik  # noqa: E402
+from core.evaluation.ik import evaluate_ik  # noqa: E402
 
 
 def main() -> None:

@@ -9,10 +9,11 @@ import pytest
 from PySide6.QtCore import Qt, QTimer
 from PySide6.QtWidgets import QApplication, QDialogButtonBox
 
-from app.review_controller import AutoLabelDialog, AutoLabelSettings
+from app.gui.review_controller import AutoLabelDialog, AutoLabelSettings
 from core.io import load_take, save_take
 from core.io.labelled_c3d import subject_calibrations
-from core.session import MEASURED, Session
+from core.review import MEASURED
+from core.session import Session
 from core.simulate import simulate_take
 
 pytestmark = pytest.mark.gui

@@ -22,7 +22,7 @@ def scan_files(tmp_path_factory):
 
 
 def test_wizard_calibrates_a_scan(qtbot, scan_files, tmp_path):
-    from app.calibration_wizard import open_calibration_wizard
+    from app.gui.calibration_wizard import open_calibration_wizard
 
     wizard = open_calibration_wizard(None)
     qtbot.addWidget(wizard)
@@ -78,7 +78,7 @@ def test_wizard_calibrates_a_scan(qtbot, scan_files, tmp_path):
 
 
 def test_wizard_shows_bad_scan_and_keeps_landmarks_after_a_failed_alignment(qtbot, scan_files, tmp_path):
-    from app.calibration_wizard import open_calibration_wizard
+    from app.gui.calibration_wizard import open_calibration_wizard
 
     wizard = open_calibration_wizard(None)
     qtbot.addWidget(wizard)
@@ -104,7 +104,7 @@ def test_wizard_shows_bad_scan_and_keeps_landmarks_after_a_failed_alignment(qtbo
 
 
 def test_a_scan_without_colours_skips_the_clean_page(qtbot, tmp_path):
-    from app.calibration_wizard import open_calibration_wizard
+    from app.gui.calibration_wizard import open_calibration_wizard
     from core.calibration.scan import Scan
 
     scan, _ = synthetic_scan(n_points=8000, background_points=0, outlier_share=0.0, seed=1)

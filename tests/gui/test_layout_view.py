@@ -6,8 +6,8 @@ import pytest
 from conftest import release
 from PySide6.QtWidgets import QMessageBox
 
-import app.layout_view as layout_view_module
-from app.layout_view import open_layout_view
+import app.gui.layout_view as layout_view_module
+from app.gui.layout_view import open_layout_view
 from core.model import load_layout
 
 

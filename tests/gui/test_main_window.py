@@ -5,7 +5,7 @@ import pytest
 from conftest import release
 from PySide6.QtCore import Qt
 
-from app.document import TakeDocument
+from app.gui.document import TakeDocument
 from core.io import Take, save_take
 from core.simulate import simulate_take
 
@@ -192,7 +192,7 @@ def test_take_without_layout_markers_reports_instead_of_crashing(window, qtbot):
 
 
 def test_closing_while_solving_stops_the_worker(qtbot, long_take):
-    from app.main_window import MainWindow
+    from app.gui.main_window import MainWindow
 
     window = MainWindow()
     window.show()

@@ -4,7 +4,7 @@ jump to problems, export a labelled C3D."""
 import numpy as np
 import pytest
 
-from app.review_controller import AutoLabelSettings
+from app.gui.review_controller import AutoLabelSettings
 from core.io import save_take
 from core.simulate import simulate_take
 

@@ -9,7 +9,7 @@ from PySide6.QtWidgets import QFileDialog
 
 from core.gaps import METHOD_CODES, check_gap, fill_gap, find_gaps
 from core.io import Take
-from core.session import (
+from core.review import (
     LANE_EDITED,
     LANE_FILLED,
     LANE_GAP,

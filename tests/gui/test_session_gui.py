@@ -4,7 +4,7 @@ crash (the journal is replayed); a damaged manifest gives a message and is left 
 import numpy as np
 import pytest
 
-from app.review_controller import AutoLabelSettings
+from app.gui.review_controller import AutoLabelSettings
 from core.io import save_take
 from core.session import Session
 from core.simulate import simulate_take

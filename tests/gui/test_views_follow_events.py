@@ -4,7 +4,7 @@ the review views, its undo and redo too; the application object announces takes,
 import numpy as np
 import pytest
 
-from app.application import (
+from app.gui.application import (
     Application,
     CurrentDocumentChanged,
     DocumentClosed,
@@ -14,9 +14,9 @@ from app.application import (
     JobsChanged,
     SelectionChanged,
 )
-from app.document import TakeDocument
-from core.session import AcceptFills, GapFill, Unlabel
-from core.session.events import Change, ReviewChanged
+from app.gui.document import TakeDocument
+from core.review import AcceptFills, GapFill, Unlabel
+from core.review.events import Change, ReviewChanged
 from core.simulate import simulate_take
 from widgets.marker_lanes import EDITED
 from widgets.review_table import OBSERVED_COLUMN
@@ -102,7 +102,7 @@ def test_the_application_object_and_the_events_need_no_qt():
     import sys
     from pathlib import Path
 
-    code = ("import sys, app.application, core.session.events; "
+    code = ("import sys, app.gui.application, core.review.events; "
             "bad = [m for m in ('PySide6', 'pyvista', 'pyqtgraph', 'widgets') if m in sys.modules]; "
             "print(bad); sys.exit(1 if bad else 0)")
     root = Path(__file__).resolve().parents[2]

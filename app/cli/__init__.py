@@ -1,0 +1,1 @@
+"""The command line: ``handmocap SUBCOMMAND`` (see :mod:`app.cli.main`)."""

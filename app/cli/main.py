@@ -1,0 +1,270 @@
+"""The ``handmocap`` command: GUI launcher and the command-line tools (same engine as the GUI).
+
+Errors are one line on stderr and exit code 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from app.cli import calibrate as calibrate_commands
+from app.cli import layout as layout_commands
+from app.cli import review as review_commands
+from app.cli.common import add_json_flag, print_figures, print_json, print_summary, progress_printer
+from core.errors import HandMocapError, InputError
+
+#: modules that add their own subcommands (``register(commands, bench_commands, evaluate_commands)``)
+SUBCOMMAND_MODULES = (layout_commands, review_commands, calibrate_commands)
+
+EXIT_ERROR = 2
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("handmocap")
+    except PackageNotFoundError:
+        return "0+unknown"
+
+
+def command_gui(args: argparse.Namespace) -> int:
+    from app.gui.launch import run_gui
+
+    return run_gui(args.files, screenshot=args.screenshot, frame=args.frame, solve=args.solve, demo=args.demo)
+
+
+def command_info(args: argparse.Namespace) -> int:
+    from core.io import load_take
+
+    take = load_take(args.file)
+    missing = take.missing_fraction
+    info = {
+        "file": str(args.file), "vendor": take.vendor, "frames": take.n_frames,
+        "frame_rate_hz": take.frame_rate, "first_frame": take.first_frame,
+        "duration_s": round(take.n_frames / take.frame_rate, 3), "units": take.source_units,
+        "markers": take.n_markers, "missing_share": round(float(missing), 4),
+        "marker_names": list(take.marker_names),
+    }
+    if args.json:
+        print_json(info)
+        return 0
+    print(f"{Path(args.file).name}: {info['vendor']}, {take.n_frames} frames at {take.frame_rate:g} Hz "
+          f"({info['duration_s']} s, first frame {take.first_frame}), units {take.source_units}")
+    print(f"{take.n_markers} markers, {100 * missing:.1f} % of samples missing")
+    per_marker = take.missing_fraction_per_marker
+    for name, share in zip(take.marker_names, per_marker, strict=True):
+        print(f"  {name:<32} {100 * (1 - share):6.1f} % observed")
+    return 0
+
+
+def command_simulate(args: argparse.Namespace) -> int:
+    from core.io import save_take
+    from core.simulate import save_truth, simulate_take
+
+    if args.frames <= 0:
+        raise InputError("--frames must be positive")
+    simulated = simulate_take(layout=args.layout, n_frames=args.frames, seed=args.seed, noise_mm=args.noise,
+                              ghost_rate=args.ghosts, occlusion=args.occlusion, unlabelled=args.unlabelled)
+    save_take(simulated.take, args.out)
+    save_truth(simulated.truth, args.truth)
+    take = simulated.take
+    print(f"wrote {args.out} ({take.n_frames} frames, {take.n_markers} point columns, "
+          f"{100 * take.missing_fraction:.1f} % missing) and truth {args.truth}")
+    return 0
+
+
+def command_solve(args: argparse.Namespace) -> int:
+    from core.io import load_take
+    from core.io.labelled_c3d import subject_calibrations
+    from core.model import load_layout, load_template, resolve_layout
+    from core.prior import PosturePrior
+    from core.workflows.labelling import subject_model
+    from core.workflows.resolve import check_layout_names, solve_labelled_take
+
+    take = load_take(args.take)
+    layout = load_layout(args.layout)
+    check_layout_names(take.marker_names, layout)
+    prior = PosturePrior.load(args.prior) if args.prior else None
+    subjects = {subject.side: subject for subject in subject_calibrations(take.parameters, args.take)}
+    side = args.side or (next(iter(subjects)) if len(subjects) == 1 else "right")
+    if side in subjects and not args.template:
+        model, markers = subject_model(subjects[side], layout)
+        hand = f"the subject's {side} hand calibrated by auto-label"
+    else:
+        model = load_template(side)
+        markers = resolve_layout(model, layout)
+        hand = f"the {side} template hand"
+    result = solve_labelled_take(take, model, markers, prior, args.method,
+                                 progress=progress_printer() if not args.quiet else None)
+    result.save(args.out)
+    if args.csv:
+        result.save_csv(args.csv)
+    print(f"solved {take.n_frames} frames with {args.method} IK on {hand}: mean residual "
+          f"{result.mean_residual_mm:.2f} mm -> {args.out}")
+    return 0
+
+
+def command_bench_ik(args: argparse.Namespace) -> int:
+    from core.evaluation.ik import bench_ik
+
+    figures = bench_ik(frames=args.frames or 3000)
+    print_summary(f"layered IK, {figures['markers']} markers: {figures['frames_per_s']:.0f} frames/s", figures,
+                  args.json)
+    return 0
+
+
+def command_bench_load(args: argparse.Namespace) -> int:
+    from core.io.generate import bench_load
+
+    figures = bench_load(n_frames=args.frames or 100_000)
+    print_summary(f"read {figures['frames']} frames × {figures['markers']} markers in {figures['seconds']:.3f} s",
+                  figures, args.json)
+    return 0
+
+
+def command_evaluate_ik(args: argparse.Namespace) -> int:
+    from core.evaluation.ik import evaluate_ik
+
+    print_figures(evaluate_ik(frames=args.frames or 1500), args.json)
+    return 0
+
+
+def command_template(args: argparse.Namespace) -> int:
+    from core.model.template_mesh import DEFAULT_TEMPLATE_PATH, write_default_template
+
+    path = Path(args.out) if args.out else DEFAULT_TEMPLATE_PATH
+    write_default_template(path)
+    print(f"wrote template {path}")
+    return 0
+
+
+def command_prior(args: argparse.Namespace) -> int:
+    from core.prior import DEFAULT_PRIOR_PATH, build_default_prior, build_prior_from_results, describe_prior
+
+    if args.results:
+        prior = build_prior_from_results([Path(p) for p in args.results])
+        path = Path(args.out or "prior.npz")
+    else:
+        prior = build_default_prior()
+        path = Path(args.out) if args.out else DEFAULT_PRIOR_PATH
+    prior.save(path)
+    print(describe_prior(prior))
+    print(f"wrote prior {path}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="handmocap", description="Hand Mocap Studio: optical hand motion "
+                                     "capture review, labelling, gap filling and calibration.")
+    parser.add_argument("--version", action="version", version=f"handmocap {_version()}")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    gui = commands.add_parser("gui", help="start the application (demo session when no file is given)")
+    gui.add_argument("files", nargs="*", help="takes to open (C3D, TSV, TRC, CSV)")
+    gui.add_argument("--screenshot", metavar="PNG", help="wait for the solves, save a screenshot and exit")
+    gui.add_argument("--frame", type=int, help="0-based frame to show in the screenshot")
+    gui.add_argument("--solve", action="store_true", help="solve the opened takes at once")
+    gui.add_argument("--demo", action="store_true", help="also open the demo session")
+    gui.set_defaults(handler=command_gui)
+
+    info = commands.add_parser("info", help="frames, rate, units, markers, vendor and missing share of a take")
+    info.add_argument("file")
+    info.add_argument("--json", action="store_true", help="print one JSON object")
+    info.set_defaults(handler=command_info)
+
+    simulate = commands.add_parser("simulate", help="write a synthetic take with ground truth")
+    simulate.add_argument("--layout", default="dense", help="marker layout name or JSON file (default dense)")
+    simulate.add_argument("--frames", type=int, default=1000)
+    simulate.add_argument("--seed", type=int, default=0)
+    simulate.add_argument("--noise", type=float, default=0.0, metavar="MM", help="marker noise σ in mm")
+    simulate.add_argument("--ghosts", type=float, default=0.0, metavar="RATE",
+                          help="share of frames with ghost points (0..1)")
+    simulate.add_argument("--occlusion", action="store_true", help="hide markers the cameras cannot see")
+    simulate.add_argument("--unlabelled", action="store_true", help="per-frame shuffled, unnamed points")
+    simulate.add_argument("--out", required=True, metavar="TAKE.c3d")
+    simulate.add_argument("--truth", required=True, metavar="TRUTH.npz")
+    simulate.set_defaults(handler=command_simulate)
+
+    solve = commands.add_parser("solve", help="inverse kinematics of a labelled take")
+    solve.add_argument("take")
+    solve.add_argument("--layout", required=True, help="marker layout name or JSON file")
+    solve.add_argument("--prior", help="posture prior .npz (default: the shipped prior)")
+    solve.add_argument("--method", choices=["layered", "subspace", "full"], default="layered")
+    solve.add_argument("--side", choices=["right", "left"],
+                       help="hand side (default: the side auto-label calibrated in the file, else right)")
+    solve.add_argument("--template", action="store_true",
+                       help="solve with the template hand even when the file holds a subject calibration")
+    solve.add_argument("--out", required=True, metavar="RESULT.npz")
+    solve.add_argument("--csv", metavar="ANGLES.csv", help="also write the joint angles as CSV")
+    solve.add_argument("--quiet", action="store_true", help="no progress output")
+    solve.set_defaults(handler=command_solve)
+
+    bench = commands.add_parser("bench", help="speed benchmarks (one JSON object as the last line with --json)")
+    bench_commands = bench.add_subparsers(dest="bench_command", metavar="WHAT", required=True)
+    bench_ik = bench_commands.add_parser("ik", help="layered IK frames per second (dense layout, simulated take)")
+    bench_ik.add_argument("--frames", type=int, help="frames to solve (default 3000)")
+    add_json_flag(bench_ik)
+    bench_ik.set_defaults(handler=command_bench_ik)
+    bench_load = bench_commands.add_parser("load", help="seconds to read a generated 40-marker C3D")
+    bench_load.add_argument("--frames", type=int, help="frames in the generated file (default 100000)")
+    add_json_flag(bench_load)
+    bench_load.set_defaults(handler=command_bench_load)
+
+    evaluate = commands.add_parser("evaluate", help="accuracy evaluations on simulated data")
+    evaluate_commands = evaluate.add_subparsers(dest="evaluate_command", metavar="WHAT", required=True)
+    evaluate_ik = evaluate_commands.add_parser("ik", help="layered against standard IK (grasp-4) and dense accuracy")
+    evaluate_ik.add_argument("--frames", type=int, help="frames per simulated take (default 1500)")
+    add_json_flag(evaluate_ik)
+    evaluate_ik.set_defaults(handler=command_evaluate_ik)
+
+    template = commands.add_parser("template", help="regenerate the template hand mesh")
+    template.add_argument("action", choices=["build"])
+    template.add_argument("--out", help="output .npz (default: resources/template/right_hand.npz)")
+    template.set_defaults(handler=command_template)
+
+    prior = commands.add_parser("prior", help="build a posture prior")
+    prior.add_argument("action", choices=["build"])
+    prior.add_argument("--results", nargs="+", metavar="RESULT.npz",
+                       help="solved takes to build from (default: the authored canonical postures)")
+    prior.add_argument("--out", help="output .npz (default: resources/priors/default_prior.npz)")
+    prior.set_defaults(handler=command_prior)
+
+    for module in SUBCOMMAND_MODULES:
+        module.register(commands, bench_commands, evaluate_commands)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        args = parser.parse_args(["gui"])
+    try:
+        return args.handler(args)
+    except HandMocapError as error:
+        print(f"handmocap: error: {error}", file=sys.stderr)
+    except (OSError, ValueError) as error:
+        print(f"handmocap: error: {error}", file=sys.stderr)
+    except KeyboardInterrupt:
+        print("handmocap: interrupted", file=sys.stderr)
+    except Exception as error:  # noqa: BLE001 - the user gets one line, the traceback goes to a log
+        log = _write_crash_log()
+        print(f"handmocap: internal error: {type(error).__name__}: {error} (details in {log})", file=sys.stderr)
+    return EXIT_ERROR
+
+
+def _write_crash_log() -> Path:
+    """Save the current traceback to ``~/.cache/handmocap/last-error.log``; returns the path."""
+    import traceback
+
+    log = Path.home() / ".cache" / "handmocap" / "last-error.log"
+    log.parent.mkdir(parents=True, exist_ok=True)
+    log.write_text(traceback.format_exc(), encoding="utf-8")
+    return log
+
+
+if __name__ == "__main__":
+    sys.exit(main())

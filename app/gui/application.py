@@ -1,0 +1,209 @@
+"""The application's state, without Qt: the open session, the open takes and the one shown, the
+operator's selection in it and the running jobs.
+
+The window and the controllers change it through its methods; views hear what changed through
+:meth:`Application.add_listener`. Besides its own events it passes on the
+:class:`~core.review.events.ReviewChanged` events of the shown take's undo stack, so a view follows
+every edit, undo, redo and solve of that take whoever made it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from app.gui.document import TakeDocument
+from core.errors import HandMocapError
+from core.review.events import ReviewChanged
+from core.session import Session
+
+
+@dataclass
+class Selection:
+    """What the operator selected in the shown take: a label and the raw point column holding it (-1:
+    none), the points picked for a rigid body, and the frame range marked with I and O (0-based
+    frames, None: not marked)."""
+
+    label: int = -1
+    column: int = -1
+    rigid_points: list[int] = field(default_factory=list)
+    range_in: int | None = None
+    range_out: int | None = None
+
+
+@dataclass(frozen=True)
+class Job:
+    """Long work running on a worker: its ``kind`` (e.g. "solve", "auto-label"), the take it works on
+    and how to ask it to stop."""
+
+    kind: str
+    document: TakeDocument | None
+    cancel: Callable[[], None]
+
+
+@dataclass(frozen=True)
+class DocumentOpened:
+    """A take was opened (it is not shown yet)."""
+
+    document: TakeDocument
+
+
+@dataclass(frozen=True)
+class DocumentClosing:
+    """A take is about to be closed: work on it stops now."""
+
+    document: TakeDocument
+
+
+@dataclass(frozen=True)
+class DocumentClosed:
+    """A take was closed (``index``: where it was in :attr:`Application.documents`); when it was the shown
+    one, another is shown next."""
+
+    document: TakeDocument
+    index: int
+
+
+@dataclass(frozen=True)
+class CurrentDocumentChanged:
+    """Another take is shown (None: none is open any more); ``previous``: the one shown before."""
+
+    document: TakeDocument | None
+    previous: TakeDocument | None
+
+
+@dataclass(frozen=True)
+class SelectionChanged:
+    """The selection of the shown take changed (see :attr:`Application.selection`)."""
+
+
+@dataclass(frozen=True)
+class SessionChanged:
+    """A session was opened, or closed (``session`` None)."""
+
+    session: Session | None
+
+
+@dataclass(frozen=True)
+class JobsChanged:
+    """A job started or ended (see :attr:`Application.jobs`)."""
+
+
+Event = (DocumentOpened | DocumentClosing | DocumentClosed | CurrentDocumentChanged | SelectionChanged
+         | SessionChanged | JobsChanged | ReviewChanged)
+Listener = Callable[[Event], None]
+
+
+class Application:
+    """The state the window shows (module docstring). Listeners are called in the order they were
+    added, on the thread that made the change (the GUI thread)."""
+
+    def __init__(self) -> None:
+        self.session: Session | None = None
+        self.documents: list[TakeDocument] = []
+        self.document: TakeDocument | None = None
+        self.selection = Selection()
+        self.jobs: dict[str, Job] = {}
+        self._listeners: list[Listener] = []
+
+    # ---------------------------------------------------------------------------------- listening
+    def add_listener(self, callback: Listener) -> None:
+        """``callback(event)`` after every change."""
+        self._listeners.append(callback)
+
+    def remove_listener(self, callback: Listener) -> None:
+        if callback in self._listeners:
+            self._listeners.remove(callback)
+
+    def _announce(self, event: Event) -> None:
+        for callback in list(self._listeners):
+            callback(event)
+
+    # ----------------------------------------------------------------------------------- takes
+    def open_document(self, document: TakeDocument) -> None:
+        """Add an opened take to :attr:`documents` (:meth:`show` shows it)."""
+        self.documents.append(document)
+        self._announce(DocumentOpened(document))
+
+    def show(self, document: TakeDocument | None) -> None:
+        """Show ``document`` (one of :attr:`documents`, or None): its review is made if it has none, the
+        selection starts empty, and the edits of its undo stack are passed on to the listeners."""
+        previous = self.document
+        if previous is not None and previous.stack is not None:
+            previous.stack.remove_listener(self._announce)
+        self.document = document
+        self.selection = Selection()
+        if document is not None:
+            document.ensure_review()
+            document.stack.add_listener(self._announce)
+        self._announce(CurrentDocumentChanged(document, previous))
+
+    def close_document(self, document: TakeDocument) -> str | None:
+        """Close an open take: listeners stop its work, a session take is saved, the next open take is
+        shown (none when it was the last). Returns why the save failed (None when it did not)."""
+        self._announce(DocumentClosing(document))
+        problem = None
+        if document.open_take is not None and not document.open_take.closed:
+            try:
+                document.open_take.close(save=True)
+            except HandMocapError as error:
+                problem = f"{document.title}: {error}; the edits stay in its journal"
+        index = self.documents.index(document)
+        self.documents.pop(index)
+        self._announce(DocumentClosed(document, index))
+        if self.document is document:
+            self.show(self.documents[min(index, len(self.documents) - 1)] if self.documents else None)
+        return problem
+
+    def document_of_session_take(self, take_id: str) -> TakeDocument | None:
+        """The open take that is session take ``take_id``, if it is open."""
+        return next((document for document in self.documents if document.session_take_id == take_id), None)
+
+    # ------------------------------------------------------------------------------- selection
+    def select(self, label: int = -1, column: int = -1) -> None:
+        """Select ``label`` and the point ``column`` holding it now (-1: none)."""
+        self.selection.label, self.selection.column = label, column
+        self._announce(SelectionChanged())
+
+    def clear_selection(self) -> None:
+        """Select nothing: no label or point, no rigid-body points, no marked range."""
+        self.selection = Selection()
+        self._announce(SelectionChanged())
+
+    def toggle_rigid_point(self, column: int) -> None:
+        """Add raw point ``column`` to the points of a new rigid body (or take it out again)."""
+        points = self.selection.rigid_points
+        if column in points:
+            points.remove(column)
+        else:
+            points.append(column)
+        self._announce(SelectionChanged())
+
+    def clear_rigid_points(self) -> None:
+        self.selection.rigid_points = []
+        self._announce(SelectionChanged())
+
+    def mark_range(self, range_in: int | None, range_out: int | None) -> None:
+        """Mark frames ``range_in .. range_out`` (0-based, inclusive; None: that end is not marked)."""
+        self.selection.range_in, self.selection.range_out = range_in, range_out
+        self._announce(SelectionChanged())
+
+    # --------------------------------------------------------------------------------- session
+    def set_session(self, session: Session | None) -> None:
+        """The open session (None: closed)."""
+        self.session = session
+        self._announce(SessionChanged(session))
+
+    # ------------------------------------------------------------------------------------ jobs
+    def job_started(self, name: str, job: Job) -> None:
+        """``job`` runs on the worker called ``name`` (one job per worker)."""
+        self.jobs[name] = job
+        self._announce(JobsChanged())
+
+    def job_ended(self, name: str) -> None:
+        if self.jobs.pop(name, None) is not None:
+            self._announce(JobsChanged())
+
+    def is_busy(self) -> bool:
+        """Whether a job is running."""
+        return bool(self.jobs)

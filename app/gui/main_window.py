@@ -1,0 +1,774 @@
+"""The main window: 3D viewport, timeline, marker table, take list; opening and IK solving on workers.
+
+The window holds the :class:`~app.gui.application.Application` (the open takes, the shown one, the session,
+the selection, the running jobs) and places the views of its controllers (review, session). Views follow
+the application's events: the window sets up its own views for a shown take first, the controllers
+theirs next, then the window draws the frame, so that the review's drawing comes on top of the raw
+markers.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from PySide6.QtCore import Qt, Signal
+from PySide6.QtGui import QAction, QCloseEvent, QDragEnterEvent, QDropEvent, QImage, QKeySequence
+from PySide6.QtWidgets import (
+    QComboBox,
+    QDockWidget,
+    QFileDialog,
+    QLabel,
+    QMainWindow,
+    QMessageBox,
+    QProgressBar,
+    QStyle,
+    QToolBar,
+    QToolButton,
+    QWidget,
+)
+
+from app.gui.actions import make_action
+from app.gui.application import (
+    Application,
+    CurrentDocumentChanged,
+    DocumentClosed,
+    DocumentClosing,
+    DocumentOpened,
+    Job,
+    JobsChanged,
+    SessionChanged,
+)
+from app.gui.document import TakeDocument
+from app.gui.load_queue import LoadQueue
+from app.gui.review_controller import ReviewController
+from app.gui.session_controller import SessionController
+from app.gui.workers import TaskRunner, one_line
+from core.errors import CancelledError, HandMocapError
+from core.ik import METHODS, IKResult
+from core.io import READ_SUFFIXES, TAKE_FILE_FILTER, Take, load_take
+from core.model import layout_names, load_layout, skin_vertices
+from core.review.events import ReviewChanged
+from core.workflows.resolve import check_layout_names, solve_labelled_take
+from widgets.marker_panel import MarkerPanel
+from widgets.timeline import TimelineWidget
+from widgets.viewport import HandViewport
+from widgets.window_image import window_image
+
+HAND_SIDES = ("right", "left")
+APP_NAME = "Hand Mocap Studio"
+HAND_MARKER_COLOR = (0.55, 0.80, 1.00)     # markers of the hand layout
+OTHER_MARKER_COLOR = (0.62, 0.62, 0.66)    # arm, body and object markers
+FRAMING_RADIUS_MM = 90.0                   # half-size of the box the camera frames around the hand
+TAKE_SUFFIXES = READ_SUFFIXES
+TAKE_FILTER = TAKE_FILE_FILTER
+SOLVE_JOB = "solve"                        # the IK solver's worker in Application.jobs
+
+
+@dataclass
+class OpenedTakes:
+    """What an opening task produced: the new documents and one line per file that failed."""
+
+    documents: list[TakeDocument] = field(default_factory=list)
+    errors: list[str] = field(default_factory=list)
+
+
+def _open_files_task(paths: list[Path], solve: bool) -> Callable:
+    """Worker task loading ``paths`` one after the other; a bad file is reported, not fatal."""
+
+    def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> OpenedTakes:
+        opened = OpenedTakes()
+        for index, path in enumerate(paths):
+            if cancelled():
+                raise CancelledError("opening cancelled")
+            try:
+                take = load_take(path)
+                opened.documents.append(TakeDocument(take, path.name, auto_solve=solve))
+            except HandMocapError as error:
+                opened.errors.append(one_line(str(error)))
+            except Exception as error:  # noqa: BLE001 - a file must never crash the application
+                opened.errors.append(one_line(f"{path.name}: cannot read it ({type(error).__name__}: {error})"))
+            progress((index + 1) / len(paths))
+        return opened
+
+    return task
+
+
+class MainWindow(QMainWindow):
+    """Review takes: scrub the markers, solve IK on a worker, watch the hand follow the data."""
+
+    frame_drawn = Signal(int)   # a frame's raw markers were drawn: the review draws its part now
+
+    def __init__(self, off_screen: bool | None = None) -> None:
+        super().__init__()
+        self.setWindowTitle(APP_NAME)
+        self.resize(1500, 950)
+        self.setAcceptDrops(True)
+        self.app = Application()
+        self.app.add_listener(self._set_up_views)        # before the controllers' listeners (module docstring)
+
+        self.runner = TaskRunner(self)        # IK solves
+        self.runner.progressed.connect(self._solve_progressed)
+        self.runner.succeeded.connect(self._solve_succeeded)
+        self.runner.failed.connect(self._solve_failed)
+        self.runner.cancelled.connect(self._solve_cancelled)
+        self.runner.busy_changed.connect(self._solver_busy_changed)
+        self.loader = LoadQueue(self)         # opening files and session takes, the demo session
+        self.loader.failed.connect(lambda message: self.show_error("Cannot open", message))
+        self.loader.busy_changed.connect(self._loader_busy_changed)
+
+        self.viewport = HandViewport(self, off_screen=off_screen)
+        self.viewport.marker_clicked.connect(self._marker_clicked)
+        self.setCentralWidget(self.viewport)
+        self.timeline = TimelineWidget(self)
+        self.timeline.frame_changed.connect(self.show_frame)
+        self.marker_panel = MarkerPanel(self)
+        self.marker_panel.marker_selected.connect(self._marker_selected)
+        self.timeline_dock = self._add_dock("Timeline", self.timeline, Qt.DockWidgetArea.BottomDockWidgetArea)
+        self.markers_dock = self._add_dock("Markers", self.marker_panel, Qt.DockWidgetArea.RightDockWidgetArea)
+        self._build_actions()
+        self._build_toolbar()
+        self._build_status_bar()
+        self.loader.started.connect(self.opening_label.setText)
+        self.review = ReviewController(self.app, self, self.viewport, self.timeline)
+        self.sessions = SessionController(self.app, self, self.loader)
+        self._place_review()
+        self._place_sessions()
+        self._connect_controllers()
+        self.app.add_listener(self._draw_views)           # after the controllers' listeners
+        self.resizeDocks([self.timeline_dock, self.tracks_dock], [140, 190], Qt.Orientation.Vertical)
+        self.resizeDocks([self.session_dock, self.markers_dock], [280, 640], Qt.Orientation.Horizontal)
+        self._update_enabled()
+
+    @property
+    def document(self) -> TakeDocument | None:
+        """The shown take."""
+        return self.app.document
+
+    # ------------------------------------------------------------------------------------ building
+    def _add_dock(self, title: str, widget: QWidget, area: Qt.DockWidgetArea) -> QDockWidget:
+        dock = QDockWidget(title, self)
+        dock.setObjectName(title)
+        dock.setWidget(widget)
+        dock.setFeatures(QDockWidget.DockWidgetFeature.DockWidgetMovable
+                         | QDockWidget.DockWidgetFeature.DockWidgetFloatable
+                         | QDockWidget.DockWidgetFeature.DockWidgetClosable)
+        self.addDockWidget(area, dock)
+        return dock
+
+    def _action(self, text: str, slot: Callable, shortcut: QKeySequence | str | None = None,
+                checkable: bool = False, checked: bool = False,
+                icon: QStyle.StandardPixmap | None = None) -> QAction:
+        return make_action(self, text, slot, shortcut, checkable, checked, icon)
+
+    def _build_actions(self) -> None:
+        pixmap = QStyle.StandardPixmap
+        self.open_action = self._action("&Open…", self.choose_files, QKeySequence.StandardKey.Open,
+                                        icon=pixmap.SP_DialogOpenButton)
+        self.demo_action = self._action("Open &demo session", self.open_demo, "Ctrl+D")
+        self.close_take_action = self._action("&Close take", self.close_current_document,
+                                              QKeySequence.StandardKey.Close)
+        self.screenshot_action = self._action("Save &screenshot…", self.choose_screenshot, "Ctrl+Shift+S")
+        self.export_action = self._action("&Export joint angles (CSV)…", self.choose_export, "Ctrl+E")
+        quit_action = self._action("&Quit", self.close, QKeySequence.StandardKey.Quit)
+        self.solve_action = self._action("&Solve", lambda: self.solve(), "Ctrl+R", icon=pixmap.SP_BrowserReload)
+        self.solve_action.setToolTip("Solve the take with inverse kinematics (Ctrl+R)")
+        self.cancel_action = self._action("&Cancel", self.cancel_work, "Esc", icon=pixmap.SP_BrowserStop)
+        self.labels_action = self._action("Marker &names", self.viewport.set_labels_visible, "N", True, False)
+        self.mesh_action = self._action("Hand &mesh", self.viewport.set_mesh_visible, "M", True, True)
+        self.effectors_action = self._action("&Effectors and residuals", self.viewport.set_effectors_visible,
+                                             "E", True, True)
+        self.grid_action = self._action("Ground &grid", self.viewport.set_grid_visible, "G", True, True)
+        self.frame_action = self._action("&Frame the hand", self.frame_hand, "F")
+
+        menus = self.menuBar()
+        file_menu = self.file_menu = menus.addMenu("&File")
+        for action in (self.open_action, self.demo_action, None, self.export_action, self.screenshot_action,
+                       None, quit_action):
+            if action is None:
+                file_menu.addSeparator()
+            else:
+                file_menu.addAction(action)
+        view_menu = self.view_menu = menus.addMenu("&View")
+        for action in (self.labels_action, self.mesh_action, self.effectors_action, self.grid_action):
+            view_menu.addAction(action)
+        view_menu.addSeparator()
+        view_menu.addAction(self.frame_action)
+        view_menu.addSeparator()
+        view_menu.addAction(self.timeline_dock.toggleViewAction())
+        view_menu.addAction(self.markers_dock.toggleViewAction())
+        playback_menu = menus.addMenu("&Playback")
+        for action in self.timeline.transport_actions:
+            playback_menu.addAction(action)
+        loop_action = QAction("&Loop", self)
+        loop_action.setCheckable(True)
+        loop_action.setChecked(self.timeline.loop_box.isChecked())
+        loop_action.toggled.connect(self.timeline.loop_box.setChecked)
+        self.timeline.loop_box.toggled.connect(loop_action.setChecked)
+        playback_menu.addSeparator()
+        playback_menu.addAction(loop_action)
+        tools_menu = self.tools_menu = menus.addMenu("&Tools")
+        tools_menu.addAction(self._action("&Calibrate a hand scan…", self.open_calibration, "Ctrl+Shift+K"))
+        tools_menu.addAction(self._action("Marker &layouts…", self.open_layout_tools, "Ctrl+Shift+L"))
+        solve_menu = menus.addMenu("&Solve")
+        solve_menu.addAction(self.solve_action)
+        solve_menu.addAction(self.cancel_action)
+
+    def _build_toolbar(self) -> None:
+        toolbar = QToolBar("Main", self)
+        toolbar.setObjectName("main-toolbar")
+        toolbar.setMovable(False)
+        toolbar.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextBesideIcon)
+        self.addToolBar(toolbar)
+        toolbar.addAction(self.open_action)
+        toolbar.addSeparator()
+        toolbar.addWidget(QLabel(" Take "))
+        self.take_box = QComboBox(self)
+        self.take_box.setMinimumWidth(320)
+        self.take_box.setToolTip("Open takes: switch between them; each keeps its solve and frame")
+        self.take_box.currentIndexChanged.connect(self._take_chosen)
+        toolbar.addWidget(self.take_box)
+        toolbar.addSeparator()
+        toolbar.addWidget(QLabel(" Layout "))
+        self.layout_box = QComboBox(self)
+        self.layout_box.addItems(layout_names())
+        self.layout_box.setToolTip("Marker layout of the hand model; markers are matched to it by name")
+        self.layout_box.currentTextChanged.connect(self._layout_chosen)
+        toolbar.addWidget(self.layout_box)
+        self.side_box = QComboBox(self)
+        self.side_box.addItems(list(HAND_SIDES))
+        self.side_box.setToolTip("Which hand the model fits: the left hand mirrors the right template")
+        self.side_box.currentTextChanged.connect(self._side_chosen)
+        toolbar.addWidget(QLabel(" Hand "))
+        toolbar.addWidget(self.side_box)
+        toolbar.addWidget(QLabel(" Method "))
+        self.method_box = QComboBox(self)
+        self.method_box.addItems(list(METHODS))
+        self.method_box.setToolTip("layered: PCA subspace, then all 26 parameters with the soft prior;\n"
+                                   "subspace: PCA subspace only; full: all 26 parameters")
+        toolbar.addWidget(self.method_box)
+        toolbar.addAction(self.solve_action)
+        toolbar.addAction(self.cancel_action)
+
+    def _build_status_bar(self) -> None:
+        status = self.statusBar()
+        self.info_label = QLabel("No take open — File ▸ Open… or File ▸ Open demo session", self)
+        self.info_label.setContentsMargins(6, 0, 6, 0)
+        status.addPermanentWidget(self.info_label)
+        self.opening_label = QLabel("Opening…", self)
+        status.addPermanentWidget(self.opening_label)
+        self.progress_bar = QProgressBar(self)
+        self.progress_bar.setRange(0, 100)
+        self.progress_bar.setFixedWidth(220)
+        self.progress_bar.setFormat("Solving… %p %")
+        status.addPermanentWidget(self.progress_bar)
+        self.cancel_button = QToolButton(self)
+        self.cancel_button.setDefaultAction(self.cancel_action)
+        self.cancel_button.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextBesideIcon)
+        status.addPermanentWidget(self.cancel_button)
+        for widget in (self.opening_label, self.progress_bar, self.cancel_button):
+            widget.hide()
+
+    def _place_review(self) -> None:
+        """The review's docks (Labels and Gaps beside Markers, Tracks under the timeline), menus, toolbar."""
+        review, area = self.review, Qt.DockWidgetArea
+        self.labels_dock = self._add_dock("Labels", review.table, area.RightDockWidgetArea)
+        self.tabifyDockWidget(self.markers_dock, self.labels_dock)
+        self.tracks_dock = self._add_dock("Tracks", review.lanes, area.BottomDockWidgetArea)
+        self.splitDockWidget(self.timeline_dock, self.tracks_dock, Qt.Orientation.Vertical)
+        self.gaps_dock = self._add_dock("Gaps", review.gaps_panel, area.RightDockWidgetArea)
+        self.tabifyDockWidget(self.labels_dock, self.gaps_dock)
+        self.labels_dock.raise_()
+        menus = self.menuBar()
+        menus.insertMenu(menus.actions()[1], review.edit_menu)       # after File
+        menus.insertMenu(menus.actions()[-1], review.review_menu)    # before Solve
+        for dock in (self.labels_dock, self.tracks_dock, self.gaps_dock):
+            self.view_menu.addAction(dock.toggleViewAction())
+        self.addToolBar(review.toolbar)
+        self.file_menu.insertAction(self.export_action, self.close_take_action)
+        self.file_menu.insertMenu(self.export_action, review.export_menu)
+
+    def _place_sessions(self) -> None:
+        """The session browser dock (shown while a session is open) and the session actions."""
+        sessions = self.sessions
+        self.session_dock = self._add_dock("Session", sessions.browser, Qt.DockWidgetArea.LeftDockWidgetArea)
+        self.session_dock.hide()
+        first = self.file_menu.actions()[0]
+        for action in (sessions.new_action, sessions.open_action, sessions.add_action, sessions.close_action):
+            self.file_menu.insertAction(first, action)
+        self.file_menu.insertSeparator(first)
+        self.view_menu.addAction(self.session_dock.toggleViewAction())
+
+    def _connect_controllers(self) -> None:
+        """Show what the controllers tell, and pass on what one asks of the other."""
+        review, sessions = self.review, self.sessions
+        for controller in (review, sessions):
+            controller.status_message.connect(self.statusBar().showMessage)
+            controller.error_raised.connect(self.show_error)
+        review.progress_started.connect(self.show_progress)
+        review.progressed.connect(self.set_progress)
+        review.progress_ended.connect(self.hide_progress)
+        review.auto_label_applied.connect(sessions.keep_labelling)
+        review.exported.connect(sessions.export_done)
+        sessions.layouts_changed.connect(self.refresh_layout_names)
+        sessions.auto_label_requested.connect(review.start_auto_label)
+        self.frame_drawn.connect(review.draw_frame)
+
+    # ---------------------------------------------------------------------------------- documents
+    def choose_files(self) -> None:
+        """Ask for take files and open them."""
+        paths, _ = QFileDialog.getOpenFileNames(self, "Open takes", "", TAKE_FILTER)
+        if paths:
+            self.open_files(paths)
+
+    def open_file(self, path: str | Path, solve: bool = False) -> None:
+        """Open one take file on the worker (see :meth:`open_files`)."""
+        self.open_files([path], solve=solve)
+
+    def open_files(self, paths: list[str | Path], solve: bool = False) -> None:
+        """Open take files on the loader thread; each good one becomes a take in the take list (solved
+        at once when ``solve``), each bad one a one-line message; what is open stays open."""
+        files = [Path(path) for path in paths]
+        title = files[0].name if len(files) == 1 else f"{len(files)} takes"
+        self.loader.queue(f"Opening {title}…", _open_files_task(files, solve), self._apply_opened)
+
+    def open_demo(self) -> None:
+        """Open the demo session (made on the loader thread the first time): the labelled takes are
+        solved with IK and the raw take is auto-labelled, one after the other."""
+        from app.gui.demo import prepare_demo_session
+
+        self.loader.queue("Preparing the demo session…", lambda progress, cancelled: prepare_demo_session(),
+                          self._demo_ready)
+
+    def _demo_ready(self, folder: Path) -> None:
+        if self.sessions.open_session(folder):
+            for entry in self.sessions.session.takes:
+                self.sessions.open_take(entry.id, automatic=True)
+
+    def _apply_opened(self, opened: OpenedTakes) -> None:
+        if opened.documents:
+            first = len(self.app.documents)
+            for document in opened.documents:
+                self.app.open_document(document)
+            self.app.show(self.app.documents[first])
+        self._solve_next_pending()
+        if opened.errors:
+            self.show_error("Cannot open", "\n".join(opened.errors))
+
+    def add_document(self, document: TakeDocument) -> None:
+        """Add an open take to the take list and show it."""
+        self.app.open_document(document)
+        self.app.show(document)
+
+    def _take_chosen(self, index: int) -> None:
+        if 0 <= index < len(self.app.documents) and self.app.documents[index] is not self.document:
+            self.app.show(self.app.documents[index])
+
+    # ----------------------------------------------------------------------------- following the app
+    def _set_up_views(self, event: object) -> None:
+        """The window's part before the controllers': the take list, a shown take's markers, table and
+        timeline, the solver stopping for a closing take, the session dock, the actions."""
+        if isinstance(event, DocumentOpened):
+            document = event.document
+            self.take_box.blockSignals(True)
+            self.take_box.addItem(document.title)
+            self.take_box.setItemData(self.take_box.count() - 1, str(document.take.source_path or document.title),
+                                      Qt.ItemDataRole.ToolTipRole)
+            self.take_box.blockSignals(False)
+        elif isinstance(event, DocumentClosing):
+            if event.document.solve_request:
+                self.runner.stop()
+        elif isinstance(event, DocumentClosed):
+            self.take_box.blockSignals(True)
+            self.take_box.removeItem(event.index)
+            self.take_box.blockSignals(False)
+            self._update_enabled()
+        elif isinstance(event, CurrentDocumentChanged):
+            if event.previous is not None:
+                event.previous.current_frame = self.timeline.frame
+            if event.document is None:
+                self._show_no_take()
+            else:
+                self._set_up_take(event.document)
+        elif isinstance(event, SessionChanged):
+            self.session_dock.setVisible(event.session is not None)
+            if event.session is not None:
+                self.session_dock.raise_()
+        elif isinstance(event, JobsChanged):
+            self._update_enabled()
+
+    def _draw_views(self, event: object) -> None:
+        """The window's part after the controllers': draw the frame of a newly shown take (and point the
+        camera at its hand), or the frame again after a change of its review."""
+        document = self.document
+        if document is None:
+            return
+        if isinstance(event, CurrentDocumentChanged):
+            self._show_review_residuals()
+            self._show_result_geometry()
+            self.show_frame(self.timeline.frame)
+            self.frame_hand()
+            self._update_enabled()
+            if document.auto_solve and document.result is None:
+                self._solve_next_pending()
+        elif isinstance(event, ReviewChanged) and event.operation != "clean":
+            self._show_review_residuals()
+            self.show_frame(self.timeline.frame)
+            self._update_enabled()
+
+    def _set_up_take(self, document: TakeDocument) -> None:
+        """Show ``document``'s markers, table and timeline at the frame it was left at, and its IK result."""
+        take = document.take
+        self.take_box.blockSignals(True)
+        self.take_box.setCurrentIndex(self.app.documents.index(document))
+        self.take_box.blockSignals(False)
+        if document.layout_name:
+            self.layout_box.blockSignals(True)
+            self.layout_box.setCurrentText(document.layout_name)
+            self.layout_box.blockSignals(False)
+        self.side_box.blockSignals(True)
+        self.side_box.setCurrentText(document.side)
+        self.side_box.blockSignals(False)
+        colors = self._marker_colors(document)
+        self.viewport.set_markers(take.marker_names, take.marker_positions[0], colors)
+        self.marker_panel.set_markers(take.marker_names, document.observed_fraction, colors)
+        self._show_result_geometry()
+        self.timeline.blockSignals(True)
+        self.timeline.set_take(take.n_frames, take.first_frame, take.frame_rate, document.markers_seen)
+        self.timeline.set_frame(document.current_frame)
+        self.timeline.blockSignals(False)
+        self.timeline.set_residuals(document.mean_residual_per_frame())
+        self.info_label.setText(self._take_summary(take))
+        self.setWindowTitle(f"{document.title} — {APP_NAME}")
+
+    def _show_no_take(self) -> None:
+        self.viewport.set_markers([], np.zeros((0, 3)))
+        self.viewport.set_hand_mesh(None)
+        self.viewport.set_effectors(None)
+        self.marker_panel.set_markers([], np.zeros(0), np.zeros((0, 3)))
+        self.info_label.setText("No take open — File ▸ Open… or File ▸ Open demo session")
+        self.setWindowTitle(APP_NAME)
+        self.viewport.request_render()
+        self._update_enabled()
+
+    def _show_review_residuals(self) -> None:
+        """The timeline's residual curve from the review's solved hands, when it has some."""
+        if self.document.has_solved_hands():
+            self.timeline.set_residuals(self.document.review_residual_per_frame())
+
+    def _marker_colors(self, document: TakeDocument) -> np.ndarray:
+        colors = np.tile(OTHER_MARKER_COLOR, (document.take.n_markers, 1))
+        colors[document.hand_columns()] = HAND_MARKER_COLOR
+        return colors
+
+    @staticmethod
+    def _take_summary(take: Take) -> str:
+        return (f"{take.n_frames} frames · {take.frame_rate:g} Hz · {take.n_markers} markers · {take.vendor}"
+                f" · {100 * take.missing_fraction:.1f} % missing")
+
+    def frame_hand(self) -> None:
+        """Point the camera at the hand at the current frame; the ground grid spans the whole take."""
+        if self.document is None:
+            return
+        hand = self.document.take.marker_positions[:, self.document.hand_columns()]
+        everything = hand.reshape(-1, 3)[:: max(1, hand.size // 60000)]
+        if not np.isfinite(everything).any():
+            return
+        self.viewport.set_ground(everything, height=float(np.nanmin(everything[:, 2])) - 40.0)
+        current = hand[self.timeline.frame]
+        current = current[np.isfinite(current).all(axis=1)]
+        if len(current) >= 3:
+            self.viewport.frame_bounds(current, min_radius=FRAMING_RADIUS_MM * 1.3)
+        else:
+            self.viewport.frame_bounds(everything)
+        self.viewport.request_render()
+
+    # --------------------------------------------------------------------------------------- frame
+    def show_frame(self, frame: int) -> None:
+        """Show ``frame`` (0-based): markers, table values, the review's drawing (:attr:`frame_drawn`), and
+        the IK result's hand when the review has no solved hand. The 3D view redraws once the events
+        waiting now are handled, so fast scrubbing skips frames."""
+        document = self.document
+        if document is None or not 0 <= frame < document.take.n_frames:
+            return
+        positions = document.take.marker_positions[frame]
+        self.viewport.update_markers(positions)
+        self.marker_panel.set_frame_values(positions, document.residuals_per_take_marker(frame))
+        self.frame_drawn.emit(frame)
+        if document.result is not None and not document.has_solved_hands():
+            theta = document.result.joint_angles[frame]
+            if np.isfinite(theta).all():
+                self.viewport.update_hand_vertices(skin_vertices(document.model_for(document.result.hand_side), theta))
+            self.viewport.set_effectors(*document.effector_targets(frame))
+        self.viewport.request_render()
+
+    def _show_result_geometry(self) -> None:
+        """The IK result's hand surface, unless the review's solved hands are drawn (by the review)."""
+        document = self.document
+        if document is not None and document.has_solved_hands():
+            return
+        if document is None or document.result is None:
+            self.viewport.set_hand_mesh(None)
+            self.viewport.set_effectors(None)
+            return
+        model = document.model_for(document.result.hand_side)
+        self.viewport.set_hand_mesh(model.vertices, model.faces)
+
+    def _marker_selected(self, row: int) -> None:
+        self.viewport.set_selected_marker(None if row < 0 else row)
+        self.viewport.request_render()
+
+    def _marker_clicked(self, index: int) -> None:
+        self.marker_panel.select_marker(index)
+
+    def _side_chosen(self, side: str) -> None:
+        if self.document is not None and side:
+            self.document.side = side
+
+    def _layout_chosen(self, name: str) -> None:
+        if self.document is not None and name:
+            self.document.layout_name = name
+            colors = self._marker_colors(self.document)
+            self.viewport.set_marker_colors(colors)
+            self.marker_panel.set_markers(self.document.take.marker_names, self.document.observed_fraction,
+                                          colors)
+            self.show_frame(self.timeline.frame)
+
+    # --------------------------------------------------------------------------------------- solve
+    def solve(self, document: TakeDocument | None = None) -> None:
+        """Run IK of ``document`` (default: the current take) on the worker thread with the chosen
+        layout and method, on the review's labels when it has any (after auto-label) else on the take's
+        names, with the subject's hand and calibrated markers when auto-label made them; a solve running
+        for another take is cancelled (it is retried later when it was an automatic one)."""
+        document = document or self.document
+        if document is None:
+            return
+        layout_name = (self.layout_box.currentText() if document is self.document
+                       else document.layout_name or self.layout_box.currentText())
+        review = document.review
+        take = review.labelled_take() if review is not None and review.n_labels else document.take
+        try:
+            layout = load_layout(layout_name)
+            check_layout_names(take.marker_names, layout)
+        except HandMocapError as error:
+            self.show_error("Cannot solve", str(error))
+            return
+        document.layout_name = layout.name
+        if document is self.document:
+            document.side = self.side_box.currentText()
+        model, method = document.model_for(document.side), self.method_box.currentText()
+        markers = document.marker_set_for(document.side, layout.name)
+
+        def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> IKResult:
+            result = solve_labelled_take(take, model, markers, method=method, progress=progress, cancelled=cancelled)
+            skin_vertices(model, result.joint_angles[0])     # compiles the skinning kernel off the GUI thread
+            return result
+
+        document.solve_request = self.runner.start(task)
+        self.app.job_started(SOLVE_JOB, Job("solve", document, self.cancel_solve))
+        self.statusBar().showMessage(f"Solving {document.title} with {method} IK ({layout.name})…")
+        self._update_enabled()
+
+    def cancel_work(self) -> None:
+        """Stop what the progress bar shows: the IK solve, or the review job (auto-label, fill, re-solve)."""
+        job = self.app.jobs.get(SOLVE_JOB) or next(iter(self.app.jobs.values()), None)
+        if job is not None:
+            job.cancel()
+
+    def cancel_solve(self) -> None:
+        """Stop the running solve; its take stays as it was and is not solved automatically again."""
+        owner = self._owner(self.runner.current_request)
+        if owner is not None:
+            owner.auto_solve = False
+        self.runner.cancel()
+
+    def _owner(self, request_id: int) -> TakeDocument | None:
+        if request_id == 0:
+            return None
+        return next((d for d in self.app.documents if d.solve_request == request_id), None)
+
+    def _solve_progressed(self, request_id: int, fraction: float) -> None:
+        owner = self._owner(request_id)
+        if owner is None:
+            return
+        self.progress_bar.setValue(int(round(100 * fraction)))
+        self.progress_bar.setToolTip(f"Solving {owner.title}")
+
+    def _solve_succeeded(self, request_id: int, result: IKResult) -> None:
+        document = self._owner(request_id)
+        if document is None:
+            return
+        document.solve_request = 0
+        document.set_result(result)
+        document.record_solve(result)
+        self.statusBar().showMessage(f"{document.title}: {result.method} IK done, mean residual "
+                                     f"{result.mean_residual_mm:.2f} mm", 15000)
+        if document is self.document:
+            self._show_result_geometry()
+            self.timeline.set_residuals(document.mean_residual_per_frame())
+            self.show_frame(self.timeline.frame)
+        self._update_enabled()
+        self._solve_next_pending()
+
+    def _solve_failed(self, request_id: int, message: str) -> None:
+        document = self._owner(request_id)
+        if document is not None:
+            document.solve_request = 0
+            document.auto_solve = False
+            self._update_enabled()
+            self._solve_next_pending()
+            self.show_error("Solve failed", f"{document.title}: {message}")
+
+    def _solve_cancelled(self, request_id: int) -> None:
+        document = self._owner(request_id)
+        if document is not None:
+            document.solve_request = 0
+            self.statusBar().showMessage(f"{document.title}: solve cancelled; the take is unchanged", 8000)
+            self._update_enabled()
+
+    def _solve_next_pending(self) -> None:
+        """Start the next automatic solve (the current take first), one at a time."""
+        if self.runner.is_busy():
+            return
+        waiting = [d for d in self.app.documents if d.auto_solve and d.result is None and d.solve_request == 0]
+        if self.document in waiting:
+            self.solve(self.document)
+        elif waiting:
+            self.solve(waiting[0])
+
+    def _solver_busy_changed(self, busy: bool) -> None:
+        if not busy:
+            self.app.job_ended(SOLVE_JOB)
+        self.progress_bar.setValue(0)
+        self.progress_bar.setVisible(busy)
+        self.cancel_button.setVisible(busy)
+        self._update_enabled()
+
+    def _loader_busy_changed(self, busy: bool) -> None:
+        self.opening_label.setVisible(busy)
+        self._update_enabled()
+
+    def _update_enabled(self) -> None:
+        document = self.document
+        self.solve_action.setEnabled(document is not None and document.solve_request == 0)
+        self.cancel_action.setEnabled(self.app.is_busy())
+        self.export_action.setEnabled(document is not None and document.result is not None)
+        self.frame_action.setEnabled(document is not None)
+        self.close_take_action.setEnabled(document is not None)
+
+    def is_busy(self) -> bool:
+        """Whether takes are being opened or solved."""
+        return self.loader.is_busy() or self.app.is_busy()
+
+    # ------------------------------------------------------------------------------ review jobs
+    def show_progress(self, text: str) -> None:
+        """Show the status-bar progress bar for a review job (its Cancel stops it)."""
+        self.progress_bar.setFormat(text)
+        self.progress_bar.setValue(0)
+        self.progress_bar.show()
+        self.cancel_button.show()
+        self.cancel_action.setEnabled(True)
+
+    def set_progress(self, fraction: float) -> None:
+        self.progress_bar.setValue(int(round(100 * fraction)))
+
+    def hide_progress(self) -> None:
+        if not self.runner.is_busy():
+            self.progress_bar.hide()
+            self.cancel_button.hide()
+            self.progress_bar.setFormat("Solving… %p %")
+        self._update_enabled()
+
+    def refresh_layout_names(self) -> None:
+        """List the shipped layouts and those of the open session in the layout choice."""
+        current = self.layout_box.currentText()
+        self.layout_box.blockSignals(True)
+        self.layout_box.clear()
+        self.layout_box.addItems(layout_names())
+        self.layout_box.setCurrentText(current)
+        self.layout_box.blockSignals(False)
+
+    def open_layout_tools(self) -> None:
+        """The marker layout window: optimise, compare, save into the session, print a placement sheet."""
+        from app.gui.layout_view import open_layout_view
+
+        session = self.sessions.session
+        self._layout_window = open_layout_view(self, session=session,
+                                               save_to_session=self.sessions.save_layout if session else None)
+
+    def open_calibration(self) -> None:
+        """The scan calibration wizard; the subject model it saves goes into the open session."""
+        from app.gui.calibration_wizard import open_calibration_wizard
+
+        self._calibration_wizard = open_calibration_wizard(self, self.sessions.session)
+
+    def close_current_document(self) -> None:
+        if self.document is not None:
+            self.close_document(self.document)
+
+    def close_document(self, document: TakeDocument) -> None:
+        """Close an open take (a session take is saved first); another open take is shown."""
+        problem = self.app.close_document(document)
+        if problem:
+            self.show_error("Cannot save", problem)
+
+    # -------------------------------------------------------------------------------------- output
+    def choose_screenshot(self) -> None:
+        """Ask for a PNG path and save the window there."""
+        path, _ = QFileDialog.getSaveFileName(self, "Save screenshot", "handmocap.png", "PNG images (*.png)")
+        if path:
+            self.save_screenshot(path)
+
+    def window_image(self) -> QImage:
+        """The whole window as an image, with the 3D view drawn in (it renders through OpenGL)."""
+        return window_image(self, [self.viewport])
+
+    def save_screenshot(self, path: str | Path) -> bool:
+        """Save the whole window as a PNG; shows the reason and returns False when it cannot."""
+        if not self.window_image().save(str(path)):
+            self.show_error("Cannot save the screenshot", f"{path}: could not write the image")
+            return False
+        return True
+
+    def choose_export(self) -> None:
+        """Ask for a CSV path and write the current take's joint angles there."""
+        if self.document is None or self.document.result is None:
+            return
+        default = Path(self.document.title).with_suffix("").name + "_angles.csv"
+        path, _ = QFileDialog.getSaveFileName(self, "Export joint angles", default, "CSV (*.csv)")
+        if path:
+            try:
+                self.document.result.save_csv(path)
+            except OSError as error:
+                self.show_error("Cannot export", f"{path}: {error.strerror or error}")
+
+    def show_error(self, title: str, message: str) -> None:
+        """Tell the operator what went wrong (message box and status bar)."""
+        self.statusBar().showMessage(message.splitlines()[0] if message else title, 15000)
+        QMessageBox.warning(self, title, message)
+
+    # -------------------------------------------------------------------------------------- events
+    def dragEnterEvent(self, event: QDragEnterEvent) -> None:
+        """Accept take files dragged onto the window."""
+        if any(url.toLocalFile().lower().endswith(TAKE_SUFFIXES) for url in event.mimeData().urls()):
+            event.acceptProposedAction()
+
+    def dropEvent(self, event: QDropEvent) -> None:
+        """Open the take files dropped onto the window."""
+        paths = [url.toLocalFile() for url in event.mimeData().urls()
+                 if url.toLocalFile().lower().endswith(TAKE_SUFFIXES)]
+        if paths:
+            self.open_files(paths)
+            event.acceptProposedAction()
+
+    def closeEvent(self, event: QCloseEvent) -> None:
+        """Cancel and wait for the workers, release the render window."""
+        self.timeline.pause()
+        self.sessions.close()
+        self.runner.stop()
+        self.loader.stop()
+        self.review.stop()
+        self.viewport.close_viewport()
+        super().closeEvent(event)

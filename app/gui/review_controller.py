@@ -1,0 +1,1023 @@
+"""Take review: auto-label, the review views (label table, marker lanes, gap list and fill preview, the
+review's drawing in the 3D view), undoable label edits with a re-solve of the touched frames, gap fills,
+"next problem", and the exports of a review.
+
+Every change of a review goes through a command on the document's undo stack (journalled when the take
+belongs to a session); the views follow the stack's change events (passed on by the
+:class:`~app.gui.application.Application`), whoever made the change. Long work runs on workers: ``jobs``
+(auto-label, re-solves, fill all) and ``checks`` (fill checks and previews of the selected gap), so
+checking a gap never cancels a re-solve. Workers only read copies; results are applied on the GUI
+thread if the review has not changed since.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from PySide6.QtCore import QObject, Qt, Signal
+from PySide6.QtGui import QCursor, QKeySequence
+from PySide6.QtWidgets import (
+    QApplication,
+    QCheckBox,
+    QComboBox,
+    QDialog,
+    QDialogButtonBox,
+    QFileDialog,
+    QFormLayout,
+    QHBoxLayout,
+    QInputDialog,
+    QLabel,
+    QLineEdit,
+    QMenu,
+    QPushButton,
+    QScrollArea,
+    QSplitter,
+    QToolBar,
+    QWidget,
+)
+
+from app.gui.actions import make_action
+from app.gui.application import (
+    Application,
+    CurrentDocumentChanged,
+    DocumentClosing,
+    Job,
+    Selection,
+    SelectionChanged,
+)
+from app.gui.document import TakeDocument
+from app.gui.workers import TaskRunner
+from core.errors import HandMocapError
+from core.gaps import FILL_METHODS, FillCheck
+from core.model import layout_names, marker_positions, skin_vertices
+from core.model.objects import load_scene_spec, rigid_body_from_points, save_scene_spec
+from core.review import (
+    PROBLEM_KINDS,
+    AcceptFills,
+    AssignLabel,
+    Command,
+    FrameSpan,
+    GapFill,
+    MarkGhost,
+    RejectFills,
+    SwapLabels,
+    Unlabel,
+    export_bvh,
+    export_joint_angles_csv,
+    export_labelled_c3d,
+)
+from core.review.events import ReviewChanged
+from core.workflows import (
+    GapGroup,
+    ReviewGap,
+    auto_label,
+    check_review_gap,
+    fill_gaps,
+    find_review_gaps,
+    gap_groups,
+    preview_fill,
+    resolve_jobs,
+    run_resolve_jobs,
+    short_open_gaps,
+)
+from widgets.fill_preview import FillPreview
+from widgets.gap_list import GapList, GapRow
+from widgets.marker_lanes import MarkerLanes, lanes_from_review
+from widgets.review_table import ReviewTable
+from widgets.timeline import TimelineWidget
+from widgets.viewport import HandViewport
+
+UNLABELLED_COLOR = (0.62, 0.62, 0.64)
+GHOST_COLOR = (0.55, 0.22, 0.22)
+FILL_COLOR = (0.45, 0.95, 0.55)
+RIGID_SELECTION_COLOR = (1.0, 1.0, 1.0)
+JOB_NAME = "review"                # the worker of auto-label, re-solves and fills in Application.jobs
+TRAIL_FRAMES = 60                  # frames of trail on each side of the current frame
+SCOPE_TITLES = {"fragment": "to end of fragment", "range": "in the marked range", "take": "whole take"}
+PALETTE = np.array([                # Tableau-like qualitative colours, distinct on a dark background
+    (0.36, 0.62, 0.92), (0.98, 0.60, 0.25), (0.40, 0.80, 0.45), (0.93, 0.38, 0.40), (0.70, 0.55, 0.90),
+    (0.72, 0.52, 0.42), (0.96, 0.56, 0.80), (0.85, 0.85, 0.40), (0.35, 0.85, 0.85), (0.60, 0.75, 1.00),
+    (1.00, 0.78, 0.55), (0.65, 0.92, 0.60), (1.00, 0.65, 0.65), (0.82, 0.72, 0.96), (0.88, 0.72, 0.62),
+])
+
+
+def label_colors(count: int) -> np.ndarray:
+    """A distinct colour per label ``(count, 3)`` in [0, 1]."""
+    return PALETTE[np.arange(count) % len(PALETTE)]
+
+
+@dataclass
+class AutoLabelSettings:
+    """What the operator chose in the auto-label dialog."""
+
+    layout: str = "dense"
+    hands: str = "auto"
+    objects: str = ""
+    online: bool = False
+    relabel: bool = False
+
+
+class AutoLabelDialog(QDialog):
+    """Layout, hands ("auto": the labeller decides), rigid objects (a scene spec JSON), online/offline mode
+    and whether to relabel from scratch (ignore the labels the file already has)."""
+
+    def __init__(self, parent: QWidget, settings: AutoLabelSettings) -> None:
+        super().__init__(parent)
+        self.setWindowTitle("Auto-label")
+        form = QFormLayout(self)
+        self.layout_box = QComboBox(self)
+        self.layout_box.addItems(layout_names())
+        self.layout_box.setCurrentText(settings.layout)
+        self.hands_box = QComboBox(self)
+        self.hands_box.addItems(["auto", "right", "left", "both"])
+        self.hands_box.setToolTip("auto: the labeller decides which hands the take shows (and warns when it "
+                                  "cannot tell)")
+        self.hands_box.setCurrentText(settings.hands)
+        self.objects_edit = QLineEdit(settings.objects, self)
+        self.objects_edit.setPlaceholderText("none")
+        browse = QPushButton("Browse…", self)
+        browse.clicked.connect(self._browse)
+        objects = QHBoxLayout()
+        objects.addWidget(self.objects_edit, 1)
+        objects.addWidget(browse)
+        self.online_box = QCheckBox("Online (causal: no backward pass, as in live tracking)", self)
+        self.online_box.setChecked(settings.online)
+        self.relabel_box = QCheckBox("Relabel from scratch (ignore the labels the file already has)", self)
+        self.relabel_box.setToolTip("Off: labels outside the layout (arm, body, objects) are kept, and where the "
+                                    "file labels a point with a layout marker's name that label is kept.")
+        self.relabel_box.setChecked(settings.relabel)
+        form.addRow("Marker layout", self.layout_box)
+        form.addRow("Hands", self.hands_box)
+        form.addRow("Rigid objects", objects)
+        form.addRow("", self.online_box)
+        form.addRow("", self.relabel_box)
+        buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok | QDialogButtonBox.StandardButton.Cancel, self)
+        buttons.button(QDialogButtonBox.StandardButton.Ok).setText("Auto-label")
+        buttons.accepted.connect(self.accept)
+        buttons.rejected.connect(self.reject)
+        form.addRow(buttons)
+
+    def _browse(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, "Scene objects", "", "Scene spec (*.json);;All files (*)")
+        if path:
+            self.objects_edit.setText(path)
+
+    def settings(self) -> AutoLabelSettings:
+        return AutoLabelSettings(self.layout_box.currentText(), self.hands_box.currentText(),
+                                 self.objects_edit.text().strip(), self.online_box.isChecked(),
+                                 self.relabel_box.isChecked())
+
+
+class ReviewController(QObject):
+    """The review of the shown take (see the module docstring). It builds its views and actions; the
+    window places them (:attr:`table`, :attr:`lanes`, :attr:`gaps_panel`, the menus and :attr:`toolbar`)
+    and shows what the signals below tell."""
+
+    status_message = Signal(str, int)             # text, milliseconds to show it (0: until replaced)
+    error_raised = Signal(str, str)               # title, message
+    progress_started = Signal(str)                # progress bar format of a review job
+    progressed = Signal(float)                    # its fraction 0..1
+    progress_ended = Signal()
+    auto_label_applied = Signal(object, object, object)  # document, hand models and marker sets it calibrated
+    exported = Signal(object, str, str)           # document, kind ("c3d", "csv" or "bvh"), path
+
+    def __init__(self, app: Application, host: QWidget, viewport: HandViewport, timeline: TimelineWidget) -> None:
+        super().__init__(host)
+        self.app, self.host, self.viewport, self.timeline = app, host, viewport, timeline
+        self.auto_settings = AutoLabelSettings()
+        self._groups: list[GapGroup] = []
+        self._gaps: list[ReviewGap] = []
+        self._rows: list[GapRow] = []
+        self._rejected: set[tuple[int, int]] = set()
+        self._previews: dict[tuple[int, int, str, int], np.ndarray] = {}
+        self._pending_span = FrameSpan(0, 0)
+        self._job_document: TakeDocument | None = None
+        self._job_kind = ""
+        self._job_version = -1
+        self._check_key: tuple | None = None
+
+        self.jobs = TaskRunner(self)
+        self.jobs.progressed.connect(lambda _request, fraction: self.progressed.emit(fraction))
+        self.jobs.succeeded.connect(self._job_succeeded)
+        self.jobs.failed.connect(self._job_failed)
+        self.jobs.cancelled.connect(self._job_cancelled)
+        self.jobs.busy_changed.connect(self._jobs_busy_changed)
+        self.checks = TaskRunner(self)
+        self.checks.succeeded.connect(self._check_done)
+        self.checks.failed.connect(self._check_failed)
+
+        self._build_views()
+        self._build_actions()
+        viewport.marker_clicked.connect(self.point_clicked)
+        app.add_listener(self._app_changed)
+
+    # ---------------------------------------------------------------------------------- building
+    def _build_views(self) -> None:
+        host = self.host
+        self.table = ReviewTable(host)
+        self.table.marker_selected.connect(self.select_label)
+        self.lanes = MarkerLanes(host)
+        self.lanes.frame_clicked.connect(self.timeline.set_frame)
+        self.lanes.marker_clicked.connect(self.select_label)
+        self.lanes.stretch_clicked.connect(self._stretch_clicked)
+        self.lanes.link_x(self.timeline.plot.getPlotItem().vb)
+        self.gap_list = GapList(host)
+        self.preview = FillPreview(host)
+        splitter = QSplitter(Qt.Orientation.Vertical, host)
+        splitter.addWidget(self.gap_list)
+        splitter.addWidget(self.preview)
+        splitter.setSizes([560, 200])
+        self.gap_list.gap_selected.connect(self._gap_selected)
+        self.gap_list.method_changed.connect(lambda _gap, method: self.preview.set_selected(method))
+        self.gap_list.preview_requested.connect(self._preview_requested)
+        self.gap_list.accept_requested.connect(self.accept_fill)
+        self.gap_list.reject_requested.connect(self.reject_gap)
+        self.gap_list.fill_all_requested.connect(self.fill_all)
+        self.gaps_panel = QScrollArea(host)           # the gap table, check and preview need more height than
+        self.gaps_panel.setWidgetResizable(True)      # a small screen has: scroll rather than grow the window
+        self.gaps_panel.setFrameShape(QScrollArea.Shape.NoFrame)
+        self.gaps_panel.setWidget(splitter)
+
+    def _build_actions(self) -> None:
+        host = self.host
+
+        def action(text: str, slot: Callable, shortcut: QKeySequence | str | None = None):
+            return make_action(host, text, slot, shortcut)
+
+        self.auto_label_action = action("&Auto-label…", self.choose_auto_label, "Ctrl+L")
+        self.auto_label_action.setToolTip("Label the take's raw points automatically (Ctrl+L)")
+        self.undo_action = action("&Undo", self.undo, QKeySequence.StandardKey.Undo)
+        self.redo_action = action("&Redo", self.redo, "Ctrl+Shift+Z")
+        self.assign_action = action("&Assign label…", self.choose_label_to_assign, "L")
+        self.swap_action = action("S&wap labels…", self.choose_label_to_swap, "W")
+        self.ghost_action = action("Mark as &ghost", self.mark_ghost, "Shift+G")
+        self.unlabel_action = action("&Unlabel", self.unlabel, "U")
+        self.range_in_action = action("Set range &start here", self.set_range_in, "I")
+        self.range_out_action = action("Set range &end here", self.set_range_out, "O")
+        self.clear_range_action = action("&Clear range", self.clear_range, "Shift+I")
+        self.next_problem_action = action("&Next problem", lambda: self.go_to_problem(True), "F3")
+        self.previous_problem_action = action("&Previous problem", lambda: self.go_to_problem(False), "Shift+F3")
+        self.rigid_body_action = action("Define &rigid body from selected points…", self.choose_rigid_body_name,
+                                        "Ctrl+B")
+        self.rigid_body_action.setToolTip("Ctrl+click three or more points of an object in the 3D view, then "
+                                          "name it: auto-label then tracks it as a rigid body")
+        self.fill_all_action = action("&Fill short gaps…", lambda: self.fill_all(self.gap_list.max_length_box.value()),
+                                      "Ctrl+Shift+F")
+        self.cancel_job_action = action("Cancel review &job", self.jobs.cancel)
+        self.export_c3d_action = action("Labelled &C3D…", self.choose_export_c3d)
+        self.export_csv_action = action("Joint angles (CS&V)…", self.choose_export_csv)
+        self.export_bvh_action = action("Joint angles (&BVH)…", self.choose_export_bvh)
+
+        self.edit_menu = QMenu("&Edit", host)
+        for item in (self.undo_action, self.redo_action, None, self.assign_action, self.swap_action,
+                     self.unlabel_action, self.ghost_action, None, self.range_in_action, self.range_out_action,
+                     self.clear_range_action):
+            self.edit_menu.addSeparator() if item is None else self.edit_menu.addAction(item)
+        self.review_menu = QMenu("&Review", host)
+        for item in (self.auto_label_action, self.cancel_job_action, self.rigid_body_action, None,
+                     self.next_problem_action,
+                     self.previous_problem_action, None, self.fill_all_action):
+            self.review_menu.addSeparator() if item is None else self.review_menu.addAction(item)
+        self.export_menu = QMenu("E&xport", host)
+        for item in (self.export_c3d_action, self.export_csv_action, self.export_bvh_action):
+            self.export_menu.addAction(item)
+
+        toolbar = self.toolbar = QToolBar("Review", host)
+        toolbar.setObjectName("review-toolbar")
+        toolbar.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextOnly)
+        toolbar.addAction(self.auto_label_action)
+        toolbar.addSeparator()
+        toolbar.addAction(self.undo_action)
+        toolbar.addAction(self.redo_action)
+        toolbar.addSeparator()
+        toolbar.addAction(self.assign_action)
+        toolbar.addAction(self.swap_action)
+        toolbar.addAction(self.unlabel_action)
+        toolbar.addAction(self.ghost_action)
+        toolbar.addWidget(QLabel(" Scope "))
+        self.scope_box = QComboBox(host)
+        for scope, title in SCOPE_TITLES.items():
+            self.scope_box.addItem(title, scope)
+        self.scope_box.setToolTip("Which frames an edit changes: from the current frame to the end of the "
+                                  "point's fragment, the range marked with I and O, or the whole take")
+        toolbar.addWidget(self.scope_box)
+        self.range_label = QLabel("", host)
+        toolbar.addWidget(self.range_label)
+        toolbar.addSeparator()
+        toolbar.addAction(self.previous_problem_action)
+        toolbar.addAction(self.next_problem_action)
+        self.problem_label = QLabel("", host)
+        toolbar.addWidget(self.problem_label)
+
+    # ------------------------------------------------------------------------------- documents
+    @property
+    def document(self) -> TakeDocument | None:
+        """The shown take."""
+        return self.app.document
+
+    @property
+    def review(self):
+        return None if self.document is None else self.document.review
+
+    @property
+    def selection(self) -> Selection:
+        return self.app.selection
+
+    def _app_changed(self, event: object) -> None:
+        """Follow the application: another take shown, a take closing, a change of the shown take's review,
+        another selection."""
+        if isinstance(event, CurrentDocumentChanged):
+            self._show_document(event.document)
+        elif isinstance(event, DocumentClosing) and event.document is self.document:
+            self.stop()
+        elif isinstance(event, ReviewChanged) and event.operation != "clean":
+            if event.operation != "attach":       # a re-solve attached to an edit leaves the gaps as they are
+                self._previews = {}
+            self._refresh(structure=event.structure)
+        elif isinstance(event, SelectionChanged):
+            self._show_selection()
+
+    def _show_document(self, document: TakeDocument | None) -> None:
+        """Show the review of ``document`` (None: no take is shown any more, the views are cleared)."""
+        self._rejected = set()
+        self._previews = {}
+        self._pending_span = FrameSpan(0, 0)
+        if document is not None:
+            self._refresh(structure=True)
+            if document.review.health:
+                self.status_message.emit(document.review.health_summary(), 0)
+            return
+        self.stop()
+        self.lanes.set_lanes([], np.zeros((0, 0), dtype=np.int8))
+        self.gap_list.set_gaps([], [], 1)
+        self.preview.clear()
+        self.viewport.set_trails([])
+        self.viewport.set_loose_points(None)
+        self.viewport.set_rigid_bodies(None)
+        self.update_enabled()
+
+    def _refresh(self, structure: bool = False) -> None:
+        """Redraw the review views; ``structure``: labels or hands may have changed."""
+        review = self.review
+        if review is None:
+            return
+        take = review.take
+        colors = label_colors(review.n_labels)
+        stats = review.marker_stats()
+        states = lanes_from_review(review.lane_states(), review.provenance)
+        if structure or self.lanes.n_markers != review.n_labels or self.lanes.n_frames != review.n_frames:
+            self.lanes.set_lanes(review.label_names, states, take.first_frame, take.frame_rate)
+            self.table.set_markers(stats, colors)
+            self._set_hand_meshes()
+        else:
+            x_range = self.lanes.x_range()
+            self.lanes.set_states(states)
+            self.lanes.set_x_range(*x_range)
+            self.table.update_stats(stats)
+            if self.document.has_solved_hands() and self.viewport.hand_count() != len(review.hands):
+                self._set_hand_meshes()     # the first solve of a hand: the view showed another surface
+        self.lanes.set_frame(self.timeline.frame)
+        if self.selection.label >= 0:
+            self.lanes.set_selected_marker(self.selection.label)
+        self._refresh_gaps()
+        self._refresh_problem_count()
+        self.update_enabled()
+
+    def _set_hand_meshes(self) -> None:
+        document = self.document
+        meshes = []
+        for hand in document.review.hands:
+            model = document.model_for(hand.side)
+            meshes.append((model.vertices, model.faces))
+        if meshes:
+            self.viewport.set_hand_meshes(meshes)
+
+    def update_enabled(self) -> None:
+        document, review, busy = self.document, self.review, self.jobs.is_busy()
+        stack = None if document is None else document.stack
+        selection = self.selection
+        self.auto_label_action.setEnabled(review is not None and not busy)
+        self.rigid_body_action.setEnabled(review is not None and len(selection.rigid_points) >= 3)
+        self.cancel_job_action.setEnabled(busy)
+        self.undo_action.setEnabled(stack is not None and stack.can_undo() and not busy)
+        self.redo_action.setEnabled(stack is not None and stack.can_redo() and not busy)
+        self.undo_action.setText(f"&Undo {stack.undo_text()}" if stack is not None and stack.can_undo() else "&Undo")
+        self.redo_action.setText(f"&Redo {stack.redo_text()}" if stack is not None and stack.can_redo() else "&Redo")
+        editable = (document is not None and document.has_labels()
+                    and not (busy and self._job_kind == "auto-label"))
+        for action in (self.assign_action, self.swap_action, self.ghost_action, self.unlabel_action,
+                       self.next_problem_action, self.previous_problem_action, self.fill_all_action,
+                       self.export_c3d_action):
+            action.setEnabled(editable)
+        for action in (self.export_csv_action, self.export_bvh_action):
+            action.setEnabled(document is not None and document.has_solved_hands())
+        text = ""
+        if selection.range_in is not None or selection.range_out is not None:
+            first = review.take.first_frame if review is not None else 0
+            start = "…" if selection.range_in is None else str(selection.range_in + first)
+            stop = "…" if selection.range_out is None else str(selection.range_out + first)
+            text = f" range {start}–{stop} "
+        self.range_label.setText(text)
+
+    # ---------------------------------------------------------------------------------- frames
+    def draw_frame(self, frame: int) -> None:
+        """Draw ``frame`` of the review when the take has labels or is raw: every raw point coloured by the
+        label it holds (grey when unlabelled, dark red for ghosts), accepted fills as green dots, the solved
+        hands with their effectors and residual lines, and the trail of the selected label."""
+        document, review = self.document, self.review
+        if document is None or not (document.has_labels() or document.is_raw):
+            return
+        viewport = self.viewport
+        labels = review.assignment[frame]
+        point_label = np.full(review.n_points, -1, dtype=np.int64)
+        taken = labels >= 0
+        point_label[labels[taken]] = np.flatnonzero(taken)
+        colors = np.tile(UNLABELLED_COLOR, (review.n_points, 1))
+        colors[review.ghost[frame]] = GHOST_COLOR
+        palette = label_colors(review.n_labels)
+        colors[point_label >= 0] = palette[point_label[point_label >= 0]]
+        colors[self.selection.rigid_points] = RIGID_SELECTION_COLOR
+        names = [review.label_names[label] if label >= 0 else f"*{column}"
+                 for column, label in enumerate(point_label)]
+        viewport.set_marker_names(names)
+        viewport.set_marker_colors(colors)
+        viewport.set_rigid_bodies(review.rigid_body_segments(frame))
+        fills = review.provenance[frame] > 0
+        fill_colors = palette[fills] * 0.5 + np.array(FILL_COLOR) * 0.5
+        viewport.set_loose_points(review.filled_positions[frame, fills], fill_colors)
+        effectors, targets = [], []
+        labelled = review.labelled_positions()[frame]
+        for number, hand in enumerate(review.hands):
+            theta = hand.joint_angles[frame]
+            if not np.isfinite(theta).all():
+                continue
+            model = document.model_for(hand.side)
+            viewport.update_hand_vertices(skin_vertices(model, theta), number)
+            markers = document.marker_set_for(hand.side, hand.layout)
+            if markers is not None and len(markers.names) == len(hand.labels):
+                effectors.append(marker_positions(model, markers, theta))
+                targets.append(labelled[hand.labels])
+        if effectors:
+            viewport.set_effectors(np.concatenate(effectors), np.concatenate(targets))
+        else:
+            viewport.set_effectors(None)
+        self._draw_trail(frame)
+        self.lanes.set_frame(frame)
+
+    def _draw_trail(self, frame: int) -> None:
+        review, label = self.review, self.selection.label
+        if label < 0 or label >= review.n_labels:
+            self.viewport.set_trails([])
+            return
+        first, last = max(0, frame - TRAIL_FRAMES), min(review.n_frames, frame + TRAIL_FRAMES + 1)
+        trail = review.labelled_positions()[first:last, label]
+        self.viewport.set_trails([trail], label_colors(review.n_labels)[[label]])
+
+    # ------------------------------------------------------------------------------- selection
+    def _show_selection(self) -> None:
+        """Show the selection everywhere: table row, lane, the selected point, its trail, the points picked
+        for a rigid body, the marked range."""
+        if self.review is None:
+            return
+        label, column = self.selection.label, self.selection.column
+        self.table.select_marker(label)
+        self.lanes.set_selected_marker(label)
+        self.viewport.set_selected_marker(column if column >= 0 else None)
+        self.update_enabled()
+        self.draw_frame(self.timeline.frame)
+        self.viewport.request_render()
+
+    def select_label(self, label: int) -> None:
+        """Select ``label`` and the point holding it now."""
+        review = self.review
+        if review is None:
+            return
+        label = label if 0 <= label < review.n_labels else -1
+        self.app.select(label, int(review.assignment[self.timeline.frame, label]) if label >= 0 else -1)
+
+    def point_clicked(self, column: int) -> None:
+        """The operator clicked raw point ``column`` in the 3D view (-1: empty space); with Ctrl, the point
+        is picked for a rigid body."""
+        review = self.review
+        if review is None:
+            return
+        if QApplication.keyboardModifiers() & Qt.KeyboardModifier.ControlModifier and column >= 0:
+            self.toggle_rigid_point(column)
+            return
+        self.app.select(review.label_of_point(self.timeline.frame, column) if column >= 0 else -1, column)
+
+    def toggle_rigid_point(self, column: int) -> None:
+        """Add raw point ``column`` to the points of a new rigid body (or take it out again)."""
+        self.app.toggle_rigid_point(column)
+        self.status_message.emit(f"{len(self.selection.rigid_points)} points selected for a rigid body "
+                                 "(Review ▸ Define rigid body…)", 5000)
+
+    def choose_rigid_body_name(self) -> None:
+        name, accepted = QInputDialog.getText(self.host, "Rigid body", "Name of the object:", text="object")
+        if accepted and name.strip():
+            self.define_rigid_body(name.strip())
+
+    def define_rigid_body(self, name: str) -> Path | None:
+        """Make a rigid body named ``name`` from the selected points in the current frame and add it to the
+        scene spec auto-label uses (in the session folder, or next to the take file). Returns the spec."""
+        review, points = self.review, self.selection.rigid_points
+        frame = self.timeline.frame
+        try:
+            if len(points) < 3:
+                raise HandMocapError("Ctrl+click at least 3 points of the object in the 3D view first")
+            markers = [f"{name}{number + 1}" for number in range(len(points))]
+            spec = rigid_body_from_points(name, markers, review.take.marker_positions[frame, points])
+            path = Path(self.auto_settings.objects) if self.auto_settings.objects else self._default_spec_path()
+            objects = [item for item in (load_scene_spec(path) if path.exists() else []) if item.name != name]
+            path.parent.mkdir(parents=True, exist_ok=True)
+            save_scene_spec([*objects, spec], path)
+        except (HandMocapError, OSError) as error:
+            self.error_raised.emit("Cannot define the rigid body", str(error))
+            return None
+        self.auto_settings.objects = str(path)
+        self.app.clear_rigid_points()
+        self.status_message.emit(f"Rigid body '{name}' ({len(markers)} markers) added to the scene "
+                                 f"{path.name}; the next auto-label tracks it", 8000)
+        return path
+
+    def _default_spec_path(self) -> Path:
+        document = self.document
+        if document.open_take is not None:
+            return document.open_take.folder / "scene_objects.json"
+        source = document.take.source_path
+        folder = Path(source).parent if source else Path.home() / ".cache" / "handmocap"
+        return folder / f"{Path(document.title).stem}_objects.json"
+
+    def _stretch_clicked(self, marker: int, first: int, last: int) -> None:
+        self.select_label(marker)
+        if not first <= self.timeline.frame <= last:
+            self.timeline.set_frame(first)
+
+    # -------------------------------------------------------------------------------- editing
+    def _scope(self) -> tuple[str, int | None, int | None]:
+        scope, selection = self.scope_box.currentData(), self.selection
+        if scope != "range":
+            return scope, None, None
+        if selection.range_in is None or selection.range_out is None:
+            raise HandMocapError("mark the range first: I at its first frame, O at its last")
+        start, stop = sorted((selection.range_in, selection.range_out))
+        return scope, start, stop + 1
+
+    def _selected_point(self) -> tuple[int, int]:
+        frame, label, column = self.timeline.frame, self.selection.label, self.selection.column
+        if column < 0 and label >= 0:
+            column = int(self.review.assignment[frame, label])
+        if column < 0 or not np.isfinite(self.review.take.marker_positions[frame, column]).all():
+            raise HandMocapError("select a point in the 3D view (or a label that has a point in this frame) first")
+        return frame, column
+
+    def run_edit(self, make: Callable[[], Command]) -> FrameSpan | None:
+        """Build a command, push it on the undo stack (the views follow its change event), and re-solve
+        the frames it touched. A problem becomes a one-line message; the review stays as it was."""
+        document = self.document
+        if document is None or document.review is None:
+            return None
+        try:
+            command = make()
+            span = document.push(command)
+        except HandMocapError as error:
+            self.error_raised.emit("Cannot edit", str(error))
+            return None
+        self.queue_resolve(span)
+        self.status_message.emit(command.text, 5000)
+        return span
+
+    def _point_edit(self, command: type, *arguments: str) -> FrameSpan | None:
+        """Run a point command (``AssignLabel``, ``Unlabel``, ``MarkGhost``) on the selected point over
+        the chosen scope; ``arguments`` follow the point (the new label of an assignment)."""
+        def make() -> Command:
+            frame, column = self._selected_point()
+            scope, start, stop = self._scope()
+            return command(frame, column, *arguments, scope=scope, start=start, stop=stop)
+        return self.run_edit(make)
+
+    def assign_label(self, new_label: str) -> FrameSpan | None:
+        """Give ``new_label`` to the selected point over the chosen scope."""
+        span = self._point_edit(AssignLabel, new_label)
+        if span is not None:
+            self.select_label(self.review.label_index(new_label))
+        return span
+
+    def unlabel(self) -> FrameSpan | None:
+        """Remove the label of the selected point over the chosen scope."""
+        return self._point_edit(Unlabel)
+
+    def mark_ghost(self) -> FrameSpan | None:
+        """Mark the selected point as a ghost over the chosen scope."""
+        return self._point_edit(MarkGhost)
+
+    def swap_labels(self, other: str) -> FrameSpan | None:
+        """Swap the selected label with ``other`` over the marked range (or from here to the end)."""
+        def make() -> Command:
+            selection = self.selection
+            if selection.label < 0:
+                raise HandMocapError("select the label to swap first (click its point, lane or row)")
+            if selection.range_in is not None and selection.range_out is not None:
+                start, stop = sorted((selection.range_in, selection.range_out))
+                stop += 1
+            else:
+                start, stop = self.timeline.frame, self.review.n_frames
+            return SwapLabels(self.review.label_names[selection.label], other, start, stop)
+        return self.run_edit(make)
+
+    def _label_menu(self, title: str, slot: Callable[[str], object], exclude: int = -1) -> None:
+        review = self.review
+        if review is None or not review.n_labels:
+            return
+        menu = QMenu(title, self.host)
+        groups: dict[str, QMenu] = {}
+        for label, name in enumerate(review.label_names):
+            if label == exclude:
+                continue
+            hand = review.hand_of_label(label)
+            group = review.hands[hand].name if hand >= 0 else "other"
+            if len(review.hands) > 1 or (hand < 0 and review.hands):
+                if group not in groups:
+                    groups[group] = menu.addMenu(group)
+                target = groups[group]
+            else:
+                target = menu
+            item = target.addAction(name)
+            item.triggered.connect(lambda _checked=False, chosen=name: slot(chosen))
+        menu.exec(QCursor.pos())
+
+    def choose_label_to_assign(self) -> None:
+        self._label_menu("Assign label", self.assign_label)
+
+    def choose_label_to_swap(self) -> None:
+        if self.selection.label < 0:
+            self.error_raised.emit("Cannot swap", "select the label to swap first (click its point, lane or row)")
+            return
+        self._label_menu("Swap with", self.swap_labels, exclude=self.selection.label)
+
+    def undo(self) -> None:
+        self._step(self.document.undo if self.document else None)
+
+    def redo(self) -> None:
+        self._step(self.document.redo if self.document else None)
+
+    def _step(self, operation: Callable[[], FrameSpan] | None) -> None:
+        if operation is None:
+            return
+        try:
+            operation()
+        except HandMocapError as error:
+            self.error_raised.emit("Cannot undo", str(error))
+
+    def set_range_in(self) -> None:
+        self.app.mark_range(self.timeline.frame, self.selection.range_out)
+
+    def set_range_out(self) -> None:
+        self.app.mark_range(self.selection.range_in, self.timeline.frame)
+
+    def clear_range(self) -> None:
+        self.app.mark_range(None, None)
+
+    # ------------------------------------------------------------------------------- problems
+    def _refresh_problem_count(self) -> None:
+        review = self.review
+        if review is None or not review.n_labels:
+            self.problem_label.setText("")
+            return
+        problems = review.problems()
+        counts = {kind: sum(p.kind == kind for p in problems) for kind in PROBLEM_KINDS}
+        warnings = f" · {counts['labelling']} auto-label warnings" if counts["labelling"] else ""
+        self.problem_label.setText(f" {counts['swap']} swap suspects · {counts['low_confidence']} low-confidence"
+                                   f" · {counts['gap']} gaps{warnings} ")
+        self.problem_label.setToolTip("\n".join(problem.text for problem in problems if problem.kind == "labelling"))
+
+    def go_to_problem(self, forward: bool = True) -> None:
+        """Jump to the next (or previous) low-confidence stretch, swap suspect, unfilled gap or stretch an
+        auto-label warning is about."""
+        review = self.review
+        if review is None:
+            return
+        problem = review.next_problem(self.timeline.frame, forward=forward)
+        if problem is None:
+            self.status_message.emit("No problems left in this take", 5000)
+            return
+        self.timeline.set_frame(problem.frame)
+        self.select_label(problem.label)
+        self.status_message.emit(problem.text, 8000)
+
+    # ----------------------------------------------------------------------------------- gaps
+    def _refresh_gaps(self) -> None:
+        document, review = self.document, self.review
+        self._groups = gap_groups(review, document.hand_models, document.marker_sets) if review.n_labels else []
+        self._gaps = find_review_gaps(review, self._groups) if self._groups else []
+        old = {(row.marker, row.start, row.length): row for row in self._rows}
+        rows = []
+        for gap in self._gaps:
+            previous = old.get((gap.label, gap.start, gap.length))
+            state = "filled" if gap.filled_method else ("rejected" if (gap.label, gap.start) in self._rejected
+                                                        else "open")
+            row = GapRow(gap.label, gap.name, gap.start, gap.length, state=state, method=gap.filled_method)
+            if previous is not None:
+                row.recommended, row.errors_mm = previous.recommended, previous.errors_mm
+                row.reasons, row.check_error = previous.reasons, previous.check_error
+            row.donors = tuple(int(label) for label in self._groups[gap.group].labels if label != gap.label)
+            rows.append(row)
+        self._rows = rows
+        selected = self.gap_list.selected_gap()
+        self.gap_list.set_gaps(rows, review.label_names, review.take.first_frame)
+        if 0 <= selected < len(rows):
+            self.gap_list.select_gap(selected)
+        else:
+            self.preview.clear()
+
+    def _gap_selected(self, index: int) -> None:
+        if not 0 <= index < len(self._gaps):
+            self.preview.clear()
+            return
+        gap = self._gaps[index]
+        self.timeline.set_frame(gap.start)
+        self.select_label(gap.label)
+        self._show_preview(index)
+        if not self._rows[index].checked:
+            self._start_check(index)
+
+    def _start_check(self, index: int) -> None:
+        gap, group = self._gaps[index], self._groups[self._gaps[index].group]
+        key = (id(self.document), self.review.version, index)
+        self._check_key = key
+
+        def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> tuple:
+            check = check_review_gap(group, gap)
+            previews = {}
+            for method in FILL_METHODS:
+                if cancelled():
+                    break
+                try:
+                    previews[method] = preview_fill(group, gap, method)
+                except HandMocapError:
+                    continue
+            return key, check, previews
+
+        self.checks.start(task)
+
+    def _check_done(self, _request: int, outcome: tuple) -> None:
+        key, check, previews = outcome
+        if key != self._check_key or self.review is None or key[1] != self.review.version:
+            return
+        index = key[2]
+        check: FillCheck
+        row = self._rows[index]
+        ranking = check.ranking()
+        row.errors_mm, row.reasons = dict(check.errors_mm), dict(check.reasons)
+        row.recommended = ranking[0] if ranking else None
+        self.gap_list.update_gap(index, row)
+        gap = self._gaps[index]
+        for method, values in previews.items():
+            self._previews[(gap.label, gap.start, method, -1)] = values
+        if self.gap_list.selected_gap() == index:
+            self._show_preview(index)
+
+    def _check_failed(self, _request: int, message: str) -> None:
+        if self._check_key is None:
+            return
+        index = self._check_key[2]
+        if 0 <= index < len(self._rows):
+            row = self._rows[index]
+            row.errors_mm, row.check_error = {}, message
+            self.gap_list.update_gap(index, row)
+
+    def _show_preview(self, index: int) -> None:
+        gap, review = self._gaps[index], self.review
+        candidates = {method: values for (label, start, method, _donor), values in self._previews.items()
+                      if label == gap.label and start == gap.start}
+        trajectory = review.measured_positions()[:, gap.label]
+        self.preview.show_gap(trajectory, gap.start, gap.length, candidates, self.gap_list.chosen_method(),
+                              self._rows[index].errors_mm, review.take.first_frame, gap.name)
+
+    def _fill_values(self, index: int, method: str, donor: int) -> np.ndarray:
+        gap = self._gaps[index]
+        key = (gap.label, gap.start, method, donor)
+        if key not in self._previews:
+            self._previews[key] = preview_fill(self._groups[gap.group], gap, method,
+                                               None if donor < 0 else donor)
+        return self._previews[key]
+
+    def _preview_requested(self, index: int, method: str, donor: int) -> None:
+        if not 0 <= index < len(self._gaps):
+            return
+        try:
+            self._fill_values(index, method, donor)
+        except HandMocapError as error:
+            self.error_raised.emit("Cannot preview", str(error))
+            return
+        self._show_preview(index)
+        self.preview.set_selected(method)
+
+    def accept_fill(self, index: int, method: str, donor: int = -1) -> FrameSpan | None:
+        """Accept ``method``'s fill of gap ``index`` (one undoable step, then the hand is re-solved)."""
+        if not 0 <= index < len(self._gaps):
+            return None
+        gap = self._gaps[index]
+
+        def make() -> Command:
+            return AcceptFills([GapFill(gap.name, gap.start, method, self._fill_values(index, method, donor))])
+        return self.run_edit(make)
+
+    def reject_gap(self, index: int) -> None:
+        """Reject the fill of gap ``index`` (undoable) or, for an open gap, mark it to be left as it is."""
+        if not 0 <= index < len(self._gaps):
+            return
+        gap = self._gaps[index]
+        if gap.filled_method is not None:
+            self.run_edit(lambda: RejectFills(gap.name, gap.start, gap.start + gap.length))
+            return
+        self._rejected.add((gap.label, gap.start))
+        self._refresh_gaps()
+
+    def fill_all(self, max_length: int) -> None:
+        """Fill every open gap of at most ``max_length`` frames with its recommended method, on a worker;
+        the result is one undoable step."""
+        review = self.review
+        if review is None or self.jobs.is_busy():
+            return
+        try:
+            gaps = [gap for gap in short_open_gaps(review, self._groups, max_length)
+                    if (gap.label, gap.start) not in self._rejected]
+        except HandMocapError as error:
+            self.error_raised.emit("Cannot fill", str(error))
+            return
+        if not gaps:
+            self.status_message.emit(f"No open gap of at most {max_length} frames", 5000)
+            return
+        groups = self._groups
+        self._start_job("fill", lambda progress, cancelled: fill_gaps(groups, gaps, "auto", progress, cancelled))
+
+    # ----------------------------------------------------------------------------- auto-label
+    def choose_auto_label(self) -> None:
+        if self.document is None:
+            return
+        if self.document.layout_name:
+            self.auto_settings.layout = self.document.layout_name
+        dialog = AutoLabelDialog(self.host, self.auto_settings)
+        if dialog.exec() == QDialog.DialogCode.Accepted:
+            self.auto_settings = dialog.settings()
+            self.start_auto_label(self.auto_settings)
+
+    def start_auto_label(self, settings: AutoLabelSettings, document: TakeDocument | None = None) -> None:
+        """Auto-label ``document`` (default: the current take) on a worker; the result is one undoable step."""
+        document = document or self.document
+        if document is None:
+            return
+        take = document.ensure_review().take
+        models = dict(document.hand_models)
+
+        def task(progress: Callable[[float], None], cancelled: Callable[[], bool]):
+            return auto_label(take, settings.layout, settings.hands, settings.objects or None, settings.online,
+                              models=models or None, relabel=settings.relabel, progress=progress,
+                              cancelled=cancelled)
+
+        self._start_job("auto-label", task, document=document)
+
+    # ------------------------------------------------------------------------------ re-solves
+    def queue_resolve(self, span: FrameSpan) -> None:
+        """Re-solve the hands over ``span`` (merged with frames still waiting) when the worker is free."""
+        self._pending_span = self._pending_span.union(span)
+        if not self.jobs.is_busy():
+            self._start_resolve()
+
+    def _start_resolve(self) -> None:
+        review, document = self.review, self.document
+        span = self._pending_span
+        if review is None or span.empty or not review.hands:
+            self._pending_span = FrameSpan(0, 0)
+            return
+        jobs = resolve_jobs(review, span, document.hand_models, marker_sets=document.marker_sets)
+        self._pending_span = FrameSpan(0, 0)
+        if jobs:
+            self._start_job("re-solve", lambda progress, cancelled: run_resolve_jobs(
+                jobs, progress=progress, cancelled=cancelled), keep_span=span)
+
+    # ----------------------------------------------------------------------------------- jobs
+    def _start_job(self, kind: str, task: Callable, keep_span: FrameSpan | None = None,
+                   document: TakeDocument | None = None) -> None:
+        self._job_document, self._job_kind = document or self.document, kind
+        self._job_version = self._job_document.review.version
+        self._job_span = keep_span
+        self.jobs.start(task)
+        self.app.job_started(JOB_NAME, Job(kind, self._job_document, self.jobs.cancel))
+        self.progress_started.emit(f"{kind.capitalize()}… %p %")
+        self.update_enabled()
+
+    def _jobs_busy_changed(self, busy: bool) -> None:
+        if not busy:
+            self.app.job_ended(JOB_NAME)
+        self.update_enabled()
+
+    def _job_finished(self) -> None:
+        self.progress_ended.emit()
+        if not self._pending_span.empty and self.document is self._job_document:
+            self._start_resolve()
+        self.update_enabled()
+
+    def _job_succeeded(self, _request: int, result: object) -> None:
+        document, kind = self._job_document, self._job_kind
+        self._job_document = None
+        if document is None or document.review is None:
+            self._job_finished()
+            return
+        try:
+            if kind == "auto-label":
+                document.hand_models.update(result.models)
+                document.marker_sets.update(result.marker_sets)
+                for side in result.models:
+                    document.subjects.pop(side, None)
+                document.subjects.update({subject.side: subject for subject in result.subjects})
+                if document is self.document:            # a new labelling: start afresh on it
+                    self._rejected, self._pending_span = set(), FrameSpan(0, 0)
+                    self.app.clear_selection()
+                document.push(result.command)
+                document.last_report = result.report
+                report, known = result.report, result.report["file_labels"]
+                kept = (f"; kept from the file: {len(known['kept_labels'])} labels outside the layout, its hand "
+                        f"labels ({known['disagreed_samples']} samples differed from auto-label)"
+                        if known["kept_labels"] or known["file_label_samples"] else "")
+                self.status_message.emit(
+                    document.review.health_summary() or
+                    f"Auto-labelled {report['frames']} frames: {100 * report['labelled_share']:.1f} % of label "
+                    f"samples found, {report['ghost_points']} ghost points left unlabelled{kept}",
+                    0 if report["health"] else 10000)
+                self.auto_label_applied.emit(document, result.models, result.marker_sets)
+            elif kind == "fill" and result is not None:
+                span = document.push(result)
+                self.status_message.emit(result.text, 8000)
+                if document is self.document:
+                    self.queue_resolve(span)
+            elif kind == "re-solve":
+                if document.review.version != self._job_version:
+                    self._pending_span = self._pending_span.union(self._job_span)
+                else:
+                    for command in result:
+                        document.attach(command)
+        except HandMocapError as error:
+            self.error_raised.emit(f"Cannot apply the {kind}", str(error))
+        self._job_finished()
+
+    def _job_failed(self, _request: int, message: str) -> None:
+        kind = self._job_kind
+        self._job_document = None
+        self._job_finished()
+        self.error_raised.emit(f"{kind.capitalize()} failed", message)
+
+    def _job_cancelled(self, _request: int) -> None:
+        kind = self._job_kind
+        if kind == "re-solve" and self._job_span is not None:
+            self._pending_span = self._pending_span.union(self._job_span)
+        self._job_document = None
+        self.progress_ended.emit()
+        self.status_message.emit(f"{kind.capitalize()} cancelled; the take is unchanged", 5000)
+        self.update_enabled()
+
+    def stop(self) -> None:
+        """Cancel and wait for the workers (the window is closing)."""
+        self.jobs.stop()
+        self.checks.stop()
+
+    # -------------------------------------------------------------------------------- exports
+    def _export(self, title: str, filter_text: str, suffix: str, write: Callable[[str], None], kind: str) -> None:
+        document = self.document
+        if document is None:
+            return
+        stem = document.title.rsplit(".", 1)[0]
+        path, _ = QFileDialog.getSaveFileName(self.host, title, f"{stem}{suffix}", filter_text)
+        if not path:
+            return
+        try:
+            write(path)
+        except (HandMocapError, OSError) as error:
+            self.error_raised.emit("Cannot export", str(error))
+            return
+        self.exported.emit(document, kind, path)
+        self.status_message.emit(f"Exported {path}", 5000)
+
+    def export_c3d(self, path: str) -> None:
+        """The review as a labelled C3D, with the subject calibrations auto-label made (``HAND_SUBJECT``)."""
+        export_labelled_c3d(self.review, path, subjects=list(self.document.subjects.values()))
+
+    def export_csv(self, path: str) -> None:
+        export_joint_angles_csv(self.review, path)
+
+    def export_bvh(self, path: str) -> None:
+        hand = self.review.hands[0]
+        export_bvh(self.review, path, self.document.model_for(hand.side), 0)
+
+    def choose_export_c3d(self) -> None:
+        self._export("Export labelled C3D", "C3D (*.c3d)", "_labelled.c3d", self.export_c3d, "c3d")
+
+    def choose_export_csv(self) -> None:
+        self._export("Export joint angles", "CSV (*.csv)", "_angles.csv", self.export_csv, "csv")
+
+    def choose_export_bvh(self) -> None:
+        self._export("Export joint angles", "BVH (*.bvh)", ".bvh", self.export_bvh, "bvh")

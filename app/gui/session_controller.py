@@ -1,0 +1,340 @@
+"""Sessions: create/open a session folder, the session browser, adding takes, opening a take for review
+(its journal replayed), take states, autosave, and closing cleanly.
+
+A take opened from the session is a document whose review lives in the session (:class:`OpenTake`):
+every edit is journalled at once, the snapshot is written every ``AUTOSAVE_MS`` when there are edits
+and when the take or the window closes.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from PySide6.QtCore import QObject, QTimer, Signal
+from PySide6.QtWidgets import QFileDialog, QWidget
+
+from app.gui.actions import make_action
+from app.gui.application import Application, CurrentDocumentChanged
+from app.gui.document import TakeDocument
+from app.gui.load_queue import LoadQueue
+from app.gui.review_controller import AutoLabelSettings
+from core.errors import HandMocapError
+from core.io import Take, load_take
+from core.io.durable import write_atomic
+from core.io.labelled_c3d import SubjectCalibration
+from core.model import HandModel, MarkerSet, add_layout_folder, best_layout_for, remove_layout_folder
+from core.session import OpenTake, Session
+from core.session.storage import read_marker_set, write_marker_set
+from widgets.session_browser import SessionBrowser, TakeRow
+
+AUTOSAVE_MS = 15_000
+TAKE_MODEL_NAME = "labelling_hand_{side}.npz"   # the hand model auto-label calibrated to the take
+TAKE_MARKERS_NAME = "labelling_markers_{side}.npz"  # its calibrated markers (the subject's marker offsets)
+TAKE_SUBJECT_NAME = "labelling_subject_{side}.json"  # the calibration relative to the template (C3D export)
+SNAPSHOT_INTERVAL_S = 60.0
+
+
+@dataclass
+class LoadedTakes:
+    """Takes read on the loader thread for adding to the session: (path, take) pairs and failures."""
+
+    takes: list[tuple[Path, Take]]
+    failures: list[str]
+
+
+class SessionController(QObject):
+    """The open session (see the module docstring). It builds the session :attr:`browser` and the session
+    actions; the window places them and shows what the signals below tell."""
+
+    status_message = Signal(str, int)              # text, milliseconds to show it (0: until replaced)
+    error_raised = Signal(str, str)                # title, message
+    layouts_changed = Signal()                     # the session's layouts came or went
+    auto_label_requested = Signal(object, object)  # AutoLabelSettings, the document to label
+
+    def __init__(self, app: Application, host: QWidget, loads: LoadQueue) -> None:
+        super().__init__(host)
+        self.app, self.host, self.loads = app, host, loads
+        self.browser = SessionBrowser(host)
+        self.browser.add_requested.connect(self.add_takes)
+        self.browser.open_requested.connect(self.open_take)
+        self.browser.state_change_requested.connect(self.set_state)
+        self.browser.remove_requested.connect(self.remove_take)
+        self.new_action = make_action(host, "&New session…", self.choose_new_session, "Ctrl+Shift+N")
+        self.open_action = make_action(host, "Open s&ession…", self.choose_session, "Ctrl+Shift+O")
+        self.add_action = make_action(host, "&Add takes to session…", self.browser.choose_files, "Ctrl+Shift+A")
+        self.close_action = make_action(host, "C&lose session", self.close_session)
+        app.add_listener(self._app_changed)
+        self.autosave_timer = QTimer(self)
+        self.autosave_timer.setInterval(AUTOSAVE_MS)
+        self.autosave_timer.timeout.connect(self.autosave)
+        self.autosave_timer.start()
+        self.update_enabled()
+
+    @property
+    def session(self) -> Session | None:
+        """The open session."""
+        return self.app.session
+
+    def _app_changed(self, event: object) -> None:
+        """Mark the shown take in the browser when it is a session take."""
+        document = event.document if isinstance(event, CurrentDocumentChanged) else None
+        if document is not None and document.session_take_id:
+            self.browser.set_current(document.session_take_id)
+
+    # -------------------------------------------------------------------------------- sessions
+    def choose_new_session(self) -> None:
+        folder = QFileDialog.getExistingDirectory(self.host, "New session: choose an empty folder")
+        if folder:
+            self.create_session(folder)
+
+    def choose_session(self) -> None:
+        folder = QFileDialog.getExistingDirectory(self.host, "Open session folder")
+        if folder:
+            self.open_session(folder)
+
+    def create_session(self, folder: str | Path) -> bool:
+        """Create a session in ``folder`` and show it; False (with a message) when it cannot."""
+        try:
+            session = Session.create(folder)
+        except HandMocapError as error:
+            self.error_raised.emit("Cannot create the session", str(error))
+            return False
+        self._set_session(session)
+        return True
+
+    def open_session(self, folder: str | Path) -> bool:
+        """Open the session in ``folder`` (read-only when the folder is); False with a message when
+        it cannot be opened (a damaged manifest is left untouched)."""
+        try:
+            session = Session.open(folder)
+        except HandMocapError as error:
+            try:
+                session = Session.open(folder, read_only=True)
+            except HandMocapError:
+                self.error_raised.emit("Cannot open the session", str(error))
+                return False
+            self.error_raised.emit("Session opened read-only", f"{error}; edits cannot be saved")
+        self._set_session(session)
+        return True
+
+    def _set_session(self, session: Session) -> None:
+        self.close_session()
+        add_layout_folder(session.folder / "layouts")
+        self.layouts_changed.emit()
+        self.app.set_session(session)
+        self.refresh()
+        self.status_message.emit(f"Session {session.name}: {len(session.takes)} takes", 8000)
+        self.update_enabled()
+
+    def close_session(self) -> None:
+        """Save and close the session's open takes (their documents are closed too)."""
+        session = self.session
+        if session is None:
+            return
+        for document in [d for d in self.app.documents if d.open_take is not None]:
+            problem = self.app.close_document(document)
+            if problem:
+                self.error_raised.emit("Cannot save", problem)
+        session.close()
+        remove_layout_folder(session.folder / "layouts")
+        self.layouts_changed.emit()
+        self.app.set_session(None)
+        self.browser.set_takes([])
+        self.update_enabled()
+
+    def refresh(self) -> None:
+        """Show the session's takes and states in the browser."""
+        if self.session is not None:
+            self.browser.set_takes([TakeRow.from_entry(entry) for entry in self.session.takes])
+            current = self.app.document
+            if current is not None and current.session_take_id:
+                self.browser.set_current(current.session_take_id)
+
+    def update_enabled(self) -> None:
+        writable = self.session is not None and not self.session.read_only
+        self.add_action.setEnabled(writable)
+        self.close_action.setEnabled(self.session is not None)
+
+    # ----------------------------------------------------------------------------------- takes
+    def add_takes(self, paths: list[str]) -> None:
+        """Read the take files on the loader thread, then add them to the session."""
+        if self.session is None:
+            if not self.app.documents and not paths:
+                return
+            self.error_raised.emit("No session", "create or open a session first (File ▸ New session…)")
+            return
+
+        def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> LoadedTakes:
+            loaded, failures = [], []
+            for number, path in enumerate(paths):
+                try:
+                    loaded.append((Path(path), load_take(path)))
+                except HandMocapError as error:
+                    failures.append(f"{Path(path).name}: {error}")
+                progress((number + 1) / len(paths))
+            return LoadedTakes(loaded, failures)
+
+        self.loads.queue("Adding takes…", task, self._takes_loaded)
+
+    def _takes_loaded(self, loaded: LoadedTakes) -> None:
+        takes, failures = loaded.takes, list(loaded.failures)
+        for path, take in takes:
+            try:
+                self.session.add_take(path, layout=best_layout_for(take.marker_names), take=take)
+            except HandMocapError as error:
+                failures.append(f"{path.name}: {error}")
+        self.refresh()
+        if failures:
+            self.error_raised.emit("Some takes were not added", "\n".join(failures))
+
+    def open_take(self, take_id: str, automatic: bool = False) -> None:
+        """Open a session take for review (switch to it when it is open already). ``automatic``: then
+        solve a labelled take with IK, or auto-label a raw one that was never labelled (the demo)."""
+        if self.session is None:
+            return
+        document = self.app.document_of_session_take(take_id)
+        if document is not None:
+            if document is not self.app.document:
+                self.app.show(document)
+            return
+        session = self.session
+
+        def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> OpenTake:
+            return session.open_take(take_id)
+
+        self.loads.queue("Opening take…", task, lambda opened: self._take_opened(opened, automatic))
+
+    def _take_opened(self, opened: OpenTake, automatic: bool = False) -> None:
+        entry = opened.entry
+        document = TakeDocument(take=opened.review.take, title=entry.name, layout_name=entry.layout,
+                                open_take=opened, session_take_id=entry.id,
+                                auto_solve=automatic and entry.labelled_source)
+        if self.session is not None and entry.subject:
+            try:
+                model = self.session.load_subject_model(entry.subject)
+            except HandMocapError:
+                model = None
+            if model is not None:
+                document.hand_models[model.side] = model
+        for side in ("right", "left"):
+            path = opened.folder / TAKE_MODEL_NAME.format(side=side)
+            markers = opened.folder / TAKE_MARKERS_NAME.format(side=side)
+            subject = opened.folder / TAKE_SUBJECT_NAME.format(side=side)
+            if path.exists():
+                try:
+                    document.hand_models[side] = HandModel.load(path)
+                    if markers.exists():
+                        document.marker_sets[side] = read_marker_set(markers)
+                    if subject.exists():
+                        document.subjects[side] = SubjectCalibration.from_dict(json.loads(subject.read_text()))
+                except (HandMocapError, OSError, ValueError, KeyError):
+                    self.status_message.emit(f"{path.name} is damaged; the template is used", 10000)
+                    document.hand_models.pop(side, None)
+        self.app.open_document(document)
+        self.app.show(document)
+        if automatic and not entry.labelled_source and not opened.review.n_labels:
+            self.auto_label_requested.emit(AutoLabelSettings(layout=entry.layout or "dense",
+                                                             hands="both" if len(entry.hands) > 1
+                                                             else entry.hands[0]), document)
+        if opened.replayed or opened.warnings:
+            lines = [f"recovered {opened.replayed} edits from the journal"] if opened.replayed else []
+            self.error_raised.emit("Take recovered", "\n".join(lines + opened.warnings))
+
+    def keep_labelling(self, document: TakeDocument, models: dict[str, HandModel],
+                       marker_sets: dict[str, MarkerSet]) -> None:
+        """Auto-label was applied to ``document``: keep the hand models and markers it calibrated, and save a
+        session take now (it is labelled)."""
+        self.save_take_models(document, models, marker_sets)
+        self.save_document(document)
+
+    def save_take_models(self, document: TakeDocument, models: dict[str, HandModel],
+                         marker_sets: dict[str, MarkerSet] | None = None) -> None:
+        """Keep the hand models the labelling calibrated to this take's subject, and their calibrated
+        markers, in the take's folder, so that drawing, solves and re-solves use them when the take is
+        opened again."""
+        if document.open_take is None or self.session is None or self.session.read_only:
+            return
+        folder = document.open_take.folder
+        try:
+            for side, model in models.items():
+                model.save(folder / TAKE_MODEL_NAME.format(side=side))
+                markers = folder / TAKE_MARKERS_NAME.format(side=side)
+                if marker_sets and side in marker_sets:
+                    write_marker_set(markers, marker_sets[side])
+                else:
+                    markers.unlink(missing_ok=True)
+                subject = folder / TAKE_SUBJECT_NAME.format(side=side)
+                if side in document.subjects:
+                    write_atomic(subject, json.dumps(document.subjects[side].as_dict()).encode("utf-8"))
+                else:
+                    subject.unlink(missing_ok=True)
+        except (OSError, HandMocapError) as error:
+            self.status_message.emit(f"Cannot keep the calibrated hand model: {error}", 10000)
+
+    def set_state(self, take_id: str, state: str) -> None:
+        try:
+            self.session.set_state(take_id, state)
+        except HandMocapError as error:
+            self.error_raised.emit("Cannot change the state", str(error))
+        self.refresh()
+
+    def remove_take(self, take_id: str) -> None:
+        if self.app.document_of_session_take(take_id) is not None:
+            self.error_raised.emit("Cannot remove", "close the take first")
+            return
+        try:
+            self.session.remove_take(take_id)
+        except HandMocapError as error:
+            self.error_raised.emit("Cannot remove the take", str(error))
+        self.refresh()
+
+    # ---------------------------------------------------------------------------------- saving
+    def save_document(self, document: TakeDocument) -> None:
+        """Write the snapshot of a session take now (after auto-label, before export)."""
+        if document.open_take is None or self.session is None or self.session.read_only:
+            return
+        try:
+            document.open_take.save()
+        except HandMocapError as error:
+            self.error_raised.emit("Cannot save", str(error))
+        self.refresh()
+
+    def autosave(self) -> None:
+        """Snapshot the session takes with edits older than ``SNAPSHOT_INTERVAL_S`` (the journal has them
+        already; the snapshot keeps replay short)."""
+        for document in self.app.documents:
+            if document.open_take is not None and not document.open_take.closed:
+                try:
+                    document.open_take.autosave(SNAPSHOT_INTERVAL_S)
+                except HandMocapError as error:
+                    self.status_message.emit(f"Autosave failed: {error}", 10000)
+
+    def export_done(self, document: TakeDocument, kind: str, path: str) -> None:
+        if document.session_take_id and self.session is not None and not self.session.read_only:
+            try:
+                self.session.record_export(document.session_take_id, kind, path)
+            except HandMocapError as error:
+                self.error_raised.emit("Cannot record the export", str(error))
+            self.refresh()
+
+    def save_layout(self, layout) -> None:
+        """Store a layout in the session: it is listed with the shipped ones and labelling can use it."""
+        if self.session is None:
+            raise HandMocapError("open or create a session first to keep layouts in it")
+        self.session.save_layout(layout)
+        self.layouts_changed.emit()
+
+    def close(self) -> None:
+        """The window is closing: save every open take and release the journals."""
+        self.autosave_timer.stop()
+        for document in self.app.documents:
+            if document.open_take is not None and not document.open_take.closed:
+                try:
+                    document.open_take.close(save=True)
+                except HandMocapError as error:
+                    self.status_message.emit(f"Cannot save {document.title}: {error}", 0)
+        if self.session is not None:
+            self.session.close()

@@ -1,0 +1,142 @@
+"""What an automatic labelling tells the operator about its own doubts: the noise and speed it
+measured on the take, and warnings over frame ranges where the result looks wrong."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from core.labelling.scene import SceneLabelling
+
+#: kinds of :class:`HealthWarning`, with what each means (shown as a tooltip in the review)
+WARNING_KINDS = {
+    "low_labelled_share": "a model labels a small share of its markers over these frames",
+    "many_ghosts": "many points were rejected as ghosts, more than the noise estimate explains",
+    "side_uncertain": "left and right fit this hand almost equally well: check the side",
+    "reinitialised": "a model was re-initialised here: its labels before and after may differ",
+    "high_residual": "the fit is much worse here than over the rest of the take",
+    "no_hand": "no hand was found in the take",
+    "noisy_take": "the markers are noisier than a well-calibrated system gives",
+}
+
+
+@dataclass(frozen=True)
+class HealthWarning:
+    """One doubt about a labelling: ``kind`` (a key of :data:`WARNING_KINDS`), the ``model`` it is about
+    ("" for the whole scene), 0-based frames ``first_frame..last_frame`` inclusive, and a one-line
+    ``message`` for the operator."""
+
+    kind: str
+    model: str
+    first_frame: int
+    last_frame: int
+    message: str
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+    @staticmethod
+    def from_dict(values: dict) -> HealthWarning:
+        return HealthWarning(str(values["kind"]), str(values["model"]), int(values["first_frame"]),
+                             int(values["last_frame"]), str(values["message"]))
+
+
+NOISY_TAKE_MM = 1.0
+"""Marker noise σ per axis (mm) above which a take is reported as noisy: a well-calibrated optical
+system gives 0.1-0.5 mm; real systems reach 2 mm with poor calibration or small markers far away."""
+WINDOW_SECONDS = 1.0
+"""Health is judged per window of this length."""
+LOW_SHARE_RATIO = 0.5
+"""A window where a model labels less than this share of what it labels in a typical window is flagged."""
+GHOST_SHARE = 0.25
+"""A window where more than this share of the points are left as ghosts (and twice the take's typical
+share) is flagged: with the noise-derived gates, real ghosts are a few per cent of the points."""
+RESIDUAL_RATIO = 2.0
+"""A window whose mean IK residual is this many times the take's typical one (and above the noise) is flagged."""
+
+
+def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
+    """(first, last) window indices of the runs of True in ``flags``."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], flags.astype(np.int8), [0]])))
+    return [(int(start), int(stop) - 1) for start, stop in zip(edges[::2], edges[1::2], strict=True)]
+
+
+def _windows(values: np.ndarray, size: int) -> np.ndarray:
+    """Mean of ``values (F,)`` over consecutive windows of ``size`` frames (NaN-aware; the last may be shorter)."""
+    count = int(np.ceil(len(values) / size))
+    padded = np.full(count * size, np.nan)
+    padded[:len(values)] = values
+    blocks = padded.reshape(count, size)
+    finite = np.isfinite(blocks).sum(axis=1)
+    return np.where(finite > 0, np.nansum(blocks, axis=1) / np.maximum(finite, 1), np.nan)
+
+
+def assess_labelling(result: SceneLabelling, frame_rate: float) -> list[HealthWarning]:
+    """The doubts about ``result`` an operator should check (see :data:`WARNING_KINDS`): a noisy take, a
+    side decided by a small margin, and per model the windows of :data:`WINDOW_SECONDS` where it labels
+    much less than usual, leaves many points as ghosts or fits much worse than usual. Frames 0-based."""
+    warnings: list[HealthWarning] = []
+    frames = result.assignment.shape[0]
+    size = max(1, int(round(WINDOW_SECONDS * frame_rate)))
+    if result.noise_mm is not None and result.noise_mm > NOISY_TAKE_MM:
+        warnings.append(HealthWarning("noisy_take", "", 0, frames - 1,
+                                      f"marker noise σ ≈ {result.noise_mm:.2f} mm per axis (above "
+                                      f"{NOISY_TAKE_MM:g} mm): the labelling gates were widened to match; "
+                                      "check the calibration"))
+    decision = result.side_decision
+    if decision is not None:
+        for side in decision.uncertain:
+            warnings.append(HealthWarning("side_uncertain", side, decision.frame, decision.frame,
+                                          f"the {side} hand was told from its mirror image by a small margin "
+                                          f"({decision.margins[side]:.2f}): check the side"))
+    for model in result.models:
+        if model.kind not in ("right", "left"):
+            continue
+        if model.init_frame < 0:
+            warnings.append(HealthWarning("no_hand", model.name, 0, frames - 1,
+                                          f"the {model.name} hand was not found in any frame"))
+            continue
+        for frame in sorted(model.reinitialised):
+            warnings.append(HealthWarning("reinitialised", model.name, frame, frame,
+                                          f"the {model.name} hand was fitted afresh here (it was lost, or fitted much "
+                                          "worse than elsewhere) and its labels changed: check them on either side"))
+        labelled = (result.assignment[:, model.markers] >= 0).mean(axis=1).astype(float)
+        labelled[:model.init_frame] = np.nan
+        shares = _windows(labelled, size)
+        typical = float(np.nanmedian(shares)) if np.isfinite(shares).any() else 0.0
+        for first, last in _runs(shares < LOW_SHARE_RATIO * typical):
+            warnings.append(HealthWarning(
+                "low_labelled_share", model.name, first * size, min(frames, (last + 1) * size) - 1,
+                f"the {model.name} hand labels {100 * float(np.nanmean(shares[first:last + 1])):.0f} % of its markers "
+                f"here against {100 * typical:.0f} % elsewhere"))
+        labelled_residuals = np.where(result.assignment[:, model.markers] >= 0, result.residuals_mm[:, model.markers],
+                                      np.nan)
+        counts = np.isfinite(labelled_residuals).sum(axis=1)
+        residuals = np.where(counts > 0, np.nansum(labelled_residuals, axis=1) / np.maximum(counts, 1), np.nan)
+        windows = _windows(residuals, size)
+        if np.isfinite(windows).any():
+            typical_residual = float(np.nanmedian(windows))
+            floor = 4.03 * (result.noise_mm or 0.0)
+            for first, last in _runs(windows > max(RESIDUAL_RATIO * typical_residual, floor)):
+                warnings.append(HealthWarning(
+                    "high_residual", model.name, first * size, min(frames, (last + 1) * size) - 1,
+                    f"the {model.name} hand fits with {float(np.nanmean(windows[first:last + 1])):.1f} mm mean "
+                    f"residual here against {typical_residual:.1f} mm elsewhere"))
+    points = np.isfinite(result.points).all(axis=2).sum(axis=1).astype(float)
+    ghost_share = _windows(result.ghost_points.sum(axis=1) / np.maximum(points, 1), size)
+    if len(ghost_share):
+        typical_ghosts = float(np.nanmedian(ghost_share))
+        for first, last in _runs(ghost_share > max(GHOST_SHARE, 2.0 * typical_ghosts)):
+            warnings.append(HealthWarning(
+                "many_ghosts", "", first * size, min(frames, (last + 1) * size) - 1,
+                f"{100 * float(np.nanmean(ghost_share[first:last + 1])):.0f} % of the points are left unlabelled "
+                "as ghosts here: check for markers of another subject or object, or a wrong layout"))
+        if typical_ghosts > GHOST_SHARE:
+            warnings.append(HealthWarning(
+                "many_ghosts", "", 0, frames - 1,
+                f"{100 * typical_ghosts:.0f} % of the points are left unlabelled as ghosts over the take: "
+                "markers outside the layout (label them, or give their rigid body) or a wrong layout"))
+    return warnings

@@ -1,0 +1,64 @@
+"""The review model of one take: labels, provenance, fills, confidence and solves, edited by undoable commands.
+
+* :mod:`core.review.take` — :class:`ReviewTake` with its marker statistics, timeline lanes and problem list;
+* :mod:`core.review.commands` — undoable, JSON-serialisable edits and the :class:`UndoStack` (history);
+* :mod:`core.review.events` — the typed :class:`ReviewChanged` events the undo stack announces to views;
+* :mod:`core.review.export` — labelled C3D, joint-angle CSV and BVH exports of a review, and the way back.
+"""
+
+from core.review.commands import (
+    SCOPES,
+    AcceptFills,
+    ApplyLabelling,
+    AssignLabel,
+    Command,
+    CompoundCommand,
+    DefineHand,
+    FrameSpan,
+    GapFill,
+    LabellingArrays,
+    MarkGhost,
+    RejectFills,
+    SetSolve,
+    SwapLabels,
+    UndoStack,
+    Unlabel,
+    command_from_json,
+    resolve_track,
+)
+from core.review.events import Change, ReviewChanged
+from core.review.export import (
+    export_bvh,
+    export_joint_angles_csv,
+    export_labelled_c3d,
+    review_from_labelled_c3d,
+)
+from core.review.take import (
+    FILL_CODES,
+    LANE_EDITED,
+    LANE_FILLED,
+    LANE_GAP,
+    LANE_LOW_CONFIDENCE,
+    LANE_NAMES,
+    LANE_NONE,
+    LANE_OBSERVED,
+    MEASURED,
+    MISSING,
+    PROBLEM_KINDS,
+    PROVENANCE_NAMES,
+    HandTrack,
+    MarkerStats,
+    Problem,
+    ReviewSettings,
+    ReviewTake,
+)
+
+__all__ = [
+    "FILL_CODES", "LANE_EDITED", "LANE_FILLED", "LANE_GAP", "LANE_LOW_CONFIDENCE", "LANE_NAMES", "LANE_NONE",
+    "LANE_OBSERVED", "MEASURED", "MISSING", "PROBLEM_KINDS", "PROVENANCE_NAMES", "SCOPES",
+    "AcceptFills", "ApplyLabelling", "AssignLabel", "Change", "Command", "CompoundCommand", "DefineHand", "FrameSpan",
+    "GapFill", "HandTrack", "LabellingArrays", "MarkGhost", "MarkerStats", "Problem", "RejectFills",
+    "ReviewChanged", "ReviewSettings", "ReviewTake", "SetSolve", "SwapLabels", "UndoStack", "Unlabel",
+    "command_from_json", "export_bvh", "export_joint_angles_csv", "export_labelled_c3d", "resolve_track",
+    "review_from_labelled_c3d",
+]

@@ -1,0 +1,178 @@
+"""Gaps of a review: which labels belong together (a hand, or the rest), the gaps, their fill check,
+previews of each method, "fill all short gaps" as one undoable command, and its accuracy on many gaps
+hidden at once in a labelled take.
+
+A *group* is a hand's labels in layout order (the model fill uses that hand's model, layout and solved
+joint angles), or the labels no hand owns (the model fill then applies only when their names match a
+shipped layout, e.g. an already-labelled take, and solves IK around each gap itself).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from core.errors import CancelledError, InputError
+from core.gaps import FILL_METHODS, FillCheck, Gap, ModelContext, check_gap, fill_gap, find_gaps
+from core.gaps.check import FALLBACK_ORDER
+from core.gaps.fills import fill_pattern
+from core.io import Take
+from core.model import HandModel, MarkerSet, best_layout_for, load_layout, load_template
+from core.review import PROVENANCE_NAMES, AcceptFills, GapFill, ReviewTake
+from core.workflows.resolve import subject_markers
+
+
+@dataclass(eq=False)
+class GapGroup:
+    """Labels filled together: ``labels (K,)`` review label indices; ``take`` their measured positions
+    (fills left out) as a K-column take named by layout marker names; ``context`` for the model fill (or
+    None); ``joint_angles (F,26)`` of the hand when solved (or None)."""
+
+    labels: np.ndarray
+    take: Take
+    context: ModelContext | None
+    joint_angles: np.ndarray | None
+
+
+@dataclass(frozen=True)
+class ReviewGap:
+    """A gap of review label ``label`` (``name``): frames ``start .. start + length - 1``; ``group`` index
+    and the same gap in the group's take (``gap``); ``filled_method``: the accepted fill covering it
+    (None when open)."""
+
+    label: int
+    name: str
+    start: int
+    length: int
+    group: int
+    gap: Gap
+    filled_method: str | None
+
+
+def _group_take(review: ReviewTake, labels: np.ndarray, names: list[str]) -> Take:
+    measured = review.measured_positions()[:, labels]
+    return Take(marker_names=names, marker_positions=measured.copy(), frame_rate=review.take.frame_rate,
+                first_frame=review.take.first_frame, vendor=review.take.vendor)
+
+
+def gap_groups(review: ReviewTake, models: dict[str, HandModel] | None = None,
+               marker_sets: dict[str, MarkerSet] | None = None) -> list[GapGroup]:
+    """The hands of ``review`` (model fill with their solved angles, the subject's ``models`` and calibrated
+    ``marker_sets`` per side when given) and the remaining labels."""
+    models, marker_sets = models or {}, marker_sets or {}
+    groups = []
+    owned = np.zeros(review.n_labels, dtype=bool)
+    for hand in review.hands:
+        labels = np.asarray(hand.labels, dtype=np.int64)
+        if not len(labels):
+            continue
+        owned[labels] = True
+        layout = load_layout(hand.layout) if hand.layout else None
+        names = list(layout.names) if layout is not None and len(layout.names) == len(labels) else \
+            [review.label_names[label] for label in labels]
+        take = _group_take(review, labels, names)
+        model = models.get(hand.side) or load_template(hand.side)
+        context = (ModelContext.for_take(names, model, layout,
+                                         subject_markers(model, layout, marker_sets.get(hand.side)))
+                   if layout is not None else None)
+        angles = hand.joint_angles.copy() if np.isfinite(hand.joint_angles).all(axis=1).any() else None
+        groups.append(GapGroup(labels, take, context, angles))
+    rest = np.flatnonzero(~owned)
+    if len(rest):
+        names = [review.label_names[label] for label in rest]
+        layout_name = best_layout_for(names)
+        side = next(iter(models)) if len(models) == 1 else "right"     # a lone subject hand's side
+        model = models.get(side) or load_template(side)
+        context = None
+        if layout_name:
+            layout = load_layout(layout_name)
+            context = ModelContext.for_take(names, model, layout, subject_markers(model, layout,
+                                                                                   marker_sets.get(side)))
+        groups.append(GapGroup(rest, _group_take(review, rest, names), context, None))
+    return groups
+
+
+def find_review_gaps(review: ReviewTake, groups: list[GapGroup]) -> list[ReviewGap]:
+    """Every closed gap (observed on both sides) of every label, by label then frame."""
+    found = []
+    for number, group in enumerate(groups):
+        for gap in find_gaps(group.take):
+            if gap.open:
+                continue
+            label = int(group.labels[gap.marker])
+            codes = review.provenance[gap.start:gap.end, label]
+            method = None
+            if (codes > 0).all():
+                method = PROVENANCE_NAMES[int(np.bincount(codes.astype(np.int64)).argmax())]
+            found.append(ReviewGap(label, review.label_names[label], gap.start, gap.length, number, gap, method))
+    return sorted(found, key=lambda item: (item.label, item.start))
+
+
+def check_review_gap(group: GapGroup, gap: ReviewGap) -> FillCheck:
+    """The fill check of ``gap``: each method's mean error (mm) on a hidden known stretch beside it."""
+    return check_gap(group.take, gap.gap, group.context)
+
+
+def preview_fill(group: GapGroup, gap: ReviewGap, method: str, donor: int | None = None) -> np.ndarray:
+    """Positions ``(length, 3)`` mm of ``method`` over ``gap``; ``donor``: the review label a pattern fill
+    follows (default: the steadiest one). InputError when the method cannot apply."""
+    if method == "pattern" and donor is not None:
+        columns = np.flatnonzero(group.labels == donor)
+        if not columns.size:
+            raise InputError("the pattern donor must be a label of the same hand")
+        positions = group.take.marker_positions
+        donor_trajectory = positions[:, columns[0]]
+        span = donor_trajectory[max(0, gap.start - 1):gap.start + gap.length + 1]
+        if not np.isfinite(span).all():
+            raise InputError("the donor is not measured through the gap")
+        return fill_pattern(positions[:, gap.gap.marker], gap.start, gap.length, donor_trajectory)
+    return fill_gap(group.take.marker_positions, gap.gap.marker, gap.start, gap.length, method, group.context,
+                    group.joint_angles)
+
+
+def short_open_gaps(review: ReviewTake, groups: list[GapGroup], max_gap: int) -> list[ReviewGap]:
+    """The gaps of at most ``max_gap`` frames that no accepted fill covers yet."""
+    if max_gap < 1:
+        raise InputError(f"the maximum gap length must be at least 1 frame, got {max_gap}")
+    return [gap for gap in find_review_gaps(review, groups) if gap.length <= max_gap and gap.filled_method is None]
+
+
+def fill_gaps(groups: list[GapGroup], gaps: list[ReviewGap], method: str = "auto",
+              progress: Callable[[float], None] | None = None,
+              cancelled: Callable[[], bool] | None = None) -> AcceptFills | None:
+    """One undoable command filling ``gaps`` with ``method`` ("auto": per gap, the first method of its fill
+    check ranking that applies, else PCA, model, spline, linear); None when nothing could be filled. Reads only the
+    groups (copies), so it may run on a worker while the review changes."""
+    if method != "auto" and method not in FILL_METHODS:
+        raise InputError(f"unknown fill method '{method}' (use auto, {', '.join(FILL_METHODS)})")
+    fills = []
+    for number, gap in enumerate(gaps):
+        if cancelled is not None and cancelled():
+            raise CancelledError("gap filling cancelled; nothing was filled")
+        group = groups[gap.group]
+        order: list[str] = [method]
+        if method == "auto":
+            try:
+                order = check_review_gap(group, gap).ranking() or list(FALLBACK_ORDER)
+            except InputError:
+                order = list(FALLBACK_ORDER)
+        for name in order:
+            try:
+                values = preview_fill(group, gap, name)
+            except InputError:
+                continue
+            if np.isfinite(values).all():
+                fills.append(GapFill(gap.name, gap.start, name, values))
+                break
+        if progress is not None:
+            progress((number + 1) / len(gaps))
+    return AcceptFills(fills) if fills else None
+
+
+def fill_review_gaps(review: ReviewTake, groups: list[GapGroup], max_gap: int, method: str = "auto",
+                     progress: Callable[[float], None] | None = None,
+                     cancelled: Callable[[], bool] | None = None) -> AcceptFills | None:
+    """:func:`short_open_gaps` filled by :func:`fill_gaps` in one call (command line, tests)."""
+    return fill_gaps(groups, short_open_gaps(review, groups, max_gap), method, progress, cancelled)
