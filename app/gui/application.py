@@ -1,21 +1,27 @@
 """The application's state, without Qt: the open session, the open takes and the one shown, the
-operator's selection in it and the running jobs.
+current frame, the operator's selection in it and the running jobs.
 
 The window and the controllers change it through its methods; views hear what changed through
 :meth:`Application.add_listener`. Besides its own events it passes on the
 :class:`~core.review.events.ReviewChanged` events of the shown take's undo stack, so a view follows
-every edit, undo, redo and solve of that take whoever made it.
+every edit, undo, redo and solve of that take whoever made it. Changes of the session folder made
+through it (takes added or removed, a take's state, subjects, layouts) are announced as
+:class:`SessionFolderChanged`.
 """
 
 from __future__ import annotations
 
+import enum
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from app.gui.document import TakeDocument
 from core.errors import HandMocapError
+from core.io import Take
+from core.model import HandModel, MarkerLayout, add_layout_folder, best_layout_for, remove_layout_folder
 from core.review.events import ReviewChanged
-from core.session import Session
+from core.session import Session, TakeEntry
 
 
 @dataclass
@@ -84,13 +90,39 @@ class SessionChanged:
     session: Session | None
 
 
+class SessionPart(enum.Flag):
+    """What of the open session folder changed (combined with ``|``)."""
+
+    NONE = 0
+    TAKES = enum.auto()       #: takes were added or removed
+    TAKE_STATE = enum.auto()  #: a take's state, its saved review or its exports
+    SUBJECTS = enum.auto()    #: subjects and their calibrated hand models
+    LAYOUTS = enum.auto()     #: the session's marker layouts
+
+
+@dataclass(frozen=True)
+class SessionFolderChanged:
+    """The open session's folder changed: ``what``, and the one take it is about (``take_id``, "" when
+    it is about no take or several)."""
+
+    what: SessionPart
+    take_id: str = ""
+
+
+@dataclass(frozen=True)
+class FrameChanged:
+    """Another frame of the shown take is current (0-based, see :attr:`Application.frame`)."""
+
+    frame: int
+
+
 @dataclass(frozen=True)
 class JobsChanged:
     """A job started or ended (see :attr:`Application.jobs`)."""
 
 
-Event = (DocumentOpened | DocumentClosing | DocumentClosed | CurrentDocumentChanged | SelectionChanged
-         | SessionChanged | JobsChanged | ReviewChanged)
+Event = (DocumentOpened | DocumentClosing | DocumentClosed | CurrentDocumentChanged | FrameChanged
+         | SelectionChanged | SessionChanged | SessionFolderChanged | JobsChanged | ReviewChanged)
 Listener = Callable[[Event], None]
 
 
@@ -102,6 +134,7 @@ class Application:
         self.session: Session | None = None
         self.documents: list[TakeDocument] = []
         self.document: TakeDocument | None = None
+        self.frame = 0                              # current frame of the shown take (0-based)
         self.selection = Selection()
         self.jobs: dict[str, Job] = {}
         self._listeners: list[Listener] = []
@@ -126,26 +159,32 @@ class Application:
         self._announce(DocumentOpened(document))
 
     def show(self, document: TakeDocument | None) -> None:
-        """Show ``document`` (one of :attr:`documents`, or None): its review is made if it has none, the
-        selection starts empty, and the edits of its undo stack are passed on to the listeners."""
+        """Show ``document`` (one of :attr:`documents`, or None) at the frame it was left at: its review is
+        made if it has none, the selection starts empty, and the edits of its undo stack are passed on to
+        the listeners."""
         previous = self.document
-        if previous is not None and previous.stack is not None:
-            previous.stack.remove_listener(self._announce)
+        if previous is not None:
+            previous.current_frame = self.frame
+            if previous.stack is not None:
+                previous.stack.remove_listener(self._announce)
         self.document = document
         self.selection = Selection()
+        self.frame = 0
         if document is not None:
             document.ensure_review()
             document.stack.add_listener(self._announce)
+            self.frame = min(max(document.current_frame, 0), max(document.take.n_frames - 1, 0))
         self._announce(CurrentDocumentChanged(document, previous))
 
     def close_document(self, document: TakeDocument) -> str | None:
         """Close an open take: listeners stop its work, a session take is saved, the next open take is
         shown (none when it was the last). Returns why the save failed (None when it did not)."""
         self._announce(DocumentClosing(document))
-        problem = None
+        problem, saved = None, False
         if document.open_take is not None and not document.open_take.closed:
             try:
                 document.open_take.close(save=True)
+                saved = True
             except HandMocapError as error:
                 problem = f"{document.title}: {error}; the edits stay in its journal"
         index = self.documents.index(document)
@@ -153,11 +192,22 @@ class Application:
         self._announce(DocumentClosed(document, index))
         if self.document is document:
             self.show(self.documents[min(index, len(self.documents) - 1)] if self.documents else None)
+        if saved and self.session is not None:
+            self._announce(SessionFolderChanged(SessionPart.TAKE_STATE, document.session_take_id))
         return problem
 
     def document_of_session_take(self, take_id: str) -> TakeDocument | None:
         """The open take that is session take ``take_id``, if it is open."""
         return next((document for document in self.documents if document.session_take_id == take_id), None)
+
+    # ---------------------------------------------------------------------------------- frame
+    def set_frame(self, frame: int) -> None:
+        """Make ``frame`` (0-based, clamped to the shown take) the current one."""
+        n_frames = self.document.take.n_frames if self.document is not None else 1
+        frame = min(max(int(frame), 0), max(n_frames - 1, 0))
+        if frame != self.frame:
+            self.frame = frame
+            self._announce(FrameChanged(frame))
 
     # ------------------------------------------------------------------------------- selection
     def select(self, label: int = -1, column: int = -1) -> None:
@@ -190,9 +240,71 @@ class Application:
 
     # --------------------------------------------------------------------------------- session
     def set_session(self, session: Session | None) -> None:
-        """The open session (None: closed)."""
+        """The open session (None: closed); its layouts are listed with the shipped ones while it is open."""
+        if self.session is not None:
+            remove_layout_folder(self.session.folder / "layouts")
         self.session = session
+        if session is not None:
+            add_layout_folder(session.folder / "layouts")
         self._announce(SessionChanged(session))
+
+    def _open_session(self) -> Session:
+        if self.session is None:
+            raise HandMocapError("open or create a session first")
+        return self.session
+
+    def add_take(self, path: Path, take: Take) -> TakeEntry:
+        """Add the take file ``path`` (read already: ``take``) to the session, with the layout its names fit."""
+        entry = self._open_session().add_take(path, layout=best_layout_for(take.marker_names), take=take)
+        self._announce(SessionFolderChanged(SessionPart.TAKES, entry.id))
+        return entry
+
+    def remove_take(self, take_id: str) -> None:
+        """Remove a (closed) take from the session."""
+        self._open_session().remove_take(take_id)
+        self._announce(SessionFolderChanged(SessionPart.TAKES, take_id))
+
+    def set_take_state(self, take_id: str, state: str) -> None:
+        """Set a session take's state ("raw", "labelled", "reviewed", "exported")."""
+        self._open_session().set_state(take_id, state)
+        self._announce(SessionFolderChanged(SessionPart.TAKE_STATE, take_id))
+
+    def record_export(self, take_id: str, kind: str, path: str) -> None:
+        """Remember an export of a session take (it becomes "exported")."""
+        self._open_session().record_export(take_id, kind, path)
+        self._announce(SessionFolderChanged(SessionPart.TAKE_STATE, take_id))
+
+    def save_document(self, document: TakeDocument) -> None:
+        """Write the snapshot of a session take now (a raw take with labels becomes "labelled")."""
+        document.open_take.save()
+        self._announce(SessionFolderChanged(SessionPart.TAKE_STATE, document.session_take_id))
+
+    def autosave(self, interval_s: float) -> list[str]:
+        """Snapshot the open session takes with edits older than ``interval_s`` seconds; one line per failure."""
+        problems = []
+        for document in self.documents:
+            if document.open_take is None or document.open_take.closed:
+                continue
+            try:
+                saved = document.open_take.autosave(interval_s)
+            except HandMocapError as error:
+                problems.append(str(error))
+                continue
+            if saved:
+                self._announce(SessionFolderChanged(SessionPart.TAKE_STATE, document.session_take_id))
+        return problems
+
+    def save_layout(self, layout: MarkerLayout) -> Path:
+        """Store a layout in the session (listed with the shipped ones, labelling can use it)."""
+        path = self._open_session().save_layout(layout)
+        self._announce(SessionFolderChanged(SessionPart.LAYOUTS))
+        return path
+
+    def save_subject_model(self, subject: str, model: HandModel) -> Path:
+        """Store a subject's calibrated hand model in the session."""
+        path = self._open_session().save_subject_model(subject, model)
+        self._announce(SessionFolderChanged(SessionPart.SUBJECTS))
+        return path
 
     # ------------------------------------------------------------------------------------ jobs
     def job_started(self, name: str, job: Job) -> None:

@@ -626,9 +626,13 @@ class SavePage(QWizardPage):
 
     saved = Signal(str)
 
-    def __init__(self, state: CalibrationState, session=None) -> None:
+    def __init__(self, state: CalibrationState, session=None,
+                 save_subject: Callable[[str, HandModel], Path] | None = None) -> None:
         super().__init__()
         self.state, self.session = state, session
+        if save_subject is None and session is not None:
+            save_subject = session.save_subject_model
+        self.save_subject = save_subject
         self.setTitle("Save")
         self.setSubTitle("The calibrated model (mesh, skeleton with relocated joints, skin weights; marker layouts "
                          "carry over) is used for this subject's takes.")
@@ -666,8 +670,8 @@ class SavePage(QWizardPage):
         try:
             subject = self.subject.currentText().strip() or "subject"
             model = result.model
-            if self.session is not None and hasattr(self.session, "save_subject_model"):
-                written.append(str(self.session.save_subject_model(subject, model)))
+            if self.save_subject is not None:
+                written.append(str(self.save_subject(subject, model)))
             if self.model_edit.text().strip():
                 path = Path(self.model_edit.text().strip())
                 model.save(path)
@@ -698,7 +702,8 @@ class CalibrationWizard(QWizard):
 
     model_saved = Signal(str)
 
-    def __init__(self, parent: QWidget | None = None, session=None) -> None:
+    def __init__(self, parent: QWidget | None = None, session=None,
+                 save_subject: Callable[[str, HandModel], Path] | None = None) -> None:
         super().__init__(parent)
         self.setWindowTitle("Hand scan calibration")
         self.setWizardStyle(QWizard.WizardStyle.ModernStyle)
@@ -709,7 +714,7 @@ class CalibrationWizard(QWizard):
         self.pages = {
             "scan": ScanPage(self.state), "clean": CleanPage(self.state), "landmarks": LandmarksPage(self.state),
             "align": AlignPage(self.state, self.runner), "fit": FitPage(self.state, self.runner),
-            "review": ReviewPage(self.state), "save": SavePage(self.state, session),
+            "review": ReviewPage(self.state), "save": SavePage(self.state, session, save_subject),
         }
         self.page_ids = {name: self.addPage(page) for name, page in self.pages.items()}
         self.pages["save"].saved.connect(self.model_saved)
@@ -722,10 +727,12 @@ class CalibrationWizard(QWizard):
         super().done(result)
 
 
-def open_calibration_wizard(parent: QWidget | None = None, session=None) -> QDialog:
-    """Create and show the calibration wizard (non-modal); ``session`` (``core.session.Session``) receives the
-    model via ``save_subject_model``. Returns the wizard."""
-    wizard = CalibrationWizard(parent, session)
+def open_calibration_wizard(parent: QWidget | None = None, session=None,
+                            save_subject: Callable[[str, HandModel], Path] | None = None) -> QDialog:
+    """Create and show the calibration wizard (non-modal); ``session`` (``core.session.Session``) offers its
+    subjects and receives the model through ``save_subject(subject, model)`` (default: its
+    ``save_subject_model``). Returns the wizard."""
+    wizard = CalibrationWizard(parent, session, save_subject)
     wizard.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose, True)
     wizard.show()
     return wizard

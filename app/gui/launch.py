@@ -46,7 +46,7 @@ def run_gui(files: list[str], screenshot: str | None = None, frame: int | None =
             return
         timer.stop()
         if window.document is not None:
-            window.timeline.set_frame(frame if frame is not None else window.document.take.n_frames // 3)
+            window.app.set_frame(frame if frame is not None else window.document.take.n_frames // 3)
             window.frame_hand()
         app.processEvents()
         outcome["code"] = 0 if window.save_screenshot(Path(screenshot)) else 1

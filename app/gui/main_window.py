@@ -4,7 +4,8 @@ The window holds the :class:`~app.gui.application.Application` (the open takes, 
 the selection, the running jobs) and places the views of its controllers (review, session). Views follow
 the application's events: the window sets up its own views for a shown take first, the controllers
 theirs next, then the window draws the frame, so that the review's drawing comes on top of the raw
-markers.
+markers. The current frame is the application's (:attr:`Application.frame`): the timeline sets it and
+follows it like every other view.
 """
 
 from __future__ import annotations
@@ -37,9 +38,12 @@ from app.gui.application import (
     DocumentClosed,
     DocumentClosing,
     DocumentOpened,
+    FrameChanged,
     Job,
     JobsChanged,
     SessionChanged,
+    SessionFolderChanged,
+    SessionPart,
 )
 from app.gui.document import TakeDocument
 from app.gui.load_queue import LoadQueue
@@ -123,7 +127,7 @@ class MainWindow(QMainWindow):
         self.viewport.marker_clicked.connect(self._marker_clicked)
         self.setCentralWidget(self.viewport)
         self.timeline = TimelineWidget(self)
-        self.timeline.frame_changed.connect(self.show_frame)
+        self.timeline.frame_changed.connect(self.app.set_frame)
         self.marker_panel = MarkerPanel(self)
         self.marker_panel.marker_selected.connect(self._marker_selected)
         self.timeline_dock = self._add_dock("Timeline", self.timeline, Qt.DockWidgetArea.BottomDockWidgetArea)
@@ -312,7 +316,6 @@ class MainWindow(QMainWindow):
         review.progress_ended.connect(self.hide_progress)
         review.auto_label_applied.connect(sessions.keep_labelling)
         review.exported.connect(sessions.export_done)
-        sessions.layouts_changed.connect(self.refresh_layout_names)
         sessions.auto_label_requested.connect(review.start_auto_label)
         self.frame_drawn.connect(review.draw_frame)
 
@@ -386,16 +389,21 @@ class MainWindow(QMainWindow):
             self.take_box.blockSignals(False)
             self._update_enabled()
         elif isinstance(event, CurrentDocumentChanged):
-            if event.previous is not None:
-                event.previous.current_frame = self.timeline.frame
             if event.document is None:
                 self._show_no_take()
             else:
                 self._set_up_take(event.document)
+        elif isinstance(event, FrameChanged):
+            if self.timeline.frame != event.frame:     # not when the timeline itself moved (playback goes on)
+                self.timeline.set_frame(event.frame)
+            self.show_frame(event.frame)
         elif isinstance(event, SessionChanged):
             self.session_dock.setVisible(event.session is not None)
             if event.session is not None:
                 self.session_dock.raise_()
+            self.refresh_layout_names()
+        elif isinstance(event, SessionFolderChanged) and event.what & SessionPart.LAYOUTS:
+            self.refresh_layout_names()
         elif isinstance(event, JobsChanged):
             self._update_enabled()
 
@@ -408,14 +416,14 @@ class MainWindow(QMainWindow):
         if isinstance(event, CurrentDocumentChanged):
             self._show_review_residuals()
             self._show_result_geometry()
-            self.show_frame(self.timeline.frame)
+            self.show_frame(self.app.frame)
             self.frame_hand()
             self._update_enabled()
             if document.auto_solve and document.result is None:
                 self._solve_next_pending()
         elif isinstance(event, ReviewChanged) and event.operation != "clean":
             self._show_review_residuals()
-            self.show_frame(self.timeline.frame)
+            self.show_frame(self.app.frame)
             self._update_enabled()
 
     def _set_up_take(self, document: TakeDocument) -> None:
@@ -437,7 +445,7 @@ class MainWindow(QMainWindow):
         self._show_result_geometry()
         self.timeline.blockSignals(True)
         self.timeline.set_take(take.n_frames, take.first_frame, take.frame_rate, document.markers_seen)
-        self.timeline.set_frame(document.current_frame)
+        self.timeline.set_frame(self.app.frame)
         self.timeline.blockSignals(False)
         self.timeline.set_residuals(document.mean_residual_per_frame())
         self.info_label.setText(self._take_summary(take))
@@ -477,7 +485,7 @@ class MainWindow(QMainWindow):
         if not np.isfinite(everything).any():
             return
         self.viewport.set_ground(everything, height=float(np.nanmin(everything[:, 2])) - 40.0)
-        current = hand[self.timeline.frame]
+        current = hand[self.app.frame]
         current = current[np.isfinite(current).all(axis=1)]
         if len(current) >= 3:
             self.viewport.frame_bounds(current, min_radius=FRAMING_RADIUS_MM * 1.3)
@@ -534,7 +542,7 @@ class MainWindow(QMainWindow):
             self.viewport.set_marker_colors(colors)
             self.marker_panel.set_markers(self.document.take.marker_names, self.document.observed_fraction,
                                           colors)
-            self.show_frame(self.timeline.frame)
+            self.show_frame(self.app.frame)
 
     # --------------------------------------------------------------------------------------- solve
     def solve(self, document: TakeDocument | None = None) -> None:
@@ -608,7 +616,7 @@ class MainWindow(QMainWindow):
         if document is self.document:
             self._show_result_geometry()
             self.timeline.set_residuals(document.mean_residual_per_frame())
-            self.show_frame(self.timeline.frame)
+            self.show_frame(self.app.frame)
         self._update_enabled()
         self._solve_next_pending()
 
@@ -702,7 +710,9 @@ class MainWindow(QMainWindow):
         """The scan calibration wizard; the subject model it saves goes into the open session."""
         from app.gui.calibration_wizard import open_calibration_wizard
 
-        self._calibration_wizard = open_calibration_wizard(self, self.sessions.session)
+        session = self.app.session
+        self._calibration_wizard = open_calibration_wizard(
+            self, session, save_subject=self.app.save_subject_model if session is not None else None)
 
     def close_current_document(self) -> None:
         if self.document is not None:

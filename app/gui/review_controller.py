@@ -45,6 +45,7 @@ from app.gui.application import (
     CurrentDocumentChanged,
     DocumentClosing,
     Job,
+    JobsChanged,
     Selection,
     SelectionChanged,
 )
@@ -220,7 +221,7 @@ class ReviewController(QObject):
         self.table = ReviewTable(host)
         self.table.marker_selected.connect(self.select_label)
         self.lanes = MarkerLanes(host)
-        self.lanes.frame_clicked.connect(self.timeline.set_frame)
+        self.lanes.frame_clicked.connect(self.app.set_frame)
         self.lanes.marker_clicked.connect(self.select_label)
         self.lanes.stretch_clicked.connect(self._stretch_clicked)
         self.lanes.link_x(self.timeline.plot.getPlotItem().vb)
@@ -339,6 +340,8 @@ class ReviewController(QObject):
             self._refresh(structure=event.structure)
         elif isinstance(event, SelectionChanged):
             self._show_selection()
+        elif isinstance(event, JobsChanged):
+            self.update_enabled()
 
     def _show_document(self, document: TakeDocument | None) -> None:
         """Show the review of ``document`` (None: no take is shown any more, the views are cleared)."""
@@ -379,7 +382,7 @@ class ReviewController(QObject):
             self.table.update_stats(stats)
             if self.document.has_solved_hands() and self.viewport.hand_count() != len(review.hands):
                 self._set_hand_meshes()     # the first solve of a hand: the view showed another surface
-        self.lanes.set_frame(self.timeline.frame)
+        self.lanes.set_frame(self.app.frame)
         if self.selection.label >= 0:
             self.lanes.set_selected_marker(self.selection.label)
         self._refresh_gaps()
@@ -487,7 +490,7 @@ class ReviewController(QObject):
         self.lanes.set_selected_marker(label)
         self.viewport.set_selected_marker(column if column >= 0 else None)
         self.update_enabled()
-        self.draw_frame(self.timeline.frame)
+        self.draw_frame(self.app.frame)
         self.viewport.request_render()
 
     def select_label(self, label: int) -> None:
@@ -496,7 +499,7 @@ class ReviewController(QObject):
         if review is None:
             return
         label = label if 0 <= label < review.n_labels else -1
-        self.app.select(label, int(review.assignment[self.timeline.frame, label]) if label >= 0 else -1)
+        self.app.select(label, int(review.assignment[self.app.frame, label]) if label >= 0 else -1)
 
     def point_clicked(self, column: int) -> None:
         """The operator clicked raw point ``column`` in the 3D view (-1: empty space); with Ctrl, the point
@@ -507,7 +510,7 @@ class ReviewController(QObject):
         if QApplication.keyboardModifiers() & Qt.KeyboardModifier.ControlModifier and column >= 0:
             self.toggle_rigid_point(column)
             return
-        self.app.select(review.label_of_point(self.timeline.frame, column) if column >= 0 else -1, column)
+        self.app.select(review.label_of_point(self.app.frame, column) if column >= 0 else -1, column)
 
     def toggle_rigid_point(self, column: int) -> None:
         """Add raw point ``column`` to the points of a new rigid body (or take it out again)."""
@@ -524,7 +527,7 @@ class ReviewController(QObject):
         """Make a rigid body named ``name`` from the selected points in the current frame and add it to the
         scene spec auto-label uses (in the session folder, or next to the take file). Returns the spec."""
         review, points = self.review, self.selection.rigid_points
-        frame = self.timeline.frame
+        frame = self.app.frame
         try:
             if len(points) < 3:
                 raise HandMocapError("Ctrl+click at least 3 points of the object in the 3D view first")
@@ -553,8 +556,8 @@ class ReviewController(QObject):
 
     def _stretch_clicked(self, marker: int, first: int, last: int) -> None:
         self.select_label(marker)
-        if not first <= self.timeline.frame <= last:
-            self.timeline.set_frame(first)
+        if not first <= self.app.frame <= last:
+            self.app.set_frame(first)
 
     # -------------------------------------------------------------------------------- editing
     def _scope(self) -> tuple[str, int | None, int | None]:
@@ -567,7 +570,7 @@ class ReviewController(QObject):
         return scope, start, stop + 1
 
     def _selected_point(self) -> tuple[int, int]:
-        frame, label, column = self.timeline.frame, self.selection.label, self.selection.column
+        frame, label, column = self.app.frame, self.selection.label, self.selection.column
         if column < 0 and label >= 0:
             column = int(self.review.assignment[frame, label])
         if column < 0 or not np.isfinite(self.review.take.marker_positions[frame, column]).all():
@@ -624,7 +627,7 @@ class ReviewController(QObject):
                 start, stop = sorted((selection.range_in, selection.range_out))
                 stop += 1
             else:
-                start, stop = self.timeline.frame, self.review.n_frames
+                start, stop = self.app.frame, self.review.n_frames
             return SwapLabels(self.review.label_names[selection.label], other, start, stop)
         return self.run_edit(make)
 
@@ -673,10 +676,10 @@ class ReviewController(QObject):
             self.error_raised.emit("Cannot undo", str(error))
 
     def set_range_in(self) -> None:
-        self.app.mark_range(self.timeline.frame, self.selection.range_out)
+        self.app.mark_range(self.app.frame, self.selection.range_out)
 
     def set_range_out(self) -> None:
-        self.app.mark_range(self.selection.range_in, self.timeline.frame)
+        self.app.mark_range(self.selection.range_in, self.app.frame)
 
     def clear_range(self) -> None:
         self.app.mark_range(None, None)
@@ -700,11 +703,11 @@ class ReviewController(QObject):
         review = self.review
         if review is None:
             return
-        problem = review.next_problem(self.timeline.frame, forward=forward)
+        problem = review.next_problem(self.app.frame, forward=forward)
         if problem is None:
             self.status_message.emit("No problems left in this take", 5000)
             return
-        self.timeline.set_frame(problem.frame)
+        self.app.set_frame(problem.frame)
         self.select_label(problem.label)
         self.status_message.emit(problem.text, 8000)
 
@@ -738,7 +741,7 @@ class ReviewController(QObject):
             self.preview.clear()
             return
         gap = self._gaps[index]
-        self.timeline.set_frame(gap.start)
+        self.app.set_frame(gap.start)
         self.select_label(gap.label)
         self._show_preview(index)
         if not self._rows[index].checked:
@@ -909,12 +912,10 @@ class ReviewController(QObject):
         self.jobs.start(task)
         self.app.job_started(JOB_NAME, Job(kind, self._job_document, self.jobs.cancel))
         self.progress_started.emit(f"{kind.capitalize()}… %p %")
-        self.update_enabled()
 
     def _jobs_busy_changed(self, busy: bool) -> None:
         if not busy:
             self.app.job_ended(JOB_NAME)
-        self.update_enabled()
 
     def _job_finished(self) -> None:
         self.progress_ended.emit()

@@ -4,6 +4,9 @@
 A take opened from the session is a document whose review lives in the session (:class:`OpenTake`):
 every edit is journalled at once, the snapshot is written every ``AUTOSAVE_MS`` when there are edits
 and when the take or the window closes.
+
+Changes of the session folder go through the :class:`~app.gui.application.Application`, which announces
+them; the session browser follows those events (and the shown take), whoever made the change.
 """
 
 from __future__ import annotations
@@ -17,7 +20,13 @@ from PySide6.QtCore import QObject, QTimer, Signal
 from PySide6.QtWidgets import QFileDialog, QWidget
 
 from app.gui.actions import make_action
-from app.gui.application import Application, CurrentDocumentChanged
+from app.gui.application import (
+    Application,
+    CurrentDocumentChanged,
+    SessionChanged,
+    SessionFolderChanged,
+    SessionPart,
+)
 from app.gui.document import TakeDocument
 from app.gui.load_queue import LoadQueue
 from app.gui.review_controller import AutoLabelSettings
@@ -25,7 +34,7 @@ from core.errors import HandMocapError
 from core.io import Take, load_take
 from core.io.durable import write_atomic
 from core.io.labelled_c3d import SubjectCalibration
-from core.model import HandModel, MarkerSet, add_layout_folder, best_layout_for, remove_layout_folder
+from core.model import HandModel, MarkerSet
 from core.session import OpenTake, Session
 from core.session.storage import read_marker_set, write_marker_set
 from widgets.session_browser import SessionBrowser, TakeRow
@@ -51,7 +60,6 @@ class SessionController(QObject):
 
     status_message = Signal(str, int)              # text, milliseconds to show it (0: until replaced)
     error_raised = Signal(str, str)                # title, message
-    layouts_changed = Signal()                     # the session's layouts came or went
     auto_label_requested = Signal(object, object)  # AutoLabelSettings, the document to label
 
     def __init__(self, app: Application, host: QWidget, loads: LoadQueue) -> None:
@@ -66,7 +74,7 @@ class SessionController(QObject):
         self.open_action = make_action(host, "Open s&ession…", self.choose_session, "Ctrl+Shift+O")
         self.add_action = make_action(host, "&Add takes to session…", self.browser.choose_files, "Ctrl+Shift+A")
         self.close_action = make_action(host, "C&lose session", self.close_session)
-        app.add_listener(self._app_changed)
+        app.add_listener(self._follow_app)
         self.autosave_timer = QTimer(self)
         self.autosave_timer.setInterval(AUTOSAVE_MS)
         self.autosave_timer.timeout.connect(self.autosave)
@@ -78,11 +86,26 @@ class SessionController(QObject):
         """The open session."""
         return self.app.session
 
-    def _app_changed(self, event: object) -> None:
-        """Mark the shown take in the browser when it is a session take."""
-        document = event.document if isinstance(event, CurrentDocumentChanged) else None
-        if document is not None and document.session_take_id:
-            self.browser.set_current(document.session_take_id)
+    def _follow_app(self, event: object) -> None:
+        """The browser follows the application: the session's takes and their states, the shown take (bold)."""
+        if isinstance(event, SessionChanged):
+            self._show_takes()
+            self.update_enabled()
+        elif isinstance(event, SessionFolderChanged) and self.session is not None:
+            if event.what == SessionPart.TAKE_STATE and any(entry.id == event.take_id for entry in self.session.takes):
+                self.browser.update_take(TakeRow.from_entry(self.session.take(event.take_id)))
+            elif event.what & (SessionPart.TAKES | SessionPart.TAKE_STATE | SessionPart.SUBJECTS):
+                self._show_takes()
+        elif isinstance(event, CurrentDocumentChanged):
+            document = event.document
+            self.browser.set_current((document.session_take_id or "") if document is not None else "")
+
+    def _show_takes(self) -> None:
+        """Show the open session's takes and states in the browser (none when no session is open)."""
+        entries = self.session.takes if self.session is not None else []
+        self.browser.set_takes([TakeRow.from_entry(entry) for entry in entries])
+        current = self.app.document
+        self.browser.set_current((current.session_take_id or "") if current is not None else "")
 
     # -------------------------------------------------------------------------------- sessions
     def choose_new_session(self) -> None:
@@ -122,12 +145,8 @@ class SessionController(QObject):
 
     def _set_session(self, session: Session) -> None:
         self.close_session()
-        add_layout_folder(session.folder / "layouts")
-        self.layouts_changed.emit()
         self.app.set_session(session)
-        self.refresh()
         self.status_message.emit(f"Session {session.name}: {len(session.takes)} takes", 8000)
-        self.update_enabled()
 
     def close_session(self) -> None:
         """Save and close the session's open takes (their documents are closed too)."""
@@ -139,19 +158,7 @@ class SessionController(QObject):
             if problem:
                 self.error_raised.emit("Cannot save", problem)
         session.close()
-        remove_layout_folder(session.folder / "layouts")
-        self.layouts_changed.emit()
         self.app.set_session(None)
-        self.browser.set_takes([])
-        self.update_enabled()
-
-    def refresh(self) -> None:
-        """Show the session's takes and states in the browser."""
-        if self.session is not None:
-            self.browser.set_takes([TakeRow.from_entry(entry) for entry in self.session.takes])
-            current = self.app.document
-            if current is not None and current.session_take_id:
-                self.browser.set_current(current.session_take_id)
 
     def update_enabled(self) -> None:
         writable = self.session is not None and not self.session.read_only
@@ -183,10 +190,9 @@ class SessionController(QObject):
         takes, failures = loaded.takes, list(loaded.failures)
         for path, take in takes:
             try:
-                self.session.add_take(path, layout=best_layout_for(take.marker_names), take=take)
+                self.app.add_take(path, take)
             except HandMocapError as error:
                 failures.append(f"{path.name}: {error}")
-        self.refresh()
         if failures:
             self.error_raised.emit("Some takes were not added", "\n".join(failures))
 
@@ -276,20 +282,18 @@ class SessionController(QObject):
 
     def set_state(self, take_id: str, state: str) -> None:
         try:
-            self.session.set_state(take_id, state)
+            self.app.set_take_state(take_id, state)
         except HandMocapError as error:
             self.error_raised.emit("Cannot change the state", str(error))
-        self.refresh()
 
     def remove_take(self, take_id: str) -> None:
         if self.app.document_of_session_take(take_id) is not None:
             self.error_raised.emit("Cannot remove", "close the take first")
             return
         try:
-            self.session.remove_take(take_id)
+            self.app.remove_take(take_id)
         except HandMocapError as error:
             self.error_raised.emit("Cannot remove the take", str(error))
-        self.refresh()
 
     # ---------------------------------------------------------------------------------- saving
     def save_document(self, document: TakeDocument) -> None:
@@ -297,35 +301,28 @@ class SessionController(QObject):
         if document.open_take is None or self.session is None or self.session.read_only:
             return
         try:
-            document.open_take.save()
+            self.app.save_document(document)
         except HandMocapError as error:
             self.error_raised.emit("Cannot save", str(error))
-        self.refresh()
 
     def autosave(self) -> None:
         """Snapshot the session takes with edits older than ``SNAPSHOT_INTERVAL_S`` (the journal has them
         already; the snapshot keeps replay short)."""
-        for document in self.app.documents:
-            if document.open_take is not None and not document.open_take.closed:
-                try:
-                    document.open_take.autosave(SNAPSHOT_INTERVAL_S)
-                except HandMocapError as error:
-                    self.status_message.emit(f"Autosave failed: {error}", 10000)
+        for problem in self.app.autosave(SNAPSHOT_INTERVAL_S):
+            self.status_message.emit(f"Autosave failed: {problem}", 10000)
 
     def export_done(self, document: TakeDocument, kind: str, path: str) -> None:
         if document.session_take_id and self.session is not None and not self.session.read_only:
             try:
-                self.session.record_export(document.session_take_id, kind, path)
+                self.app.record_export(document.session_take_id, kind, path)
             except HandMocapError as error:
                 self.error_raised.emit("Cannot record the export", str(error))
-            self.refresh()
 
     def save_layout(self, layout) -> None:
         """Store a layout in the session: it is listed with the shipped ones and labelling can use it."""
         if self.session is None:
             raise HandMocapError("open or create a session first to keep layouts in it")
-        self.session.save_layout(layout)
-        self.layouts_changed.emit()
+        self.app.save_layout(layout)
 
     def close(self) -> None:
         """The window is closing: save every open take and release the journals."""

@@ -1,5 +1,6 @@
 """Views follow the model: an edit made on the document itself (no controller, no refresh call) shows in
-the review views, its undo and redo too; the application object announces takes, selection and jobs."""
+the review views, its undo and redo too; the application object announces takes, selection, jobs, the
+current frame and the changes of the session folder, and the views follow those too."""
 
 import numpy as np
 import pytest
@@ -10,13 +11,18 @@ from app.gui.application import (
     DocumentClosed,
     DocumentClosing,
     DocumentOpened,
+    FrameChanged,
     Job,
     JobsChanged,
     SelectionChanged,
+    SessionFolderChanged,
+    SessionPart,
 )
 from app.gui.document import TakeDocument
 from core.review import AcceptFills, GapFill, Unlabel
+from core.io import save_take
 from core.review.events import Change, ReviewChanged
+from core.session import Session
 from core.simulate import simulate_take
 from widgets.marker_lanes import EDITED
 from widgets.review_table import OBSERVED_COLUMN
@@ -95,6 +101,48 @@ def test_application_announces_takes_selection_jobs_and_the_shown_take_edits(lab
     assert heard == [DocumentClosing(other), DocumentClosed(other, 1),
                      CurrentDocumentChanged(labelled_document, other)]
     assert app.documents == [labelled_document]
+
+
+def test_views_follow_the_current_frame_of_the_application(window, labelled_document):
+    other = TakeDocument(labelled_document.take, "other")
+    window.add_document(labelled_document)
+    heard = []
+    window.app.add_listener(heard.append)
+    window.app.set_frame(40)                                   # no view is told: they follow the event
+    assert heard == [FrameChanged(40)]
+    assert window.timeline.frame == 40 and window.review.lanes.frame == 40
+    window.review.lanes.frame_clicked.emit(12)                 # a view sets the frame: all follow
+    assert window.app.frame == 12 and window.timeline.frame == 12
+    window.timeline.set_frame(25)
+    assert window.app.frame == 25 and window.review.lanes.frame == 25
+    window.app.set_frame(10_000)                               # clamped to the take
+    assert window.app.frame == FRAMES - 1 == window.timeline.frame
+    window.add_document(other)                                 # each take keeps its frame
+    assert window.app.frame == 0 == window.timeline.frame
+    window.app.show(labelled_document)
+    assert window.app.frame == FRAMES - 1 == window.timeline.frame
+
+
+def test_session_browser_follows_changes_of_the_session_folder(window, labelled_document, tmp_path):
+    path = tmp_path / "walk.c3d"
+    save_take(labelled_document.take, path)
+    session = Session.create(tmp_path / "session")
+    app, heard = window.app, []
+    app.set_session(session)
+    app.add_listener(heard.append)
+    entry = app.add_take(path, labelled_document.take)         # through the application, not the controller
+    assert heard == [SessionFolderChanged(SessionPart.TAKES, entry.id)]
+    browser = window.sessions.browser
+    assert [row.id for row in browser.rows()] == [entry.id]
+    app.set_take_state(entry.id, "reviewed")
+    assert heard[-1] == SessionFolderChanged(SessionPart.TAKE_STATE, entry.id)
+    assert browser.rows()[0].state == "reviewed" == session.take(entry.id).state
+    app.record_export(entry.id, "csv", str(tmp_path / "walk.csv"))
+    assert browser.rows()[0].state == "exported"
+    app.remove_take(entry.id)
+    assert heard[-1] == SessionFolderChanged(SessionPart.TAKES, entry.id) and browser.rows() == []
+    app.set_session(None)
+    session.close()
 
 
 def test_the_application_object_and_the_events_need_no_qt():
