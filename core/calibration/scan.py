@@ -122,8 +122,8 @@ class _PlyElement:
 def _parse_ply_header(path: Path, data: bytes) -> tuple[str, list[_PlyElement], int]:
     """Format, elements and byte offset of the body of a PLY file."""
     end = data.find(b"end_header")
-    if not data.startswith(b"ply") or end < 0:
-        raise InputError(f"{path.name}: not a PLY file (missing 'ply' magic or 'end_header')")
+    if not data.startswith(b"ply") or end < 0 or data.find(b"\n", end) < 0:
+        raise InputError(f"{path.name}: not a PLY file (missing 'ply' magic or 'end_header' line)")
     body_start = data.index(b"\n", end) + 1
     file_format = ""
     elements: list[_PlyElement] = []
@@ -135,13 +135,16 @@ def _parse_ply_header(path: Path, data: bytes) -> tuple[str, list[_PlyElement], 
             if words[0] == "format":
                 file_format = words[1]
             elif words[0] == "element":
-                elements.append(_PlyElement(words[1], int(words[2]), [], None))
+                count = int(words[2])
+                if not 0 <= count <= len(data):  # an element takes at least a byte (ascii: a line end)
+                    raise ValueError(count)
+                elements.append(_PlyElement(words[1], count, [], None))
             elif words[0] == "property" and words[1] == "list":
                 elements[-1].list_property = (words[4], _PLY_TYPES[words[2]], _PLY_TYPES[words[3]])
             elif words[0] == "property":
                 elements[-1].properties.append((words[2], _PLY_TYPES[words[1]]))
         except (IndexError, KeyError, ValueError):
-            raise InputError(f"{path.name}: malformed PLY header line '{line.strip()}'") from None
+            raise InputError(f"{path.name}: malformed PLY header line {ascii(line.strip()[:80])}") from None
     if file_format not in ("ascii", "binary_little_endian"):
         raise InputError(f"{path.name}: unsupported PLY format '{file_format}' "
                          "(ascii and binary_little_endian are supported)")
@@ -199,8 +202,8 @@ def _ascii_faces(path: Path, rows: list[str]) -> np.ndarray:
     """Triangles (T,3) from ascii PLY face rows ``k i0 .. ik-1`` (any polygon sizes)."""
     try:
         polygons = [np.array(row.split(), dtype=np.int64) for row in rows]
-    except ValueError:
-        raise InputError(f"{path.name}: malformed PLY face data") from None
+    except (ValueError, OverflowError):
+        raise InputError(f"{path.name}: malformed PLY face data (indices must be integers below 2**63)") from None
     if any(len(p) == 0 or len(p) != p[0] + 1 for p in polygons):
         raise InputError(f"{path.name}: a PLY face row does not match its corner count")
     by_size: dict[int, list[np.ndarray]] = {}
@@ -214,14 +217,18 @@ def _read_ply_binary(path: Path, data: bytes, offset: int, elements: list[_PlyEl
     points = normals = colors = faces = None
     for element in elements:
         if element.list_property is None:
-            dtype = np.dtype([(name, "<" + kind) for name, kind in element.properties])
+            try:
+                dtype = np.dtype([(name, "<" + kind) for name, kind in element.properties])
+            except ValueError:
+                raise InputError(f"{path.name}: the PLY '{element.name[:40]}' element repeats a property name"
+                                 ) from None
             size = dtype.itemsize * element.count
             if offset + size > len(data):
                 raise InputError(f"{path.name}: the PLY file ends inside the '{element.name}' element")
             table = np.frombuffer(data, dtype=dtype, count=element.count, offset=offset)
             offset += size
             if element.name == "vertex":
-                points, normals, colors = _vertex_arrays(path, {n: table[n] for n in table.dtype.names})
+                points, normals, colors = _vertex_arrays(path, {n: table[n] for n in table.dtype.names or ()})
         elif element.name == "face" and not element.properties:
             faces = _binary_faces(path, data, offset, element)
             break
@@ -237,10 +244,14 @@ def _binary_faces(path: Path, data: bytes, offset: int, element: _PlyElement) ->
     if element.count == 0:
         return np.zeros((0, 3), dtype=np.int64)
     _, count_type, item_type = element.list_property
+    if offset + np.dtype(count_type).itemsize > len(data):
+        raise InputError(f"{path.name}: the PLY file ends inside the 'face' element")
     corners = int(np.frombuffer(data, dtype="<" + count_type, count=1, offset=offset)[0])
-    dtype = np.dtype([("k", "<" + count_type), ("i", "<" + item_type, (max(corners, 1),))])
-    if corners < 3 or offset + dtype.itemsize * element.count > len(data):
-        raise InputError(f"{path.name}: malformed PLY face data")
+    if not 3 <= corners <= len(data):
+        raise InputError(f"{path.name}: malformed PLY face data ({corners} corners)")
+    dtype = np.dtype([("k", "<" + count_type), ("i", "<" + item_type, (corners,))])
+    if offset + dtype.itemsize * element.count > len(data):
+        raise InputError(f"{path.name}: the PLY file ends inside the 'face' element")
     table = np.frombuffer(data, dtype=dtype, count=element.count, offset=offset)
     if np.any(table["k"] != corners):
         raise InputError(f"{path.name}: binary PLY faces with mixed polygon sizes are not supported")
@@ -266,13 +277,22 @@ def _obj_faces(path: Path, lines: list[str], n_vertices: int, n_normals: int
     """Triangles (T,3) of 0-based vertex indices and the matching normal indices (T,3) or None."""
     vertex_groups: dict[int, list[list[int]]] = {}
     normal_groups: dict[int, list[list[int]]] = {}
+
+    def index(text: str, count: int, what: str) -> int:
+        """A 1-based (or negative, from the end) OBJ index, checked against the ``count`` items it refers to."""
+        value = int(text)
+        if not (1 <= value <= count or -count <= value <= -1):
+            raise InputError(f"{path.name}: a face refers to a {what} that does not exist ({text[:20]})")
+        return value
+
     try:
         for line in lines:
             corners = [corner.split("/") for corner in line.split()]
-            vertex_groups.setdefault(len(corners), []).append([int(c[0]) for c in corners])
-            if all(len(c) == 3 and c[2] for c in corners):
-                normal_groups.setdefault(len(corners), []).append([int(c[2]) for c in corners])
-    except (ValueError, IndexError):
+            vertex_groups.setdefault(len(corners), []).append([index(c[0], n_vertices, "vertex") for c in corners])
+            if n_normals and all(len(c) == 3 and c[2] for c in corners):
+                normal_groups.setdefault(len(corners), []).append([index(c[2], n_normals, "normal")
+                                                                   for c in corners])
+    except ValueError:
         raise InputError(f"{path.name}: malformed OBJ face") from None
 
     def triangles(groups: dict[int, list[list[int]]], count: int) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""C3D takes: a vectorised numpy reader for every C3D flavour and an ezc3d-based writer.
+"""C3D takes: a vectorised numpy reader for every C3D flavour (the writer is :mod:`core.io.c3d_writer`).
 
 Reading parses the 512-byte header and the parameter section here, with a bounds check on every
 entry, then takes the whole point block with one `np.frombuffer`. It handles Intel, DEC (VAX float)
@@ -16,16 +16,14 @@ or exactly (0, 0, 0) to NaN, the file's first frame number to `Take.first_frame`
 
 import logging
 import math
-import re
 from dataclasses import dataclass
 from os import PathLike
 from pathlib import Path
 
-import ezc3d
 import numpy as np
 
 from core.io.errors import TakeFormatError
-from core.io.take import Take, atomic_target, mm_per_unit, unique_marker_names, zeros_to_nan
+from core.io.take import Take, mm_per_unit, unique_marker_names, zeros_to_nan
 
 _log = logging.getLogger(__name__)
 
@@ -35,9 +33,7 @@ _INTEL, _DEC, _MIPS = 84, 85, 86
 _CHAR, _BYTE, _INT, _FLOAT = -1, 1, 2, 4
 _DATA_GROUPS = frozenset({"POINT", "ANALOG", "FORCE_PLATFORM", "ROTATION"})  # written from the take itself
 _LIBRARY_GROUPS = frozenset({"EZC3D"})  # stamped by the writing library
-_C3D_NAME = re.compile(r"[A-Z0-9_]{1,127}")
 _MAX_DIMS = 7  # the C3D limit for a parameter's dimensions
-_MAX_LABEL_BYTES = 125  # 255 labels x 125 bytes still fit one parameter (<= 32767 bytes)
 _VENDOR_KEYWORDS = (
     ("qualisys", "Qualisys"),
     ("vicon", "Vicon"),
@@ -180,63 +176,6 @@ def read_c3d(path: str | PathLike[str]) -> Take:
     )
 
 
-def write_c3d(take: Take, path: str | PathLike[str]) -> None:
-    """Write `take` as a float C3D in mm (missing samples: residual -1) with ezc3d.
-
-    Writes labels (past 255 in LABELS2...), rate, first frame (header and TRIAL:ACTUAL_START_FIELD /
-    ACTUAL_END_FIELD, which also carry frame numbers past 65535), MANUFACTURER:COMPANY "handmocap"
-    and every group of `take.parameters`. The file is replaced atomically.
-    """
-    if Path(path).suffix.lower() != ".c3d":
-        raise TakeFormatError.at(path, "a C3D file name must end in '.c3d'")
-    clashing = sorted(set(take.parameters) & (_DATA_GROUPS | _LIBRARY_GROUPS))
-    if clashing:
-        raise TakeFormatError.at(path, f"parameter group {clashing[0]} is written from the take itself")
-    too_long = [name for name in take.marker_names if len(name.encode()) > _MAX_LABEL_BYTES]
-    if too_long:
-        raise TakeFormatError.at(
-            path,
-            f"marker name '{too_long[0][:40]}...' is longer than "
-            f"{_MAX_LABEL_BYTES} bytes, the C3D label limit",
-        )
-
-    groups: dict[str, dict[str, ParameterValue]] = {
-        group.upper(): {name.upper(): value for name, value in parameters.items()}
-        for group, parameters in take.parameters.items()
-    }
-    for group, parameters in groups.items():
-        for name in [group, *parameters]:
-            if not _C3D_NAME.fullmatch(name):
-                raise TakeFormatError.at(path, f"parameter name '{name}' is not a C3D name (A-Z, 0-9, _)")
-    last = take.first_frame + take.n_frames - 1
-    groups.setdefault("TRIAL", {}).update(
-        ACTUAL_START_FIELD=_int16_words(take.first_frame), ACTUAL_END_FIELD=_int16_words(last)
-    )
-    groups.setdefault("MANUFACTURER", {}).update(COMPANY="handmocap", SOFTWARE="Hand Mocap Studio")
-
-    c3d = ezc3d.c3d()
-    point = c3d["parameters"]["POINT"]
-    point["RATE"]["value"] = [take.frame_rate]
-    point["LABELS"]["value"] = list(take.marker_names)
-    point["UNITS"]["value"] = ["mm"]
-    for group, parameters in groups.items():
-        c3d["parameters"][group] = {"__METADATA__": {"DESCRIPTION": "", "IS_LOCKED": False}} | {
-            name: _ezc3d_parameter(f"{group}:{name}", value, path) for name, value in parameters.items()
-        }
-    missing = take.missing_mask.T  # (M, F)
-    points = np.ones((4, take.n_markers, take.n_frames))
-    points[:3] = take.marker_positions.transpose(2, 1, 0)
-    points[:3, missing] = 0.0
-    c3d["data"]["points"] = points
-    c3d["data"]["meta_points"] = {"residuals": np.where(missing, -1.0, 0.0)[np.newaxis]}
-    c3d["header"]["points"]["first_frame"] = max(min(take.first_frame, 0xFFFF) - 1, 0)
-    try:
-        with atomic_target(path) as temporary:  # ends in ".c3d", so ezc3d keeps the name
-            c3d.write(str(temporary), first_frame_as_zero=take.first_frame == 0)
-    except (RuntimeError, ValueError) as error:
-        raise TakeFormatError.at(path, f"cannot write C3D ({error})") from None
-
-
 def _parse(data: bytes, path: str | PathLike[str]) -> _C3DFile:
     """Validate and decode the header and the parameter section (never reads out of bounds)."""
     if len(data) < _BLOCK:
@@ -345,6 +284,8 @@ def _read_parameter(data: bytes, body: int, end: int) -> _Parameter | None:
     size = abs(type_code) * math.prod(dims)
     if start + size > end:
         return None
+    if type_code == _CHAR and math.prod(dims[1:]) > len(data):
+        return None  # strings of width 0 take no bytes: more of them than the file has bytes is a crafted count
     return _Parameter(type_code, dims, data[start : start + size])
 
 
@@ -432,31 +373,6 @@ def _guess_units(positions: np.ndarray) -> str:
     """Units when POINT:UNITS is absent: "m" if 99 % of |coordinates| are below 20 (metres), else "mm"."""
     valid = positions[np.isfinite(positions)]
     return "m" if valid.size and np.percentile(np.abs(valid), 99) < 20 else "mm"
-
-
-def _ezc3d_parameter(where: str, value: ParameterValue, path: str | PathLike[str]) -> dict:
-    """ezc3d's dict for one parameter: strings -> CHAR, integers in int16 range -> INT, numbers -> FLOAT."""
-    if isinstance(value, str):
-        type_code, stored = _CHAR, [value]
-    elif isinstance(value, list | tuple) and all(isinstance(item, str) for item in value):
-        type_code, stored = _CHAR, list(value)
-    else:
-        array = np.atleast_1d(np.asarray(value))
-        if array.dtype.kind in "biu" and (
-            array.size == 0 or (array.min() >= -32768 and array.max() <= 32767)
-        ):
-            type_code, stored = _INT, array.astype(np.int64)
-        elif array.dtype.kind in "biuf":
-            type_code, stored = _FLOAT, array.astype(np.float64)
-        else:
-            raise TakeFormatError.at(path, f"parameter {where} has a value C3D cannot store: {value!r}"[:200])
-    return {"type": type_code, "value": stored, "description": "", "is_locked": False}
-
-
-def _int16_words(number: int) -> np.ndarray:
-    """A frame number as C3D's two 16-bit words (low, high), stored as signed int16 values."""
-    words = np.array([number & 0xFFFF, number >> 16])
-    return np.where(words > 32767, words - 65536, words)
 
 
 def _frame_number(value: ParameterValue | None) -> int | None:

@@ -27,8 +27,8 @@ from core.io.take import (
     atomic_target,
     format_number_rows,
     mm_per_unit,
-    parse_number_rows,
-    read_text,
+    open_text_lines,
+    read_number_rows,
     unique_marker_names,
     zeros_to_nan,
 )
@@ -38,54 +38,55 @@ _SETTING = re.compile(r"(\w+)\s*=\s*([^\s,;]+)")
 
 def read_csv(path: str | PathLike[str]) -> Take:
     """Read a CSV take (format in the module docstring) into a Take; raises TakeFormatError."""
-    lines = read_text(path).splitlines()
-    settings: dict[str, str] = {}
-    row = 0
-    while row < len(lines) and (lines[row].startswith("#") or not lines[row].strip()):
-        settings.update((key.lower(), value) for key, value in _SETTING.findall(lines[row]))
-        row += 1
-    if row == len(lines):
-        raise TakeFormatError.at(path, "no column row (expected 'frame,time,<name>_x,<name>_y,<name>_z,...')")
-    columns = [cell.strip() for cell in next(csv.reader([lines[row]]))]
-    lowered = [column.lower() for column in columns]
-    frame_column = lowered.index("frame") if "frame" in lowered else None
-    time_column = lowered.index("time") if "time" in lowered else None
-    coordinate_columns = [i for i in range(len(columns)) if i not in (frame_column, time_column)]
-    if len(coordinate_columns) % 3:
-        raise TakeFormatError.at(
-            path,
-            f"line {row + 1}: expected columns frame,time,<name>_x,<name>_y,<name>_z,"
-            f"... ({len(coordinate_columns)} coordinate columns, not 3 per marker)",
-        )
-    names: list[str] = []
-    for start in range(0, len(coordinate_columns), 3):
-        triple = [columns[i] for i in coordinate_columns[start : start + 3]]
-        name = triple[0][:-2]
-        if [column.lower() for column in triple] != [f"{name}_{axis}".lower() for axis in "xyz"]:
+    with open_text_lines(path) as lines:
+        settings: dict[str, str] = {}
+        comments: list[str] = []
+        current = next(lines, None)
+        while current is not None and (current[1].startswith("#") or not current[1].strip()):
+            settings.update((key.lower(), value) for key, value in _SETTING.findall(current[1]))
+            comments.append(current[1])
+            current = next(lines, None)
+        if current is None:
+            raise TakeFormatError.at(path, "no column row (expected 'frame,time,<name>_x,<name>_y,<name>_z,...')")
+        row, column_row = current
+        try:
+            columns = [cell.strip() for cell in next(csv.reader([column_row]))]
+        except csv.Error as error:
+            raise TakeFormatError.at(path, f"line {row}: malformed column row ({error})") from None
+        lowered = [column.lower() for column in columns]
+        frame_column = lowered.index("frame") if "frame" in lowered else None
+        time_column = lowered.index("time") if "time" in lowered else None
+        coordinate_columns = [i for i in range(len(columns)) if i not in (frame_column, time_column)]
+        if len(coordinate_columns) % 3:
             raise TakeFormatError.at(
-                path, f"line {row + 1}: expected columns <name>_x,<name>_y,<name>_z, got {','.join(triple)}"
+                path,
+                f"line {row}: expected columns frame,time,<name>_x,<name>_y,<name>_z,"
+                f"... ({len(coordinate_columns)} coordinate columns, not 3 per marker)",
             )
-        names.append(name)
-
-    rows = [
-        (number + 1, lines[number].split(","))
-        for number in range(row + 1, len(lines))
-        if lines[number].strip() and not lines[number].startswith("#")
-    ]
-    table = parse_number_rows(rows, len(columns), path)
+        names: list[str] = []
+        for start in range(0, len(coordinate_columns), 3):
+            triple = [columns[i] for i in coordinate_columns[start : start + 3]]
+            name = triple[0][:-2]
+            if [column.lower() for column in triple] != [f"{name}_{axis}".lower() for axis in "xyz"]:
+                raise TakeFormatError.at(
+                    path, f"line {row}: expected columns <name>_x,<name>_y,<name>_z, got {','.join(triple)[:80]}"
+                )
+            names.append(name)
+        data = ((number, line) for number, line in lines if not line.startswith("#"))
+        table = read_number_rows(data, len(columns), ",", path)
     units = settings.get("units", "mm")
     scale = mm_per_unit(units, path)
-    positions = zeros_to_nan(table[:, coordinate_columns].reshape(len(rows), len(names), 3)) * scale
+    positions = zeros_to_nan(table[:, coordinate_columns].reshape(len(table), len(names), 3)) * scale
     frame_rate = _frame_rate(settings, table[:, time_column] if time_column is not None else None, path)
     first_frame = 1
-    if frame_column is not None and len(rows) and math.isfinite(table[0, frame_column]):
+    if frame_column is not None and len(table) and math.isfinite(table[0, frame_column]):
         first_frame = int(table[0, frame_column])
     return Take(
         marker_names=unique_marker_names(names),
         marker_positions=positions,
         frame_rate=frame_rate,
         first_frame=first_frame,
-        vendor="handmocap" if "handmocap" in " ".join(lines[:row]).lower() else "unknown",
+        vendor="handmocap" if "handmocap" in " ".join(comments).lower() else "unknown",
         source_units=units,
         source_path=str(path),
     )

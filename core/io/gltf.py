@@ -28,9 +28,12 @@ from __future__ import annotations
 
 import base64
 import json
+import os
 import re
+import stat
 import struct
-from pathlib import Path
+from pathlib import Path, PurePosixPath
+from urllib.parse import unquote
 
 import numpy as np
 
@@ -52,59 +55,173 @@ _PART_ORDER = {"metacarpal": 0, "cmc": 0, "proximal": 1, "mcp": 1, "intermediate
 
 
 class _Document:
-    """A parsed glTF: the JSON and its binary buffers."""
+    """A parsed glTF: the JSON (its nodes checked) and its binary buffers.
+
+    Buffers come only from the GLB's own binary chunk, ``data:`` URIs, or regular files in the glTF's folder
+    (relative paths without ``..`` that stay inside the folder once links are resolved), and each is read
+    only up to its declared ``byteLength``, which must fit in the data it names.
+    """
 
     def __init__(self, path: Path) -> None:
         self.path = path
         data = path.read_bytes()
         if path.suffix.lower() == ".glb" or data[:4] == b"glTF":
-            self.json, chunk = _parse_glb(path, data)
+            document, chunk = _parse_glb(path, data)
             buffers = [chunk]
         else:
-            try:
-                self.json = json.loads(data.decode("utf-8"))
-            except (UnicodeDecodeError, json.JSONDecodeError) as error:
-                raise InputError(f"{path.name}: not a glTF file ({error})") from None
+            document = _parse_json(path, data)
             buffers = []
-        for index, buffer in enumerate(self.json.get("buffers", [])):
+        if not isinstance(document, dict):
+            raise self.error("the glTF JSON is not an object")
+        self.json = document
+        self.nodes = [self.item("nodes", index) for index in range(len(self.items("nodes")))]
+        for index, node in enumerate(self.nodes):
+            self.check_node(index, node)
+        for index in range(len(self.items("buffers"))):
+            buffer = self.item("buffers", index)
             uri = buffer.get("uri")
             if uri is None:
                 if index >= len(buffers):
-                    raise InputError(f"{path.name}: buffer {index} has no data")
+                    raise self.error(f"buffer {index} has no data")
                 continue
-            if uri.startswith("data:"):
-                buffers.append(base64.b64decode(uri.split(",", 1)[1]))
-            else:
-                try:
-                    buffers.append((path.parent / uri).read_bytes())
-                except OSError:
-                    raise InputError(f"{path.name}: external buffer '{uri}' not found") from None
+            if not isinstance(uri, str):
+                raise self.error(f"buffer {index} has a URI that is not text")
+            length = self.integer(buffer, "byteLength", f"buffer {index}")
+            blob = _data_uri(uri) if uri.startswith("data:") else self.external(uri, length)
+            if blob is None:
+                raise self.error(f"buffer {index} has a data URI that is not base64")
+            if len(blob) < length:
+                raise self.error(f"buffer {index} holds fewer bytes than its byteLength {length}")
+            buffers.append(blob[:length])
         self.buffers = buffers
 
-    def accessor(self, index: int) -> np.ndarray:
-        """The accessor's data as a float64/int array ``(count, width)`` (normalised integers scaled)."""
-        try:
-            accessor = self.json["accessors"][index]
-            view = self.json["bufferViews"][accessor["bufferView"]]
-            dtype = np.dtype(_COMPONENTS[accessor["componentType"]]).newbyteorder("<")
-            width = _WIDTHS[accessor["type"]]
-            count = accessor["count"]
-            buffer = self.buffers[view["buffer"]]
-        except (KeyError, IndexError) as error:
-            raise InputError(f"{self.path.name}: malformed accessor {index} ({error})") from None
-        offset = view.get("byteOffset", 0) + accessor.get("byteOffset", 0)
-        stride = view.get("byteStride", 0) or dtype.itemsize * width
-        if offset + stride * (count - 1) + dtype.itemsize * width > len(buffer):
-            raise InputError(f"{self.path.name}: accessor {index} runs past the end of its buffer")
-        raw = np.lib.stride_tricks.as_strided(
-            np.frombuffer(buffer, dtype=dtype, count=(len(buffer) - offset) // dtype.itemsize, offset=offset),
-            shape=(count, width), strides=(stride, dtype.itemsize)).copy()
-        if accessor.get("normalized") and np.issubdtype(dtype, np.integer):
+    def error(self, problem: str) -> InputError:
+        """InputError ``"<file name>: <problem>"`` on one line."""
+        return InputError(" ".join(f"{self.path.name}: {problem}".split()))
+
+    def items(self, key: str) -> list:
+        """The top-level array ``key`` (empty when absent)."""
+        value = self.json.get(key, [])
+        if not isinstance(value, list):
+            raise self.error(f"'{key}' is not an array")
+        return value
+
+    def item(self, key: str, index: object) -> dict:
+        """Object ``index`` of the top-level array ``key``, after checking the index is in range."""
+        array = self.items(key)
+        if not _is_int(index) or not 0 <= index < len(array):
+            raise self.error(f"{key} index {str(index)[:20]} is out of range (0..{len(array) - 1})")
+        if not isinstance(array[index], dict):
+            raise self.error(f"{key} {index} is not an object")
+        return array[index]
+
+    def integer(self, holder: dict, key: str, where: str, default: int | None = None, least: int = 0) -> int:
+        """``holder[key]`` as an integer >= ``least`` (``default`` when absent and not None)."""
+        value = holder.get(key, default)
+        if not _is_int(value) or value < least:
+            raise self.error(f"{where} has an invalid {key} ({str(value)[:20]})")
+        return value
+
+    def check_node(self, index: int, node: dict) -> None:
+        """Check the fields of a node this reader uses: name, children, mesh, skin, transform."""
+        if not isinstance(node.get("name", ""), str):
+            raise self.error(f"node {index} has a name that is not text")
+        children = node.get("children", [])
+        if not isinstance(children, list) or not all(_is_int(c) and 0 <= c < len(self.nodes) for c in children):
+            raise self.error(f"node {index} has children that are not node indices")
+        for key, length in (("matrix", 16), ("rotation", 4), ("scale", 3), ("translation", 3)):
+            value = node.get(key)
+            if value is not None and not (isinstance(value, list) and len(value) == length
+                                          and all(_is_number(v) and np.isfinite(v) for v in value)):
+                raise self.error(f"node {index} has an invalid {key}")
+        for key in ("mesh", "skin"):
+            if key in node:
+                self.item(key + "es" if key == "mesh" else key + "s", node[key])
+
+    def external(self, uri: str, length: int) -> bytes:
+        """The first ``length`` bytes of a buffer file next to the glTF (see the class docstring)."""
+        relative = PurePosixPath(unquote(uri))
+        folder = self.path.parent.resolve()
+        if (not relative.parts or relative.is_absolute() or ".." in relative.parts or ":" in relative.parts[0]
+                or "\\" in uri or "\0" in str(relative)):
+            raise self.error(f"external buffer '{uri[:80]}' is not a file in the glTF's folder")
+        target = (folder / relative).resolve()
+        if not target.is_relative_to(folder):
+            raise self.error(f"external buffer '{uri[:80]}' leads out of the glTF's folder")
+        try:  # non-blocking, so that a FIFO does not wait for a writer
+            descriptor = os.open(target, os.O_RDONLY | os.O_NONBLOCK)
+        except OSError:
+            raise self.error(f"external buffer '{uri[:80]}' not found") from None
+        with os.fdopen(descriptor, "rb") as stream:
+            status = os.fstat(descriptor)
+            if not stat.S_ISREG(status.st_mode):
+                raise self.error(f"external buffer '{uri[:80]}' is not a regular file")
+            if status.st_size < length:
+                raise self.error(f"external buffer '{uri[:80]}' holds {status.st_size} bytes, "
+                                 f"fewer than its byteLength {length}")
+            return stream.read(length)
+
+    def accessor(self, index: object, kinds: tuple[str, ...]) -> np.ndarray:
+        """The accessor's data as a float64/int array ``(count, width)`` (normalised integers scaled).
+
+        Its type must be one of ``kinds``; count, offsets and stride are checked against the buffer view and
+        the buffer before anything is read.
+        """
+        accessor = self.item("accessors", index)
+        where = f"accessor {index}"
+        if accessor.get("componentType") not in _COMPONENTS or accessor.get("type") not in kinds:
+            raise self.error(f"{where} has type {str(accessor.get('type'))[:20]} of component "
+                             f"{str(accessor.get('componentType'))[:20]} (expected {' or '.join(kinds)})")
+        dtype = np.dtype(_COMPONENTS[accessor["componentType"]]).newbyteorder("<")
+        width = _WIDTHS[accessor["type"]]
+        count = self.integer(accessor, "count", where, least=1)
+        view = self.item("bufferViews", accessor.get("bufferView"))
+        buffer_index = view.get("buffer")
+        if not _is_int(buffer_index) or not 0 <= buffer_index < len(self.buffers):
+            raise self.error(f"{where}: its buffer view names no buffer")
+        buffer = self.buffers[buffer_index]
+        view_offset = self.integer(view, "byteOffset", where, default=0)
+        view_length = self.integer(view, "byteLength", where, least=1)
+        offset = self.integer(accessor, "byteOffset", where, default=0)
+        element = dtype.itemsize * width
+        stride = self.integer(view, "byteStride", where, default=element, least=element)
+        if view_offset + view_length > len(buffer) or offset + stride * (count - 1) + element > view_length:
+            raise self.error(f"{where} runs past the end of its buffer view or buffer")
+        raw = np.ndarray((count, width), dtype=dtype, buffer=buffer, offset=view_offset + offset,
+                         strides=(stride, dtype.itemsize)).copy()
+        if accessor.get("normalized") is True and np.issubdtype(dtype, np.integer):
             return raw.astype(np.float64) / np.iinfo(dtype).max
         return raw if np.issubdtype(dtype, np.integer) else raw.astype(np.float64)
 
 
-def _parse_glb(path: Path, data: bytes) -> tuple[dict, bytes]:
+def _is_int(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _parse_json(path: Path, text: bytes) -> object:
+    """The JSON document in ``text``; nesting deep enough to exhaust the parser is refused like bad JSON."""
+    try:
+        return json.loads(text.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError) as error:
+        raise InputError(f"{path.name}: not a glTF file ({' '.join(str(error).split())[:120]})") from None
+
+
+def _data_uri(uri: str) -> bytes | None:
+    """The bytes of a base64 ``data:`` URI, or None when it is not one."""
+    head, _, payload = uri.partition(",")
+    if not head.endswith(";base64"):
+        return None
+    try:
+        return base64.b64decode(payload, validate=True)
+    except ValueError:
+        return None
+
+
+def _parse_glb(path: Path, data: bytes) -> tuple[object, bytes]:
     if len(data) < 20:
         raise InputError(f"{path.name}: not a glTF binary file (too short)")
     magic, version, _ = struct.unpack_from("<III", data, 0)
@@ -114,8 +231,8 @@ def _parse_glb(path: Path, data: bytes) -> tuple[dict, bytes]:
     while offset + 8 <= len(data):
         length, kind = struct.unpack_from("<II", data, offset)
         chunk = data[offset + 8:offset + 8 + length]
-        if kind == _JSON_CHUNK:
-            document = json.loads(chunk.decode("utf-8"))
+        if kind == _JSON_CHUNK and document is None:
+            document = _parse_json(path, chunk)
         elif kind == _BIN_CHUNK:
             binary = chunk
         offset += 8 + length
@@ -139,21 +256,28 @@ def _node_matrix(node: dict) -> np.ndarray:
     return matrix
 
 
-def _world_matrices(document: dict) -> list[np.ndarray]:
-    """World 4×4 transform of every node."""
-    nodes = document.get("nodes", [])
-    parent = {child: index for index, node in enumerate(nodes) for child in node.get("children", [])}
-    world: dict[int, np.ndarray] = {}
-
-    def resolve(index: int, depth: int = 0) -> np.ndarray:
-        if index not in world:
-            if depth > len(nodes):
-                raise InputError("glTF node hierarchy has a cycle")
-            local = _node_matrix(nodes[index])
-            world[index] = resolve(parent[index], depth + 1) @ local if index in parent else local
-        return world[index]
-
-    return [resolve(index) for index in range(len(nodes))]
+def _world_matrices(document: _Document) -> list[np.ndarray]:
+    """World 4×4 transform of every node, without recursion; a node with two parents or a cycle is refused."""
+    nodes = document.nodes
+    parent: dict[int, int] = {}
+    for index, node in enumerate(nodes):
+        for child in node.get("children", []):
+            if child in parent or child == index:
+                raise document.error(f"node {child} has two parents or is its own child")
+            parent[child] = index
+    world: list[np.ndarray | None] = [None] * len(nodes)
+    for index in range(len(nodes)):
+        chain, current = [], index
+        while current is not None and world[current] is None:
+            chain.append(current)
+            if len(chain) > len(nodes):
+                raise document.error("the node hierarchy has a cycle")
+            current = parent.get(current)
+        matrix = np.eye(4) if current is None else world[current]
+        for node in reversed(chain):
+            matrix = matrix @ _node_matrix(nodes[node])
+            world[node] = matrix
+    return world
 
 
 # --------------------------------------------------------------------------- joint names
@@ -267,31 +391,53 @@ def load_gltf_hand(path: str | Path, side: str | None = None) -> HandModel:
         raise InputError(f"glTF file not found: {path}")
     document = _Document(path)
     gltf = document.json
-    nodes = gltf.get("nodes", [])
+    nodes = document.nodes
     holder = next((i for i, node in enumerate(nodes) if "mesh" in node and "skin" in node), None)
     if holder is None:
         raise InputError(f"{path.name}: no skinned mesh in the glTF file")
-    skin = gltf["skins"][nodes[holder]["skin"]]
-    primitive = gltf["meshes"][nodes[holder]["mesh"]]["primitives"][0]
+    skin = document.item("skins", nodes[holder]["skin"])
+    primitives = document.item("meshes", nodes[holder]["mesh"]).get("primitives")
+    if not isinstance(primitives, list) or not primitives or not isinstance(primitives[0], dict):
+        raise document.error("the skinned mesh has no primitives")
+    primitive = primitives[0]
     attributes = primitive.get("attributes", {})
-    if primitive.get("mode", 4) != 4 or not {"POSITION", "JOINTS_0", "WEIGHTS_0"} <= attributes.keys():
+    if (primitive.get("mode", 4) != 4 or not isinstance(attributes, dict)
+            or not {"POSITION", "JOINTS_0", "WEIGHTS_0"} <= attributes.keys()):
         raise InputError(f"{path.name}: the skinned mesh needs triangles with POSITION, JOINTS_0 and WEIGHTS_0")
-    vertices = document.accessor(attributes["POSITION"])[:, :3]
-    faces = (document.accessor(primitive["indices"]).reshape(-1, 3).astype(np.int64) if "indices" in primitive
-             else np.arange(len(vertices)).reshape(-1, 3))
-    joints_of = document.accessor(attributes["JOINTS_0"]).astype(np.int64)
-    weights_of = document.accessor(attributes["WEIGHTS_0"])
-    joint_nodes = skin["joints"]
+    vertices = document.accessor(attributes["POSITION"], ("VEC3",))
+    faces = (document.accessor(primitive["indices"], ("SCALAR",)).astype(np.int64) if "indices" in primitive
+             else np.arange(len(vertices)))
+    if len(faces) % 3 or faces.min() < 0 or faces.max() >= len(vertices):
+        raise document.error("the triangle indices are not triples of vertex indices")
+    faces = faces.reshape(-1, 3)
+    joints_of = document.accessor(attributes["JOINTS_0"], ("VEC4",)).astype(np.int64)
+    weights_of = document.accessor(attributes["WEIGHTS_0"], ("VEC4",))
+    if len(joints_of) != len(vertices) or len(weights_of) != len(vertices):
+        raise document.error("JOINTS_0 and WEIGHTS_0 must have one entry per vertex")
+    joint_nodes = skin.get("joints")
+    if not isinstance(joint_nodes, list) or not joint_nodes:
+        raise document.error("the skin has no joints")
+    for node in joint_nodes:
+        document.item("nodes", node)
+    if joints_of.min() < 0 or joints_of.max() >= len(joint_nodes):
+        raise document.error("JOINTS_0 refers to a joint the skin does not have")
     if "inverseBindMatrices" in skin:
-        inverse_bind = document.accessor(skin["inverseBindMatrices"]).reshape(-1, 4, 4).transpose(0, 2, 1)
-        bind = np.linalg.inv(inverse_bind)
+        inverse_bind = document.accessor(skin["inverseBindMatrices"], ("MAT4",)).reshape(-1, 4, 4).transpose(0, 2, 1)
+        if len(inverse_bind) < len(joint_nodes):
+            raise document.error("the skin has fewer inverse bind matrices than joints")
+        try:
+            bind = np.linalg.inv(inverse_bind[:len(joint_nodes)])
+        except np.linalg.LinAlgError:
+            raise document.error("an inverse bind matrix is singular") from None
     else:
-        worlds = _world_matrices(gltf)
+        worlds = _world_matrices(document)
         bind = np.array([worlds[node] for node in joint_nodes])
+    if not (np.isfinite(vertices).all() and np.isfinite(weights_of).all() and np.isfinite(bind).all()):
+        raise document.error("the skinned mesh has non-finite positions, weights or bind matrices")
     names = [nodes[node].get("name", f"joint{i}") for i, node in enumerate(joint_nodes)]
     extras = gltf.get("extras", {}).get("handmocap") if isinstance(gltf.get("extras"), dict) else None
     if extras is not None and len(names) == N_JOINTS + 5:
-        return _from_own_export(path, vertices, faces, joints_of, weights_of, bind, extras)
+        return _from_own_export(document, vertices, faces, joints_of, weights_of, bind, extras)
 
     scale = 1000.0 if np.linalg.norm(np.ptp(vertices, axis=0)) < 2.0 else 1.0
     vertices, bind_positions = vertices * scale, bind[:, :3, 3] * scale
@@ -379,21 +525,33 @@ def _side_from_names(gltf: dict, path: Path) -> str | None:
     return None
 
 
-def _from_own_export(path: Path, vertices: np.ndarray, faces: np.ndarray, joints_of: np.ndarray,
-                     weights_of: np.ndarray, bind: np.ndarray, extras: dict) -> HandModel:
+def _from_own_export(document: _Document, vertices: np.ndarray, faces: np.ndarray, joints_of: np.ndarray,
+                     weights_of: np.ndarray, bind: np.ndarray, extras: object) -> HandModel:
     """Exact re-import of a file written by :func:`save_gltf_hand` (joints 0..15, then the 5 tips)."""
+    if not isinstance(extras, dict):
+        raise document.error("extras.handmocap is not an object")
+    side = extras.get("side", "right")
+    landmarks = extras.get("landmarks", {})
+    back_direction = extras.get("back_direction", [0.0, 0.0, 1.0])
+    hand_length = extras.get("hand_length", 190.0)
+    direction_ok = isinstance(back_direction, list) and len(back_direction) == 3 and all(map(_is_number,
+                                                                                              back_direction))
+    if (side not in ("left", "right") or not isinstance(landmarks, dict) or not direction_ok
+            or not all(_is_int(v) and 0 <= v < len(vertices) for v in landmarks.values())
+            or not _is_number(hand_length)):
+        raise document.error("extras.handmocap has an invalid side, landmarks, back_direction or hand_length")
+    sums = weights_of.sum(axis=1, keepdims=True)
+    if not (sums > 0).all():
+        raise document.error("a vertex has no skin weight")
     positions = bind[:N_JOINTS, :3, 3] * 1000.0
     rotations = bind[:N_JOINTS, :3, :3]
     tips = bind[N_JOINTS:, :3, 3] * 1000.0
-    side = extras.get("side", "right")
     owner = np.concatenate([np.arange(N_JOINTS), 3 + 3 * np.arange(5)])
-    skin_joints = owner[joints_of]
     model = HandModel(skeleton=Skeleton(positions, rotations, tips, side), vertices=vertices * 1000.0,
-                      faces=faces, skin_joints=skin_joints, skin_weights=weights_of / weights_of.sum(axis=1,
-                                                                                                  keepdims=True),
-                      landmarks={str(k): int(v) for k, v in extras.get("landmarks", {}).items()},
-                      back_direction=np.asarray(extras.get("back_direction", [0.0, 0.0, 1.0]), dtype=np.float64),
-                      hand_length=float(extras.get("hand_length", 190.0)), name=str(extras.get("name", path.stem)))
+                      faces=faces, skin_joints=owner[joints_of], skin_weights=weights_of / sums,
+                      landmarks={str(k): v for k, v in landmarks.items()},
+                      back_direction=np.asarray(back_direction, dtype=np.float64), hand_length=float(hand_length),
+                      name=str(extras.get("name", document.path.stem)))
     model.validate()
     return model
 

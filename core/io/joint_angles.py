@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import os
-import zipfile
 from pathlib import Path
 
 import numpy as np
 
 from core.errors import InputError
 from core.io.durable import write_atomic
+from core.io.npz import load_npz
 from core.model.skeleton import N_PARAMS, PARAM_NAMES
 
 
@@ -40,10 +40,10 @@ def write_joint_angles_csv(path: str | os.PathLike[str], hands: list[tuple[str, 
 
 def read_result_joint_angles(path: str | os.PathLike[str]) -> np.ndarray:
     """``joint_angles (F, 26)`` (mm, rad) of a solve result ``.npz``; InputError if unreadable."""
+    data = load_npz(path, "an IK result with joint angles")
     try:
-        with np.load(path, allow_pickle=False) as data:
-            angles = np.asarray(data["joint_angles"], dtype=float)
-    except (OSError, KeyError, ValueError, TypeError, zipfile.BadZipFile) as error:
+        angles = np.asarray(data["joint_angles"], dtype=float)
+    except (KeyError, ValueError, TypeError) as error:
         raise InputError(f"{Path(path).name}: not an IK result with joint angles ({error})") from error
     if angles.ndim != 2 or angles.shape[1] != N_PARAMS:
         raise InputError(f"{Path(path).name}: joint_angles must be (F, 26), got {angles.shape}")

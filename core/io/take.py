@@ -9,7 +9,7 @@ import operator
 import os
 import re
 import secrets
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from os import PathLike
@@ -68,9 +68,11 @@ class Take:
         for name in self.marker_names:
             if not isinstance(name, str) or not name.strip():
                 raise self._error(f"invalid marker name {name!r}")
-        if len(set(self.marker_names)) != len(self.marker_names):
-            duplicate = next(n for n in self.marker_names if self.marker_names.count(n) > 1)
-            raise self._error(f"duplicate marker name '{duplicate}'")
+        seen: set[str] = set()
+        for name in self.marker_names:
+            if name in seen:
+                raise self._error(f"duplicate marker name '{name[:80]}'")
+            seen.add(name)
         if np.isinf(positions).any():
             raise self._error("marker positions contain infinite values")
         try:
@@ -137,50 +139,117 @@ def zeros_to_nan(positions: np.ndarray) -> np.ndarray:
 
 
 def unique_marker_names(names: list[str]) -> list[str]:
-    """Strip names, name blank ones `M<i>` (1-based column) and suffix repeats `_2`, `_3`... ."""
+    """Strip names, name blank ones `M<i>` (1-based column) and suffix repeats `_2`, `_3`... .
+
+    Linear time: the next free suffix of each name is remembered, so each taken name is passed over at
+    most once (a name "A_3" can only be the third copy of "A").
+    """
     result: list[str] = []
     taken: set[str] = set()
+    last_copy: dict[str, int] = {}
     for index, raw in enumerate(names):
         base = raw.strip() or f"M{index + 1}"
-        name, copy = base, 1
-        while name in taken:
-            copy += 1
-            name = f"{base}_{copy}"
+        name = base
+        if name in taken:
+            copy = last_copy.get(base, 1)
+            while name in taken:
+                copy += 1
+                name = f"{base}_{copy}"
+            last_copy[base] = copy
         taken.add(name)
         result.append(name)
     return result
 
 
-def read_text(path: str | PathLike[str]) -> str:
-    """The whole text file, decoded as UTF-8 (with BOM) or, failing that, Latin-1."""
-    raw = Path(path).read_bytes()
-    try:
-        return raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        return raw.decode("latin-1")
+#: text cells parsed per block: bounds the Python objects alive at once (about 32 bytes a cell)
+_CELLS_PER_BLOCK = 1 << 20
+_UTF16_BOMS = (b"\xff\xfe", b"\xfe\xff")
 
 
-def parse_number_rows(rows: list[tuple[int, list[str]]], width: int, path: str | PathLike[str]) -> np.ndarray:
-    """(N, width) float64 from text rows given as (line number, cells); blank or absent cells -> NaN."""
+@contextmanager
+def open_text_lines(path: str | PathLike[str]) -> Iterator[Iterator[tuple[int, str]]]:
+    """The lines of a text take as (1-based number, text without the line end), read as they are consumed.
+
+    UTF-8 with or without a BOM (a line that is not UTF-8 is read as Latin-1), or UTF-16 recognised by its
+    BOM or, without one, by the zero bytes of its ASCII characters.
+    """
+    path = Path(path)
+    with path.open("rb") as stream:
+        start = stream.read(4096)
+    even, odd = start[0::2], start[1::2]
+    if start[:2] in _UTF16_BOMS:
+        encoding, errors = "utf-16", "replace"
+    elif odd and odd.count(0) == len(odd) and 0 not in even:
+        encoding, errors = "utf-16-le", "replace"
+    elif even and even.count(0) == len(even) and 0 not in odd:
+        encoding, errors = "utf-16-be", "replace"
+    else:  # binary files too: the format's own checks then say what is missing
+        encoding, errors = "utf-8-sig", "surrogateescape"
+    with path.open(encoding=encoding, errors=errors) as stream:
+        yield ((number, _latin1_if_undecodable(line.rstrip("\n"))) for number, line in enumerate(stream, 1))
+
+
+def _latin1_if_undecodable(line: str) -> str:
+    """A line decoded with "surrogateescape", decoded again as Latin-1 when it was not UTF-8."""
+    if line.isascii() or not any("\udc80" <= char <= "\udcff" for char in line):
+        return line
+    return line.encode("utf-8", "surrogateescape").decode("latin-1")
+
+
+def read_number_rows(lines: Iterable[tuple[int, str]], width: int, delimiter: str,
+                     path: str | PathLike[str]) -> np.ndarray:
+    """(N, width) float64 from numbered text rows: blank rows skipped, blank or absent cells NaN, cells past
+    `width` ignored.
+
+    Rows are parsed in blocks of about :data:`_CELLS_PER_BLOCK` cells, so the memory in use peaks near twice
+    the table. Every cell of a row takes at least one byte (its delimiter or the line end), so a table with
+    more cells than the file has bytes is made of rows that lack most of their cells: it is refused before
+    it is allocated.
+    """
+    file_size = Path(path).stat().st_size
+    rows_per_block = max(1, _CELLS_PER_BLOCK // max(width, 1))
+    blocks: list[np.ndarray] = []
+    block: list[tuple[int, str]] = []
+    n_rows = 0
+    for number, line in lines:
+        if not line.strip():
+            continue
+        block.append((number, line))
+        if len(block) == rows_per_block:
+            n_rows = _check_cells(n_rows + len(block), width, file_size, path)
+            blocks.append(_parse_block(block, width, delimiter, path))
+            block = []
+    if block:
+        n_rows = _check_cells(n_rows + len(block), width, file_size, path)
+        blocks.append(_parse_block(block, width, delimiter, path))
+    return np.concatenate(blocks) if blocks else np.empty((0, width))
+
+
+def _check_cells(n_rows: int, width: int, file_size: int, path: str | PathLike[str]) -> int:
+    """`n_rows`, after checking that `n_rows` x `width` cells are no more than the file's bytes."""
+    if n_rows * width > file_size:
+        raise TakeFormatError.at(path, f"{n_rows} rows of {width} columns are more cells than the file has "
+                                       f"bytes ({file_size}): the rows lack most of their cells")
+    return n_rows
+
+
+def _parse_block(block: list[tuple[int, str]], width: int, delimiter: str, path: str | PathLike[str]) -> np.ndarray:
+    """(len(block), width) float64 of numbered rows; blank or absent cells NaN."""
     padding = [""] * width
     try:
-        values = [
-            [float(cell) if cell else math.nan for cell in (cells + padding)[:width]] for _, cells in rows
-        ]
+        values = [float(cell) if cell else math.nan
+                  for _, line in block for cell in (line.split(delimiter, width) + padding)[:width]]
     except ValueError:
         values = []
-        for line_number, cells in rows:
-            row = []
-            for column, cell in enumerate((cells + padding)[:width]):
+        for number, line in block:
+            for column, cell in enumerate((line.split(delimiter, width) + padding)[:width]):
                 try:
-                    row.append(float(cell) if cell.strip() else math.nan)
+                    values.append(float(cell) if cell.strip() else math.nan)
                 except ValueError:
-                    raise TakeFormatError.at(
-                        path,
-                        f"line {line_number}, column {column + 1}: '{cell.strip()[:20]}' is not a number",
-                    ) from None
-            values.append(row)
-    return np.array(values, dtype=np.float64).reshape(len(rows), width)
+                    shown = ascii(cell.strip()[:20])
+                    raise TakeFormatError.at(path, f"line {number}, column {column + 1}: {shown} is not a number"
+                                             ) from None
+    return np.array(values, dtype=np.float64).reshape(len(block), width)
 
 
 def format_number_rows(first_frame: int, frame_rate: float, positions: np.ndarray, delimiter: str) -> str:

@@ -12,6 +12,7 @@ Units are "mm", "cm" or "m" (converted to mm on reading; written as mm). Missing
 empty cells (also "NaN" or (0, 0, 0) on reading). The first frame number is the first Frame# cell.
 """
 
+import itertools
 import logging
 import math
 from os import PathLike
@@ -23,8 +24,8 @@ from core.io.take import (
     atomic_target,
     format_number_rows,
     mm_per_unit,
-    parse_number_rows,
-    read_text,
+    open_text_lines,
+    read_number_rows,
     unique_marker_names,
     zeros_to_nan,
 )
@@ -45,35 +46,31 @@ _HEADER_KEYS = (
 
 def read_trc(path: str | PathLike[str]) -> Take:
     """Read a TRC file into a Take (mm, NaN for missing); raises TakeFormatError."""
-    lines = read_text(path).splitlines()
-    if len(lines) < 5 or not lines[0].startswith("PathFileType"):
-        raise TakeFormatError.at(path, "not a TRC file (the first line must start with 'PathFileType')")
-    header = dict(
-        zip(
-            (key.strip() for key in lines[1].split("\t")),
-            (value.strip() for value in lines[2].split("\t")),
-            strict=False,
+    with open_text_lines(path) as lines:
+        head = [line for _, line in itertools.islice(lines, 5)]
+        if len(head) < 5 or not head[0].startswith("PathFileType"):
+            raise TakeFormatError.at(path, "not a TRC file (the first line must start with 'PathFileType')")
+        header = dict(
+            zip(
+                (key.strip() for key in head[1].split("\t")),
+                (value.strip() for value in head[2].split("\t")),
+                strict=False,
+            )
         )
-    )
-    frame_rate = _positive_number(header, "DataRate") or _positive_number(header, "CameraRate")
-    if frame_rate is None:
-        raise TakeFormatError.at(path, f"line 3: invalid DataRate '{header.get('DataRate', '')}'")
-    units = header.get("Units") or "mm"
-    scale = mm_per_unit(units, path)
-    names = unique_marker_names([cell for cell in lines[3].split("\t")[2:] if cell.strip()])
-    declared = header.get("NumMarkers", "")
-    if declared.isdigit() and int(declared) != len(names):
-        _log.warning(
-            "%s: NumMarkers says %s, the file names %d markers", Path(path).name, declared, len(names)
-        )
-
-    width = 2 + 3 * len(names)
-    rows = [
-        (number + 1, lines[number].split("\t")) for number in range(5, len(lines)) if lines[number].strip()
-    ]
-    table = parse_number_rows(rows, width, path)
-    positions = zeros_to_nan(table[:, 2:].reshape(len(rows), len(names), 3)) * scale
-    first_frame = int(table[0, 0]) if len(rows) and math.isfinite(table[0, 0]) else 1
+        frame_rate = _positive_number(header, "DataRate") or _positive_number(header, "CameraRate")
+        if frame_rate is None:
+            raise TakeFormatError.at(path, f"line 3: invalid DataRate '{header.get('DataRate', '')[:40]}'")
+        units = header.get("Units") or "mm"
+        scale = mm_per_unit(units, path)
+        names = unique_marker_names([cell for cell in head[3].split("\t")[2:] if cell.strip()])
+        declared = header.get("NumMarkers", "")
+        if declared.isascii() and declared.isdigit() and declared.lstrip("0") != str(len(names)).lstrip("0"):
+            _log.warning(
+                "%s: NumMarkers says %s, the file names %d markers", Path(path).name, declared[:20], len(names)
+            )
+        table = read_number_rows(lines, 2 + 3 * len(names), "\t", path)
+    positions = zeros_to_nan(table[:, 2:].reshape(len(table), len(names), 3)) * scale  # a new contiguous array
+    first_frame = int(table[0, 0]) if len(table) and math.isfinite(table[0, 0]) else 1
     return Take(
         marker_names=names,
         marker_positions=positions,

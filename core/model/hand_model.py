@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
+from core.io.npz import load_npz
 from core.model.kinematics import KinematicChain
 from core.model.skeleton import N_JOINTS, Skeleton
 
@@ -82,19 +83,19 @@ class HandModel:
     @classmethod
     def load(cls, path: str | Path) -> HandModel:
         """Read a model written by :meth:`save`."""
+        data = load_npz(path, "a hand model file")
         try:
-            with np.load(path, allow_pickle=False) as data:
-                skeleton = Skeleton(data["rest_positions"], data["rest_rotations"], data["tip_positions"],
-                                    str(data["side"]))
-                model = cls(
-                    skeleton=skeleton, vertices=data["vertices"], faces=data["faces"],
-                    skin_joints=data["skin_joints"], skin_weights=data["skin_weights"],
-                    landmarks={str(n): int(v) for n, v in zip(data["landmark_names"],
-                                                              data["landmark_vertices"], strict=True)},
-                    back_direction=data["back_direction"], hand_length=float(data["hand_length"]),
-                    name=str(data["name"]),
-                )
-        except (OSError, KeyError, ValueError) as error:
+            skeleton = Skeleton(data["rest_positions"], data["rest_rotations"], data["tip_positions"],
+                                str(data["side"]))
+            model = cls(
+                skeleton=skeleton, vertices=data["vertices"], faces=data["faces"],
+                skin_joints=data["skin_joints"], skin_weights=data["skin_weights"],
+                landmarks={str(n): int(v) for n, v in zip(data["landmark_names"],
+                                                          data["landmark_vertices"], strict=True)},
+                back_direction=data["back_direction"], hand_length=float(data["hand_length"]),
+                name=str(data["name"]),
+            )
+        except (KeyError, ValueError, TypeError) as error:
             raise InputError(f"{Path(path).name}: not a hand model file ({error})") from error
         model.validate()
         return model

@@ -8,7 +8,6 @@ Subspace IK uses ``theta[6:] = P alpha + mean`` with ``P = components[:, :dims]`
 
 from __future__ import annotations
 
-import zipfile
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -17,6 +16,7 @@ import numpy as np
 
 from core.errors import InputError
 from core.io.joint_angles import read_result_joint_angles
+from core.io.npz import load_npz
 from core.model.skeleton import N_GLOBAL, N_POSTURE, default_joint_limits
 from core.prior.canonical_postures import prior_postures
 
@@ -85,11 +85,11 @@ class PosturePrior:
     def load(cls, path: str | Path) -> PosturePrior:
         """Read a prior written by :meth:`save`; :class:`InputError` when the file is not one."""
         name = Path(path).name
+        data = load_npz(path, "a posture prior file")
         try:
-            with np.load(path, allow_pickle=False) as data:
-                arrays = {field: np.asarray(data[field], dtype=float) for field in _ARRAY_FIELDS}
-                prior = cls(**arrays, source=str(data["source"]), n_samples=int(data["n_samples"]))
-        except (OSError, KeyError, ValueError, TypeError, zipfile.BadZipFile) as error:
+            arrays = {field: np.asarray(data[field], dtype=float) for field in _ARRAY_FIELDS}
+            prior = cls(**arrays, source=str(data["source"]), n_samples=int(data["n_samples"]))
+        except (KeyError, ValueError, TypeError) as error:
             raise InputError(f"{name}: not a posture prior file ({error})") from error
         problem = prior.problem()
         if problem:

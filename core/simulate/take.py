@@ -17,7 +17,6 @@ loses every marker (the best-facing one is kept).
 
 from __future__ import annotations
 
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,6 +25,7 @@ from numba import njit
 
 from core.errors import InputError
 from core.io import Take
+from core.io.npz import load_npz
 from core.model import (
     HandModel,
     MarkerLayout,
@@ -306,11 +306,7 @@ def save_truth(truth: dict[str, np.ndarray], path: str | Path) -> None:
 def load_truth(path: str | Path) -> dict[str, np.ndarray]:
     """Read a truth file written by :func:`save_truth`; :class:`InputError` when it is not one."""
     name = Path(path).name
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            truth = {key: data[key] for key in data.files}
-    except (OSError, ValueError, TypeError, AttributeError, zipfile.BadZipFile) as error:
-        raise InputError(f"{name}: not a simulation truth file ({error})") from error
+    truth = load_npz(path, "a simulation truth file")
     missing = [key for key in REQUIRED_TRUTH if key not in truth]
     if missing:
         raise InputError(f"{name}: simulation truth lacks {', '.join(missing)}")
