@@ -37,9 +37,28 @@ if [ -z "$python_bin" ]; then
 fi
 
 [ -x .venv/bin/python ] || "$python_bin" -m venv .venv
-.venv/bin/python -m pip install -q --upgrade pip
-if [ "${1:-}" = "--test" ]; then
-  .venv/bin/python -m pip install -q -e ".[test]"
-else
-  .venv/bin/python -m pip install -q -e .
+
+# Install only when what decides the installation changed (the project file, this script, the extras
+# asked for); the source itself is installed in editable mode and needs no reinstall.
+extras=""
+[ "${1:-}" = "--test" ] && extras="[test]"
+install_stamp=".venv/.handmocap-install"
+install_key="$(cat pyproject.toml installer/setup.sh | sha256sum | cut -c1-32)$extras"
+installed_key="$(cat "$install_stamp" 2>/dev/null || true)"
+# An installation with the test tools also serves the plain application.
+if [ "$installed_key" != "$install_key" ] && [ "$installed_key" != "${install_key}[test]" ]; then
+  echo "installing Hand Mocap Studio and its Python packages into .venv/"
+  .venv/bin/python -m pip install -q --upgrade pip
+  .venv/bin/python -m pip install -q -e ".$extras"
+  echo "$install_key" > "$install_stamp"
+fi
+
+# Compile the numba kernels now (cached next to the sources), not at an operator's first click; again
+# whenever the computing code changed (numba recompiles a kernel whose source file changed).
+kernels_stamp=".venv/.handmocap-kernels"
+kernels_key="$(find core -name '*.py' -print0 | sort -z | xargs -0 cat | sha256sum | cut -c1-32)"
+if [ "$(cat "$kernels_stamp" 2>/dev/null || true)" != "$kernels_key" ]; then
+  echo "compiling the numba kernels (once after installing or updating; about a minute)"
+  .venv/bin/python -m core.workflows.warm_up
+  echo "$kernels_key" > "$kernels_stamp"
 fi
