@@ -21,10 +21,10 @@ from os import PathLike
 
 import numpy as np
 
+from core.io.durable import write_text_atomic
 from core.io.errors import TakeFormatError
 from core.io.take import (
     Take,
-    atomic_target,
     format_number_rows,
     mm_per_unit,
     open_text_lines,
@@ -93,7 +93,7 @@ def read_csv(path: str | PathLike[str]) -> Take:
 
 
 def write_csv(take: Take, path: str | PathLike[str]) -> None:
-    """Write `take` as a CSV take in mm (format in the module docstring), atomically."""
+    """Write `take` as a CSV take in mm (format in the module docstring) through :mod:`core.io.durable`."""
     column_row = io.StringIO()
     columns = ["frame", "time"] + [f"{name}_{axis}" for name in take.marker_names for axis in "xyz"]
     csv.writer(column_row, lineterminator="\n").writerow(columns)
@@ -102,8 +102,7 @@ def write_csv(take: Take, path: str | PathLike[str]) -> None:
         + column_row.getvalue()
         + format_number_rows(take.first_frame, take.frame_rate, take.marker_positions, ",")
     )
-    with atomic_target(path) as temporary:
-        temporary.write_text(text, encoding="utf-8")
+    write_text_atomic(path, text)
 
 
 def _frame_rate(settings: dict[str, str], times: np.ndarray | None, path: str | PathLike[str]) -> float:

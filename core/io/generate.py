@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.io.c3d_file import write_c3d
+from core.io.c3d_writer import write_c3d
 from core.io.loader import load_take
 from core.io.take import Take
 

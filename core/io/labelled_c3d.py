@@ -4,7 +4,7 @@ Points: the labels first (``POINT:LABELS`` = the label names, e.g. the layout's 
 prefixed for two hands), then optionally the unlabelled points as ``*<column>`` (one C3D point per raw
 column that is unlabelled in some frame, holding that column's point in the frames where no label
 took it — so a fragmented raw export keeps its trajectories). Coordinates are written as float32 in
-mm through :func:`core.io.c3d_file.write_c3d`: a measured sample is exactly the input point (bit for
+mm through :func:`core.io.c3d_writer.write_c3d_points` (streamed): a measured sample is exactly the input point (bit for
 bit when the input came from a float C3D; other inputs are rounded to float32, under 0.1 µm at 1 m).
 Filled samples are written too, as valid points.
 
@@ -49,7 +49,8 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
-from core.io.c3d_file import read_c3d, write_c3d
+from core.io.c3d_file import read_c3d
+from core.io.c3d_writer import write_c3d_points
 from core.io.errors import TakeFormatError
 from core.io.take import Take
 
@@ -161,7 +162,9 @@ def write_labelled_c3d(path: str | PathLike[str], label_names: list[str], positi
     ``edited (F, M)`` bool;
     ``unlabelled (F, U, 3)`` mm named ``unlabelled_names`` (default ``*0``, ``*1``...), ``ghost (F, U)``
     bool; ``parameters``: other groups to copy (a group the writer cannot store is dropped with a
-    warning). Raises TakeFormatError (one line) when the file cannot be written.
+    warning). The points are streamed to the file, never joined in memory. Raises TakeFormatError (one
+    line) when the take cannot be stored as C3D, WriteError when the file cannot be written (the old file
+    is then kept).
     """
     positions = np.asarray(positions, dtype=np.float64)
     frames, count = positions.shape[:2]
@@ -195,17 +198,14 @@ def write_labelled_c3d(path: str | PathLike[str], label_names: list[str], positi
     if hands:
         group["HANDS"] = list(hands)
     kept = {name: dict(values) for name, values in (parameters or {}).items() if name.upper() != GROUP}
-    take = Take(marker_names=names, marker_positions=np.concatenate(columns, axis=1), frame_rate=frame_rate,
-                first_frame=first_frame, parameters={**kept, GROUP: group})
     try:
-        write_c3d(take, path)
+        write_c3d_points(path, names, columns, frame_rate, first_frame, {**kept, GROUP: group})
     except TakeFormatError:
         if not kept:
             raise
         _log.warning("%s: the source take's parameter groups cannot all be written; writing without them",
                      Path(path).name)
-        take.parameters = {GROUP: group}
-        write_c3d(take, path)
+        write_c3d_points(path, names, columns, frame_rate, first_frame, {GROUP: group})
 
 
 def read_labelled_c3d(path: str | PathLike[str]) -> LabelledC3D:

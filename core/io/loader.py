@@ -4,7 +4,8 @@ from collections.abc import Callable
 from os import PathLike
 from pathlib import Path
 
-from core.io.c3d_file import read_c3d, write_c3d
+from core.io.c3d_file import read_c3d
+from core.io.c3d_writer import write_c3d
 from core.io.csv_file import read_csv, write_csv
 from core.io.errors import TakeFormatError
 from core.io.qualisys_tsv import read_tsv
@@ -54,7 +55,8 @@ def load_take(path: str | PathLike[str]) -> Take:
 
 
 def save_take(take: Take, path: str | PathLike[str]) -> None:
-    """Write `take` as .c3d, .trc or .csv (by extension), atomically: temporary file, then rename."""
+    """Write `take` as .c3d, .trc or .csv (by extension) through :mod:`core.io.durable`: the old file is
+    replaced only by a complete new one. Raises TakeFormatError or WriteError (one line naming the file)."""
     path = Path(path)
     writer = _WRITERS.get(path.suffix.lower())
     if writer is None:
@@ -63,9 +65,4 @@ def save_take(take: Take, path: str | PathLike[str]) -> None:
         )
     if take.n_frames == 0 or take.n_markers == 0:
         raise TakeFormatError.at(path, f"nothing to write ({take.n_frames} frames, {take.n_markers} markers)")
-    if not path.parent.is_dir():
-        raise TakeFormatError.at(path, f"folder '{path.parent}' does not exist")
-    try:
-        writer(take, path)
-    except OSError as error:
-        raise TakeFormatError.at(path, f"cannot write the file ({error.strerror or error})") from None
+    writer(take, path)

@@ -18,10 +18,10 @@ import math
 from os import PathLike
 from pathlib import Path
 
+from core.io.durable import write_text_atomic
 from core.io.errors import TakeFormatError
 from core.io.take import (
     Take,
-    atomic_target,
     format_number_rows,
     mm_per_unit,
     open_text_lines,
@@ -107,8 +107,7 @@ def write_trc(take: Take, path: str | PathLike[str]) -> None:
         "",
     ]
     body = format_number_rows(take.first_frame, take.frame_rate, take.marker_positions, "\t")
-    with atomic_target(path) as temporary:
-        temporary.write_text("\n".join(header) + "\n" + body, encoding="utf-8")
+    write_text_atomic(path, "\n".join(header) + "\n" + body)
 
 
 def _positive_number(header: dict[str, str], key: str) -> float | None:
