@@ -25,7 +25,7 @@ from scipy.cluster.hierarchy import fcluster, linkage
 from scipy.optimize import linear_sum_assignment
 
 from core.ik import kabsch
-from core.labelling.models import HandTrack, RigidTrack, SceneSettings, Track, pose_matrix
+from core.labelling.models import HandTracker, RigidTrack, SceneSettings, Track, pose_matrix
 from core.model.kinematics import rotation_from_vector, vector_from_rotation
 
 LINK_MARGIN = 1.2
@@ -64,7 +64,7 @@ class Candidate:
 
 def model_points(track: Track) -> np.ndarray:
     """The model's markers in its reference configuration (hands: mean posture of the prior) (K,3)."""
-    if isinstance(track, HandTrack):
+    if isinstance(track, HandTracker):
         return track.effectors(track.mean_theta)
     return track.local
 
@@ -229,7 +229,7 @@ def _score(effectors: np.ndarray, cluster: np.ndarray, point_index: np.ndarray, 
     return residual + alpha * unmatched, residual, count
 
 
-def _posture_starts(track: HandTrack) -> list[np.ndarray]:
+def _posture_starts(track: HandTracker) -> list[np.ndarray]:
     """Finger postures (26,) to start a fit from other than the prior's mean: the mean moved
     ±:data:`RETRY_STDDEVS` standard deviations along each of the prior's first
     :data:`RETRY_COMPONENTS` principal components (clipped to the joint limits)."""
@@ -244,7 +244,7 @@ def _posture_starts(track: HandTrack) -> list[np.ndarray]:
     return starts
 
 
-def fit_hand(track: HandTrack, cluster: np.ndarray, settings: SceneSettings, strays: np.ndarray | None = None
+def fit_hand(track: HandTracker, cluster: np.ndarray, settings: SceneSettings, strays: np.ndarray | None = None
              ) -> list[tuple[float, np.ndarray, int, float, np.ndarray]]:
     """Eq. 2 fits of a hand to ``cluster (N,3)``, best first: (score, θ, matched, residual, point index
     (K,)), at most :data:`HAND_HYPOTHESES` with different labellings (the runners-up are hypotheses the
@@ -273,7 +273,7 @@ def fit_hand(track: HandTrack, cluster: np.ndarray, settings: SceneSettings, str
     return distinct[:HAND_HYPOTHESES]
 
 
-def _fit_from(track: HandTrack, cluster: np.ndarray, extended: np.ndarray, settings: SceneSettings,
+def _fit_from(track: HandTracker, cluster: np.ndarray, extended: np.ndarray, settings: SceneSettings,
               posture: np.ndarray, rotation: np.ndarray, translation: np.ndarray):
     """Fit of the hand starting from ``posture (26,)`` moved by the alignment ``rotation``,
     ``translation``: alternate Hungarian assignment and IK, then complete; the tuple of
@@ -290,7 +290,7 @@ def _fit_from(track: HandTrack, cluster: np.ndarray, extended: np.ndarray, setti
     return score, theta, count, residual, point_index
 
 
-def _complete(track: HandTrack, cluster: np.ndarray, cluster_size: int, theta: np.ndarray, effectors: np.ndarray,
+def _complete(track: HandTracker, cluster: np.ndarray, cluster_size: int, theta: np.ndarray, effectors: np.ndarray,
               point_index: np.ndarray, scored: tuple[float, float, int], settings: SceneSettings):
     """Offer the cluster points no marker took to the unmatched markers within
     ``init_completion_gate_mm`` (a digit posed far from the prior's mean, e.g. an abducted thumb),
@@ -428,7 +428,7 @@ def initialise_frame(tracks: list[Track], candidates_for: list[int], points: np.
             if len(cluster) < max(3, int(np.ceil(settings.init_min_share * track.count))):
                 continue
             least = max(3, int(np.ceil(settings.init_min_share * track.count)))
-            if isinstance(track, HandTrack):
+            if isinstance(track, HandTracker):
                 fits = fit_hand(track, cluster, settings, points[strays])
             else:
                 fits = [fit_object(track, cluster, settings)]

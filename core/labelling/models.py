@@ -292,8 +292,9 @@ class Track(ABC):
         """The state fitting ``targets (K,3)`` mm where ``observed (K,)``, from ``start``; and its markers."""
 
 
-class HandTrack(Track):
-    """A hand tracked by IK: warm-started full IK with the soft posture prior on the digits whose
+class HandTracker(Track):
+    """The labeller's tracking state of one hand (a review's hand is :class:`core.review.HandTrack`), tracked
+    by IK: warm-started full IK with the soft posture prior on the digits whose
     three segments are not all observed (the refinement step of layered IK), falling back to the
     complete layered solve from a rigid alignment when the warm start lost track."""
 

@@ -62,7 +62,7 @@ from core.labelling.initialise import (
     pair_distances,
     reacquire_object,
 )
-from core.labelling.models import HandTrack, RigidTrack, SceneSettings, Track
+from core.labelling.models import HandTracker, RigidTrack, SceneSettings, Track
 from core.labelling.sides import SideDecision, decide_sides
 from core.labelling.swaps import neighbour_pairs, point_tracklets, repair_swaps, unify_tracklets
 from core.labelling.take_statistics import measure_take
@@ -170,7 +170,7 @@ class _Run:
         self.assignment = np.full((frames, marker_count), -1, dtype=np.int64)
         self.confidence = np.full((frames, marker_count), np.nan)
         self.residuals = np.full((frames, marker_count), np.nan)
-        self.states = [np.full((frames, N_PARAMS), np.nan) if isinstance(track, HandTrack)
+        self.states = [np.full((frames, N_PARAMS), np.nan) if isinstance(track, HandTracker)
                        else np.full((frames, 4, 4), np.nan) for track in tracks]
         self.init_frames = [-1] * len(tracks)
         self.cut = cluster_cut(tracks, settings)
@@ -376,7 +376,7 @@ class _Run:
         settings = self.settings
         for number in active:
             track = self.tracks[number]
-            if not isinstance(track, HandTrack):
+            if not isinstance(track, HandTracker):
                 continue
             labels = self.assignment[frame, self.columns(number)] >= 0
             least = max(3, int(np.ceil(settings.init_min_share * track.count)))
@@ -558,7 +558,7 @@ class _Run:
                 if k not in refused:
                     self.confidence[frame, part.start + k] = margins[(frame, part.start + k)]
 
-    def rescue(self, track_index: int, track: HandTrack, causal: bool = False) -> None:
+    def rescue(self, track_index: int, track: HandTracker, causal: bool = False) -> None:
         """Give a long trajectory of free points (:func:`free_fragments`, at least
         ``fragment_min_frames``) to the hand marker missing all along it that the IK brings to it below
         the ceiling threshold in sampled frames of the fragment, when no other candidate marker comes
@@ -570,7 +570,7 @@ class _Run:
             if not self._rescue_round(track_index, track, causal):
                 break
 
-    def _rescue_round(self, track_index: int, track: HandTrack, causal: bool) -> bool:
+    def _rescue_round(self, track_index: int, track: HandTracker, causal: bool) -> bool:
         settings = self.settings
         part = self.columns(track_index)
         states = self.states[track_index]
@@ -625,7 +625,7 @@ class _Run:
                 given = True
         return given
 
-    def repair_swaps(self, track_index: int, track: HandTrack, every_fragment: bool = False
+    def repair_swaps(self, track_index: int, track: HandTracker, every_fragment: bool = False
                      ) -> list[tuple[int, int, int, int]]:
         """Offline: neighbouring markers of the hand labelled the wrong way round over a fragment are
         exchanged when the IK fits clearly better so (:mod:`core.labelling.swaps`; ``every_fragment``: not
@@ -869,7 +869,7 @@ def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout = "d
     frames = len(positions)
 
     def make_tracks(current_models: dict[str, HandModel], current_sets: dict[str, MarkerSet]) -> list[Track]:
-        tracks: list[Track] = [HandTrack(side, side, current_models[side], current_sets[side], settings,
+        tracks: list[Track] = [HandTracker(side, side, current_models[side], current_sets[side], settings,
                                          hand_names[side]) for side in sides]
         tracks += [RigidTrack(spec, settings) for spec in specs]
         return tracks
@@ -947,7 +947,7 @@ def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout = "d
         report = reporter(0.9, 1.0, len(tracks))
         for number in range(len(tracks)):
             report(number)
-            if isinstance(tracks[number], HandTrack):
+            if isinstance(tracks[number], HandTracker):
                 for frame in run.reinitialised.get(number, []):
                     run.retrack(number, make_tracks(hand_models, marker_sets)[number], frame, 0,
                                 converge=settings.hypothesis_frames)
@@ -957,7 +957,7 @@ def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout = "d
     for number in range(len(tracks)):
         track = make_tracks(hand_models, marker_sets)[number]
         run.link(number, track, backward=not online)
-        if isinstance(track, HandTrack):
+        if isinstance(track, HandTracker):
             run.rescue(number, track, causal=online)
             if not online:
                 run.repair_swaps(number, track)
@@ -976,8 +976,8 @@ def _decide_sides(positions: np.ndarray, layout: MarkerLayout, settings: SceneSe
     hand_models = {side: models.get(side) or load_template(side) for side in ("right", "left")}
     marker_sets = {side: resolve_layout(model, layout) for side, model in hand_models.items()}
 
-    def make_track(side: str) -> HandTrack:
-        return HandTrack(side, side, hand_models[side], marker_sets[side], settings)
+    def make_track(side: str) -> HandTracker:
+        return HandTracker(side, side, hand_models[side], marker_sets[side], settings)
 
     cut = cluster_cut([make_track("right"), *(RigidTrack(spec, settings) for spec in specs)], settings)
     return decide_sides(positions, make_track, settings, cut,
@@ -995,7 +995,7 @@ def _seed(run: _Run, tracks: list[Track], initial_states: dict[str, object] | No
         if number is None:
             raise InputError(f"initial state for unknown model '{name}'")
         state = np.asarray(state, dtype=float)
-        expected = (N_PARAMS,) if isinstance(tracks[number], HandTrack) else (4, 4)
+        expected = (N_PARAMS,) if isinstance(tracks[number], HandTracker) else (4, 4)
         if state.shape != expected or not np.isfinite(state).all():
             raise InputError(f"the initial state of '{name}' must be finite with shape {expected}, got {state.shape}")
         run.start_at(0, number, state)
@@ -1006,7 +1006,7 @@ def _schedule_decided(run: _Run, tracks: list[Track], decision: SideDecision | N
     if decision is None:
         return
     for number, track in enumerate(tracks):
-        start = decision.starts.get(track.kind) if isinstance(track, HandTrack) else None
+        start = decision.starts.get(track.kind) if isinstance(track, HandTracker) else None
         if start is not None and run.init_frames[number] < 0:
             run.scheduled.setdefault(decision.frame, []).append((number, start[0].copy(), start[1].copy()))
 
@@ -1031,7 +1031,7 @@ def _prepass(positions: np.ndarray, tracks: list[Track], settings: SceneSettings
     _seed(pre, tracks, initial_states)
     _schedule_decided(pre, tracks, decision)
     window_end = len(positions)
-    hands = [number for number, track in enumerate(tracks) if isinstance(track, HandTrack)]
+    hands = [number for number, track in enumerate(tracks) if isinstance(track, HandTracker)]
 
     def stop_when_calibrated(frame: int) -> None:
         nonlocal window_end
@@ -1047,7 +1047,7 @@ def _prepass(positions: np.ndarray, tracks: list[Track], settings: SceneSettings
     pre.truncate(window_end)
     for number in hands:
         track = make_track(number)
-        assert isinstance(track, HandTrack)
+        assert isinstance(track, HandTracker)
         pre.verify_start(number, track)
         pre.link(number, track, backward=True)
         pre.rescue(number, track)
@@ -1064,7 +1064,7 @@ def _refreshed_calibrations(prepasses: list[_Run], windows: list[int], tracks: l
     frame on. Returns {first frame: [(hand track number, model, marker set)]}."""
     refreshed: dict[int, list[tuple[int, HandModel, MarkerSet]]] = {}
     for number, track in enumerate(tracks):
-        if not isinstance(track, HandTrack) or len(prepasses) < 2:
+        if not isinstance(track, HandTracker) or len(prepasses) < 2:
             continue
         fits = [_window_residual(run, number, track) for run in prepasses]
         for run, offset, fit in zip(prepasses[1:], windows[1:], fits[1:], strict=True):
@@ -1077,7 +1077,7 @@ def _refreshed_calibrations(prepasses: list[_Run], windows: list[int], tracks: l
     return refreshed
 
 
-def _window_residual(run: _Run, number: int, track: HandTrack, samples: int = 12) -> float:
+def _window_residual(run: _Run, number: int, track: HandTracker, samples: int = 12) -> float:
     """Mean residual (mm) of ``track``'s (calibrated) hand on up to ``samples`` labelled frames of a pre-pass."""
     part = run.columns(number)
     states = run.states[number]
@@ -1136,7 +1136,7 @@ def _result(run: _Run, tracks: list[Track], sides: list[str], specs: list[Object
     for number, track in enumerate(tracks):
         names += track.marker_names
         owner += [number] * track.count
-        if isinstance(track, HandTrack):
+        if isinstance(track, HandTracker):
             scene_models.append(SceneModel(track.name, track.kind, run.columns(number), hand_models[track.kind],
                                            marker_sets[track.kind], None, run.init_frames[number],
                                            calibrations.get(track.kind, {}), run.reinitialised.get(number, [])))

@@ -21,7 +21,7 @@ import numpy as np
 
 from core.errors import InputError
 from core.labelling.initialise import clusters_of, fit_hand
-from core.labelling.models import HandTrack, SceneSettings
+from core.labelling.models import HandTracker, SceneSettings
 
 Start = tuple[np.ndarray, np.ndarray]
 """Where a hand starts: point column per marker (K,) (-1 none) and θ (26,)."""
@@ -48,8 +48,8 @@ class SideDecision:
         return [side for side, margin in self.margins.items() if margin < SIDE_MARGIN]
 
 
-def decide_sides(positions: np.ndarray, make_track: Callable[[str], HandTrack], settings: SceneSettings,
-                 cut_mm: float, cost: Callable[[HandTrack, int, np.ndarray, np.ndarray], float]) -> SideDecision:
+def decide_sides(positions: np.ndarray, make_track: Callable[[str], HandTracker], settings: SceneSettings,
+                 cut_mm: float, cost: Callable[[HandTracker, int, np.ndarray, np.ndarray], float]) -> SideDecision:
     """Decide the hands of ``positions (F,P,3)`` mm (module docstring). ``make_track(side)`` gives a fresh
     track of that side; ``cost(track, frame, labels (K,) point columns, θ)`` the tracked cost of a start.
     Raises :class:`InputError` when no frame holds a cluster either hand fits."""
