@@ -35,8 +35,9 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from core.gaps import FILL_METHODS, METHOD_CODES, FillCheck, Gap
+from core.gaps import FILL_METHODS, FillCheck, Gap
 from core.gaps.check import DISPLACE_FACTOR, LOCAL_HORIZON_S
+from core.model.provenance import PROVENANCE_NAMES
 from widgets.marker_lanes import GAP_COLOR, METHOD_COLORS, css
 from widgets.marker_panel import MISSING_TEXT, SORT_ROLE, ColumnTableModel
 
@@ -656,11 +657,10 @@ def gap_rows(gaps: list[Gap], provenance: np.ndarray | None = None,
              donors: dict[int, tuple[int, ...]] | None = None) -> list[GapRow]:
     """Rows for ``gaps`` (:func:`core.gaps.find_gaps` of the take without fills, e.g.
     ``ReviewTake.labelled_take(include_fills=False)``). A gap whose every frame has a fill in
-    ``provenance (F,M)`` (codes of ``core.gaps.METHOD_CODES``) is "filled" with that method; one whose
+    ``provenance (F,M)`` (codes of :mod:`core.model.provenance`) is "filled" with that method; one whose
     index is in ``rejected`` is "rejected"; the others "open". ``checks``: gap index → its
     :class:`FillCheck` or the message of the InputError :func:`core.gaps.check_gap` raised (missing:
     not checked yet); ``donors``: gap index → pattern donor candidates."""
-    names = {code: name for name, code in METHOD_CODES.items()}
     checks, donors = checks or {}, donors or {}
     rows = []
     for index, gap in enumerate(gaps):
@@ -668,7 +668,7 @@ def gap_rows(gaps: list[Gap], provenance: np.ndarray | None = None,
         fields: dict[str, object] = {"donors": tuple(donors.get(index, ()))}
         codes = None if provenance is None else np.asarray(provenance)[gap.start:gap.end, gap.marker]
         if codes is not None and len(codes) and (codes > 0).all():
-            fields.update(state="filled", method=names.get(int(np.bincount(codes).argmax())))
+            fields.update(state="filled", method=PROVENANCE_NAMES.get(int(np.bincount(codes).argmax())))
         elif index in rejected:
             fields["state"] = "rejected"
         if isinstance(check, str):

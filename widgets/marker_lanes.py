@@ -3,10 +3,10 @@ sample (observed, gap, filled by which method, low confidence, edited), like Mot
 QTM's trajectory info. Clicking a lane emits the frame, the marker and the stretch of equal state
 under the click; hovering shows the marker, the frame and that stretch.
 
-State codes ``(F,M)`` int8 follow the provenance codes of :mod:`core.gaps` (-1 missing, 0 measured,
-1..6 filled by ``METHOD_CODES``) and add :data:`LOW_CONFIDENCE` and :data:`EDITED` (measured samples
-the labelling is unsure about, and samples the operator edited) and :data:`NO_DATA` (before a marker's
-first or after its last sample: nothing to show). :func:`lane_states` builds them from provenance
+State codes ``(F,M)`` int8 follow the provenance codes of :mod:`core.model.provenance` (-1 missing,
+0 measured, 1..6 filled by the method of ``FILL_CODES``) and add :data:`LOW_CONFIDENCE` and :data:`EDITED`
+(measured samples the labelling is unsure about, and samples the operator edited) and :data:`NO_DATA`
+(before a marker's first or after its last sample: nothing to show). :func:`lane_states` builds them from provenance
 and masks; :func:`lanes_from_review` from :meth:`core.session.ReviewTake.lane_states` and provenance.
 
 Drawing is one image (a colour per lane and screen column). When more frames than pixels are
@@ -34,15 +34,16 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from core.gaps import FILL_METHODS, METHOD_CODES, MISSING
+from core.gaps import FILL_METHODS
+from core.model.provenance import FILL_CODES, MEASURED, MISSING
 from core.review import LANE_EDITED, LANE_FILLED, LANE_GAP, LANE_LOW_CONFIDENCE, LANE_NONE, LANE_OBSERVED
 
 NO_DATA = -2                  # before the first or after the last sample of the marker
 GAP = MISSING                 # -1: no sample (not filled)
-OBSERVED = 0                  # measured, labelled
+OBSERVED = MEASURED           # 0: measured, labelled
 LOW_CONFIDENCE = 7            # measured, but the label is uncertain
 EDITED = 8                    # changed by the operator
-STATE_CODES = (NO_DATA, GAP, OBSERVED, *(METHOD_CODES[m] for m in FILL_METHODS), LOW_CONFIDENCE, EDITED)
+STATE_CODES = (NO_DATA, GAP, OBSERVED, *(FILL_CODES[m] for m in FILL_METHODS), LOW_CONFIDENCE, EDITED)
 
 BACKGROUND = (30, 32, 36)     # the timeline's plot background
 CURSOR_PEN = (255, 200, 60)   # the timeline's cursor
@@ -63,14 +64,14 @@ METHOD_COLORS: dict[str, tuple[int, int, int]] = {
 }
 STATE_COLORS: dict[int, tuple[int, int, int]] = {
     NO_DATA: NO_DATA_COLOR, GAP: GAP_COLOR, OBSERVED: OBSERVED_COLOR,
-    **{METHOD_CODES[m]: METHOD_COLORS[m] for m in FILL_METHODS},
+    **{FILL_CODES[m]: METHOD_COLORS[m] for m in FILL_METHODS},
     LOW_CONFIDENCE: LOW_CONFIDENCE_COLOR, EDITED: EDITED_COLOR,
 }
 #: how a lane's tooltip names a fill method, when not by its code name
 FILL_NAMES = {"rigid": "rigid body", "pca": "PCA"}
 STATE_NAMES: dict[int, str] = {
     NO_DATA: "no data", GAP: "gap", OBSERVED: "observed",
-    **{METHOD_CODES[m]: f"filled ({FILL_NAMES.get(m, m)})" for m in FILL_METHODS},
+    **{FILL_CODES[m]: f"filled ({FILL_NAMES.get(m, m)})" for m in FILL_METHODS},
     LOW_CONFIDENCE: "low confidence", EDITED: "edited",
 }
 MIN_LANE_PX = 14.0            # lanes never get thinner: more markers than fit scroll vertically

@@ -25,12 +25,11 @@ from core.gaps.pca import PCA_WINDOW, fill_pca
 from core.ik import IKResult, match_layout, solve_positions, solve_take
 from core.io import Take
 from core.model import HandModel, MarkerLayout, MarkerSet, load_template, resolve_layout
+from core.model.provenance import FILL_CODES as METHOD_CODES  # the fill methods' provenance codes
+from core.model.provenance import MEASURED, MISSING
 from core.prior import load_default_prior
 
 FILL_METHODS = ("linear", "spline", "pattern", "rigid", "model", "pca")
-METHOD_CODES = {"linear": 1, "spline": 2, "pattern": 3, "rigid": 4, "model": 5, "pca": 6}
-MEASURED = 0
-MISSING = -1
 #: order tried by ``fill_all(method="auto")`` when no stretch near a gap can be hidden to check the fills
 FALLBACK_ORDER = ("pca", "model", "spline", "linear")
 #: known stretches the fill check hides on each side of a gap, when there is room

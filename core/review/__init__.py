@@ -6,6 +6,7 @@
 * :mod:`core.review.export` — labelled C3D, joint-angle CSV and BVH exports of a review, and the way back.
 """
 
+from core.model.provenance import FILL_CODES, MEASURED, MISSING, PROVENANCE_NAMES
 from core.review.commands import (
     SCOPES,
     AcceptFills,
@@ -34,7 +35,6 @@ from core.review.export import (
     review_from_labelled_c3d,
 )
 from core.review.take import (
-    FILL_CODES,
     LANE_EDITED,
     LANE_FILLED,
     LANE_GAP,
@@ -42,10 +42,7 @@ from core.review.take import (
     LANE_NAMES,
     LANE_NONE,
     LANE_OBSERVED,
-    MEASURED,
-    MISSING,
     PROBLEM_KINDS,
-    PROVENANCE_NAMES,
     HandTrack,
     MarkerStats,
     Problem,

@@ -38,11 +38,9 @@ from typing import Any, ClassVar, NamedTuple, Protocol
 import numpy as np
 
 from core.errors import InputError
+from core.model.provenance import FILL_CODES, MEASURED, MISSING
 from core.review.events import Change, ReviewChanged
 from core.review.take import (
-    FILL_CODES,
-    MEASURED,
-    MISSING,
     ReviewTake,
     copy_health,
     copy_rigid_bodies,

@@ -22,7 +22,8 @@ from core.io.labelled_c3d import (
     write_labelled_c3d,
 )
 from core.model import HandModel
-from core.review.take import MEASURED, MISSING, HandTrack, ReviewTake
+from core.model.provenance import MEASURED, MISSING
+from core.review.take import HandTrack, ReviewTake
 
 UNLABELLED_CHOICES = ("all", "non-ghost", "none")
 

@@ -5,7 +5,7 @@ and, per label (M labels, e.g. the layout's markers, ``R_``/``L_`` prefixed for 
 
 * ``assignment (F, M)`` int64: the raw point column each label takes in each frame, -1 for none;
 * ``provenance (F, M)`` int8: :data:`MEASURED` 0 (assigned point), 1 linear, 2 spline, 3 pattern,
-  4 rigid body, 5 model fill, 6 PCA fill (``core.gaps.METHOD_CODES``), :data:`MISSING` -1;
+  4 rigid body, 5 model fill, 6 PCA fill, :data:`MISSING` -1 (the codes of :mod:`core.model.provenance`);
 * ``filled_positions (F, M, 3)`` mm: accepted fills, NaN elsewhere;
 * ``edited (F, M)`` bool: samples changed by hand (assign, swap, unlabel, ghost);
 * ``confidence (F, M)`` mm: labelling margin between the best and the second-best option (NaN unknown);
@@ -36,13 +36,7 @@ import numpy as np
 from core.errors import InputError
 from core.io import Take
 from core.labelling.health import WARNING_KINDS, HealthWarning
-
-MEASURED = 0
-MISSING = -1
-#: provenance code -> name (``core.gaps.METHOD_CODES`` plus measured and missing)
-PROVENANCE_NAMES = {-1: "missing", 0: "measured", 1: "linear", 2: "spline", 3: "pattern", 4: "rigid",
-                    5: "model", 6: "pca"}
-FILL_CODES = {name: code for code, name in PROVENANCE_NAMES.items() if code > 0}
+from core.model.provenance import MEASURED, MISSING
 
 # Timeline lane states (``lane_states``), in increasing priority within a sample.
 LANE_NONE = 0            #: before the label's first or after its last sample: nothing to show
