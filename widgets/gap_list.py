@@ -468,13 +468,6 @@ class GapList(QWidget):
         button = self.method_group.checkedButton()
         return next((m for m, b in self.method_buttons.items() if b is button), None)
 
-    def set_method(self, method: str) -> None:
-        """Tick ``method`` for the selected gap (when it applies)."""
-        button = self.method_buttons[method]
-        if button.isEnabled():
-            button.setChecked(True)
-            self._method_clicked()
-
     def chosen_donor(self) -> int:
         """Pattern donor column chosen, -1 for the automatic choice."""
         data = self.donor_box.currentData()

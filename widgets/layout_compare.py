@@ -160,9 +160,6 @@ class LayoutCompareView(QWidget):
         """The frame shown (0-based)."""
         return self._frame
 
-    def frame_count(self) -> int:
-        return len(self._motion)
-
     def view_count(self) -> int:
         """How many views are shown."""
         return len(self._layouts)

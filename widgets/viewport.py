@@ -426,10 +426,6 @@ class HandViewport(QWidget):
         self._labels_visible = bool(visible)
         self._refresh_labels()
 
-    def labels_visible(self) -> bool:
-        """Whether all marker names are shown."""
-        return self._labels_visible
-
     def _refresh_labels(self) -> None:
         visible = np.isfinite(self._marker_positions).all(axis=1)
         if not self._labels_visible:

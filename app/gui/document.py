@@ -46,7 +46,6 @@ class TakeDocument:
     hand_models: dict[str, HandModel] = field(default_factory=dict)
     marker_sets: dict[str, MarkerSet] = field(default_factory=dict)
     subjects: dict[str, SubjectCalibration] = field(default_factory=dict)
-    last_report: dict | None = None
     _columns: np.ndarray | None = field(default=None, repr=False)
     _marker_sets: dict[tuple[str, str, int, int], MarkerSet] = field(default_factory=dict, repr=False)
 

@@ -325,13 +325,6 @@ class LayoutWindow(QMainWindow):
             state = Qt.CheckState.Checked if entry.layout.name in names else Qt.CheckState.Unchecked
             self.layout_list.item(index).setCheckState(state)
 
-    def select_layout(self, name: str) -> None:
-        """Make the (latest) layout called ``name`` the current one."""
-        for index in reversed(range(len(self.entries))):
-            if self.entries[index].layout.name == name:
-                self.layout_list.setCurrentRow(index)
-                return
-
     def _checks_changed(self, _item: QListWidgetItem | None = None) -> None:
         checked = self.checked_entries()
         if len(checked) > MAX_VIEWS:

@@ -326,10 +326,6 @@ class MainWindow(QMainWindow):
         if paths:
             self.open_files(paths)
 
-    def open_file(self, path: str | Path, solve: bool = False) -> None:
-        """Open one take file on the worker (see :meth:`open_files`)."""
-        self.open_files([path], solve=solve)
-
     def open_files(self, paths: list[str | Path], solve: bool = False) -> None:
         """Open take files on the loader thread; each good one becomes a take in the take list (solved
         at once when ``solve``), each bad one a one-line message; what is open stays open."""

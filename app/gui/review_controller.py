@@ -940,7 +940,6 @@ class ReviewController(QObject):
                     self._rejected, self._pending_span = set(), FrameSpan(0, 0)
                     self.app.clear_selection()
                 document.push(result.command)
-                document.last_report = result.report
                 report, known = result.report, result.report["file_labels"]
                 kept = (f"; kept from the file: {len(known['kept_labels'])} labels outside the layout, its hand "
                         f"labels ({known['disagreed_samples']} samples differed from auto-label)"

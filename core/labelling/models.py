@@ -236,12 +236,9 @@ class Track(ABC):
         if len(self.recent) > self.settings.history_frames:
             self._sums -= self.recent.popleft()
 
-    def threshold(self) -> float:
-        """Adaptive acceptance threshold (mm) of a continuing marker, from the recent residuals."""
-        return max(self.adaptive(), self.settings.threshold_floor_mm)
-
     def thresholds(self) -> np.ndarray:
-        """Per marker (K,) mm: :meth:`threshold` for markers seen in the previous frame; for the others
+        """Per marker (K,) mm: the adaptive threshold (at least ``threshold_floor_mm``) for markers seen in
+        the previous frame; for the others
         the smaller of the adaptive value and ``reappear_mean_factor`` × the recent mean residual, at
         least ``reappear_floor_mm`` (a reappearing marker must fit as well as the markers already
         tracked; a ghost next to a hidden marker, which the IK can reach only by bending the digit

@@ -66,18 +66,6 @@ def vector_from_rotation(rotation: np.ndarray) -> np.ndarray:
     return axis * (angle / (2.0 * np.sin(angle)))
 
 
-@njit(cache=True)
-def _rotation_x(angle: float) -> np.ndarray:
-    c, s = np.cos(angle), np.sin(angle)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-@njit(cache=True)
-def _rotation_z(angle: float) -> np.ndarray:
-    c, s = np.cos(angle), np.sin(angle)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
 @njit(cache=True, inline="always")
 def _matmul3_into(a, b, out):
     """out = a @ b for 3×3 arrays, without a BLAS call or an allocation (hot path)."""

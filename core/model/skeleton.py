@@ -56,12 +56,6 @@ PARAM_JOINT = np.array([-1] * 6 + [j for d in range(5) for j in (1 + 3 * d, 1 + 
 PARAM_AXIS = np.array([-1] * 6 + [0, 1, 1, 1] * 5, dtype=np.int64)
 
 
-def digit_param_slice(digit: str) -> slice:
-    """The four parameters of a digit in ``theta``."""
-    index = DIGITS.index(digit)
-    return slice(6 + 4 * index, 10 + 4 * index)
-
-
 # Default joint limits in degrees, active range of motion of adult hands. Sources: finger MCP/PIP/DIP
 # and thumb ranges from Hume et al. (1990) "Functional range of motion of the joints of the hand",
 # J Hand Surg 15A:240-243, and the 26-DoF model limits of Cobos et al. (2008) "Efficient human hand
