@@ -53,6 +53,12 @@ def _new_session_take(tmp_path, path):
     return session, entry, session.open_take(entry.id)
 
 
+def _die(session_take):
+    """The process holding ``session_take`` "dies": its journal and take lock are released, nothing is saved
+    (the kernel does the same when a process ends)."""
+    session_take.close(save=False)
+
+
 def _edits(session_take):
     """A fixed series of operations on an open take (returns the reviews' states after each)."""
     states = []
@@ -160,7 +166,7 @@ def test_journal_replays_edits_after_a_crash_and_save_keeps_history(tmp_path, ra
     states = _edits(opened)
     texts = opened.stack.texts()
     assert (opened.folder / "blobs").is_dir()  # the joint angles of the labelling are large
-    # no save, no close: the process "dies" here
+    _die(opened)  # no save: the process "dies" here
     again = Session.open(tmp_path / "session").open_take(entry.id)
     assert again.replayed == 7 and again.warnings == []
     assert again.review.same_state(states[-1])
@@ -170,7 +176,8 @@ def test_journal_replays_edits_after_a_crash_and_save_keeps_history(tmp_path, ra
     again.redo()
     again.save()
     assert (opened.folder / JOURNAL_NAME).read_bytes() == b""
-    assert not list((opened.folder / "blobs").iterdir())
+    assert list((opened.folder / "blobs").iterdir())  # kept: an older snapshot may need the journal since it
+    _die(again)
     third = Session.open(tmp_path / "session").open_take(entry.id)
     assert third.replayed == 0 and third.review.same_state(states[-1])
     assert third.stack.texts() == texts and third.stack.is_clean()
@@ -191,6 +198,7 @@ def test_rigid_bodies_of_a_labelling_survive_replay_save_and_undo(tmp_path, raw)
                              result.ghost_points, [], rigid_bodies={"cup": [2, 3, 4]})
     opened.push(ApplyLabelling(arrays))
     assert opened.review.rigid_bodies == {"cup": [2, 3, 4]}
+    _die(opened)
     replayed = Session.open(tmp_path / "session").open_take(entry.id)       # the process "died" unsaved
     assert replayed.replayed == 1 and replayed.review.rigid_bodies == {"cup": [2, 3, 4]}
     replayed.save()
@@ -212,6 +220,7 @@ def test_crash_between_snapshot_and_journal_restart_does_not_apply_twice(tmp_pat
     blobs = {p.name: p.read_bytes() for p in (opened.folder / "blobs").iterdir()}
     expected = copy.deepcopy(opened.review)
     opened.save()
+    _die(opened)
     (opened.folder / JOURNAL_NAME).write_bytes(journal)  # as if the restart never happened
     for name, data in blobs.items():
         (opened.folder / "blobs" / name).write_bytes(data)
@@ -229,6 +238,7 @@ def test_torn_and_damaged_journal_lines(tmp_path, raw):
     opened.push(Unlabel(label="M3", scope="range", start=0, stop=50))
     expected = copy.deepcopy(opened.review)
     journal_path = opened.folder / JOURNAL_NAME
+    _die(opened)
     with open(journal_path, "ab") as handle:
         handle.write(b'{"seq":3,"op":"do","command":{"type":"unla')  # killed while writing
     again = Session.open(tmp_path / "session").open_take(entry.id)
@@ -236,12 +246,16 @@ def test_torn_and_damaged_journal_lines(tmp_path, raw):
     assert any("incomplete" in warning for warning in again.warnings)
     again.push(Unlabel(label="M2", scope="range", start=0, stop=5))
     assert all(json.loads(line) for line in journal_path.read_text().splitlines())
-    # a damaged line in the middle: the edits before it come back, the file is kept aside
+    # a damaged line in the middle: it is skipped, the edits before and after it come back, the file is kept
+    # aside
+    expected = copy.deepcopy(again.review)
+    _die(again)
     lines = journal_path.read_bytes().splitlines(keepends=True)
     journal_path.write_bytes(lines[0] + b"garbage\n" + b"".join(lines[1:]))
     third = Session.open(tmp_path / "session").open_take(entry.id)
-    assert third.review.n_labels == 5 and any("damaged" in warning for warning in third.warnings)
+    assert third.review.same_state(expected) and any("damaged" in warning for warning in third.warnings)
     assert list(opened.folder.glob("journal.jsonl.damaged-*"))
+    _die(third)
     fourth = Session.open(tmp_path / "session").open_take(entry.id)
     assert fourth.review.same_state(third.review) and fourth.warnings == []
 
@@ -436,7 +450,9 @@ def test_read_only_session_folder(tmp_path, raw):
         viewer = Session.open(folder, read_only=True)
         view = viewer.open_take(entry.id)
         assert view.review.n_labels == 5
-        view.push(Unlabel(label="M0", scope="take"))  # in memory only
+        with pytest.raises(InputError, match="read-only.*not applied"):
+            view.push(Unlabel(label="M0", scope="take"))  # refused, not kept in memory only to be lost
+        assert view.review.n_labels == 5 and view.read_only
         with pytest.raises(InputError, match="read-only"):
             view.save()
         with pytest.raises(InputError, match="read-only"):
@@ -460,26 +476,39 @@ def test_journal_write_failure_reverts_the_edit(tmp_path, raw):
     assert opened.review.same_state(before) and opened.stack.index == 1
 
 
-def test_a_take_open_in_another_process_is_refused(tmp_path, raw):
+HOLD_TAKE = textwrap.dedent("""
+    import sys, time
+    from core.session import Session
+    opened = Session.open(sys.argv[1]).open_take("t0001")
+    print("held", flush=True)
+    time.sleep(60)
+""")
+
+
+def test_a_take_open_in_another_process_opens_read_only(tmp_path, raw):
     path, _ = raw
     session = Session.create(tmp_path / "session")
     entry = session.add_take(path)
-    lock = session.take_folder(entry.id) / "lock"
-    lock.parent.mkdir(parents=True)
-    other = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    other = subprocess.Popen([sys.executable, "-c", HOLD_TAKE, str(tmp_path / "session")], cwd=ROOT, env=env,
+                             stdout=subprocess.PIPE, text=True)
     try:
-        import socket
-
-        lock.write_text(f"{other.pid}@{socket.gethostname()}")
-        with pytest.raises(InputError, match="open in another Hand Mocap Studio"):
-            session.open_take(entry.id)
+        assert other.stdout.readline().strip() == "held"
+        view = session.open_take(entry.id)
+        assert view.read_only and f"(process {other.pid})" in view.held_by
+        with pytest.raises(InputError, match=rf"open read-only: .* \(process {other.pid}\) since .*not applied"):
+            view.push(Unlabel(label="M0", scope="take"))
+        view.close()
     finally:
         other.kill()
         other.wait()
-    opened = session.open_take(entry.id)  # the holder died: its lock is taken over
-    assert lock.read_text().startswith(f"{os.getpid()}@")
+        other.stdout.close()
+    opened = session.open_take(entry.id)  # the holder died: the kernel released its lock
+    assert not opened.read_only and opened.held_by is None
+    lock = session.take_folder(entry.id) / "lock"
+    assert f'"pid": {os.getpid()}' in lock.read_text()
     opened.close()
-    assert not lock.exists()
+    assert lock.read_text() == ""  # emptied, never deleted (a waiting process would lock a stale file)
 
 
 def test_labelled_take_with_a_layout_gets_its_hand_and_names_decide_labelled(tmp_path):
@@ -521,11 +550,13 @@ def test_an_edit_that_cannot_be_replayed_keeps_the_ones_before(tmp_path, raw):
     entry_3 = json.loads(lines[2])
     entry_3["command"]["label"] = "no such label"
     journal_path.write_text("\n".join(lines[:2] + [json.dumps(entry_3)]) + "\n")
+    _die(opened)
     again = Session.open(tmp_path / "session").open_take(entry.id)
     assert again.review.same_state(expected)
     assert any("could not be replayed" in warning and "unknown label" in warning for warning in again.warnings)
-    assert list(opened.folder.glob("journal.jsonl.damaged-*"))
+    assert any("no such label" in kept.read_text() for kept in opened.folder.glob("journal-*.jsonl"))  # kept
     assert journal_path.read_bytes() == b""  # what was recovered is saved in the snapshot
+    _die(again)
     assert Session.open(tmp_path / "session").open_take(entry.id).review.same_state(expected)
 
 

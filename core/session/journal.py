@@ -2,83 +2,126 @@
 
 Files in the take's result folder::
 
-    review.npz        last snapshot (state + undo history + the journal sequence number it includes)
-    journal.jsonl     one line per operation since that snapshot:
-                      {"seq": 7, "op": "do", "time": "...Z", "command": {"type": "assign_label", ...}}
-                      op is "do" (push), "attach" (part of the last step), "undo" or "redo"
-    blobs/            arrays too large for a line (``<seq>-<n>.npy``), written before their line
+    journal.jsonl        one line per operation since the newest snapshot:
+                         {"seq": 7, "op": "do", "time": "...Z", "command": {"type": "assign_label", ...}}
+                         op is "do" (push), "attach" (part of the last step), "undo" or "redo"
+    journal-<seq>.jsonl  the operations up to entry <seq> (an older snapshot's journal), kept while an
+                         older snapshot may need them
+    blobs/               arrays too large for a line (``<seq>-<n>.npy``), written before their line
 
-Opening replays the entries whose ``seq`` is above the snapshot's through an :class:`UndoStack`, so the
-state after a crash is the state after the last entry written. A torn last line (the process died
-while writing it) is cut off: that operation had not returned to the caller. Saving writes a new
-snapshot, then starts an empty journal; entries at or below the snapshot's ``seq`` are skipped if a
-crash came between the two.
+Opening replays the entries whose ``seq`` is above the snapshot's, from every journal file, through an
+:class:`UndoStack`, so the state after a crash is the state after the last entry written. A torn last
+line (the process died while writing it) is cut off: that operation had not returned to the caller. A
+damaged line, or an entry that cannot be applied, is skipped with a warning and the entries after it
+are replayed (an attach, undo or redo of a skipped step is skipped with it). Saving writes a new
+snapshot and starts an empty journal (:meth:`Journal.rotate`); entries at or below the snapshot's
+``seq`` are skipped if a crash came between the two.
 """
 
 from __future__ import annotations
 
+import io
 import json
 import logging
 import os
+import re
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 
 from core.errors import InputError
-from core.io.durable import fsync_folder, write_atomic
+from core.io.durable import fsync_folder
 from core.review.commands import Command, UndoStack, command_from_json
+from core.session.files import (
+    make_folder,
+    open_append,
+    read_bytes,
+    refuse_links,
+    regular_files,
+    remove_file,
+    truncate,
+    write_file,
+)
+from core.session.storage import MALFORMED, check_npy, strict_json
 
 _log = logging.getLogger(__name__)
 
 JOURNAL_NAME = "journal.jsonl"
+SEGMENT = re.compile(r"journal-(\d{1,15})\.jsonl")
 BLOB_FOLDER = "blobs"
+BLOB = re.compile(r"(\d{1,15})-\d{1,9}\.npy")
 OPERATIONS = ("do", "attach", "undo", "redo")
+MAX_SEQ = 2**53  # sequence numbers stay exact in JSON readers that use doubles
 
 
 class FileBlobs:
-    """Arrays of journal entries as ``.npy`` files in ``folder`` (durable before their line is written)."""
+    """Arrays of journal entries as ``.npy`` files in ``folder`` inside the session folder ``root``
+    (durable before their line is written)."""
 
-    def __init__(self, folder: Path, seq: int) -> None:
-        self.folder, self.seq, self.count = folder, seq, 0
+    def __init__(self, root: Path, folder: Path, seq: int) -> None:
+        self.root, self.folder, self.seq, self.count = root, folder, seq, 0
 
     def put(self, array: np.ndarray) -> str:
-        self.folder.mkdir(exist_ok=True)
+        make_folder(self.root, self.folder)
         key = f"{self.seq}-{self.count}.npy"
         self.count += 1
-        buffer = _npy_bytes(array)
-        write_atomic(self.folder / key, buffer)
+        write_file(self.root, self.folder / key, _npy_bytes(array))
         return key
 
     def get(self, key: str) -> np.ndarray:
-        path = self.folder / Path(key).name
+        path = self.folder / Path(str(key)).name
         try:
-            return np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as error:
-            raise InputError(f"journal data {key} is missing or damaged ({error})") from None
+            data = read_bytes(self.root, path)
+            stream = io.BytesIO(data)
+            check_npy(stream, len(data), path.name)
+            return np.load(stream, allow_pickle=False)
+        except (OSError, ValueError, EOFError) as error:
+            raise InputError(f"journal data {path.name} is missing or damaged ({error})") from None
 
 
 def _npy_bytes(array: np.ndarray) -> bytes:
-    import io
-
     buffer = io.BytesIO()
     np.save(buffer, np.ascontiguousarray(array), allow_pickle=False)
     return buffer.getvalue()
 
 
+def _parse(line: bytes) -> dict[str, Any] | None:
+    """A journal entry from one line, None when the line is not one."""
+    try:
+        entry = strict_json(line)
+    except InputError:
+        return None
+    if not isinstance(entry, dict) or entry.get("op") not in OPERATIONS:
+        return None
+    seq = entry.get("seq")
+    if type(seq) is not int or not 0 < seq < MAX_SEQ:
+        return None
+    if "command" in entry and not isinstance(entry["command"], dict):
+        return None
+    return entry
+
+
+def _segment_end(path: Path) -> int | None:
+    match = SEGMENT.fullmatch(path.name)
+    return int(match.group(1)) if match else None
+
+
 class Journal:
     """Append-only, fsync'ed record of the operations on one take (module docstring).
 
-    ``folder``: the take's result folder; ``next_seq``: the sequence number of the next entry (one more
-    than the snapshot's). :meth:`record` has the signature of an :class:`UndoStack` recorder.
+    ``root``: the session folder; ``folder``: the take's result folder; ``next_seq``: the sequence
+    number of the next entry (one more than the snapshot's). :meth:`record` has the signature of an
+    :class:`UndoStack` recorder.
     """
 
-    def __init__(self, folder: str | os.PathLike[str], next_seq: int = 1) -> None:
-        self.folder = Path(folder)
+    def __init__(self, root: str | os.PathLike[str], folder: str | os.PathLike[str], next_seq: int = 1) -> None:
+        self.root, self.folder = Path(root), Path(folder)
         self.path = self.folder / JOURNAL_NAME
         self.next_seq = int(next_seq)
-        self._handle = None
+        self._handle: BinaryIO | None = None
+        self._highest = 0  # the highest sequence number seen in the journal files read
 
     # -- writing --
     def record(self, operation: str, command: Command | None) -> None:
@@ -91,24 +134,25 @@ class Journal:
                                  "time": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
         try:
             if command is not None:
-                entry["command"] = command.to_json(FileBlobs(self.folder / BLOB_FOLDER, seq))
+                entry["command"] = command.to_json(FileBlobs(self.root, self.folder / BLOB_FOLDER, seq))
             line = (json.dumps(entry, separators=(",", ":"), allow_nan=False) + "\n").encode()
             handle = self._open()
             handle.write(line)
             handle.flush()
             os.fsync(handle.fileno())
-        except OSError as error:
+        except (OSError, InputError) as error:
             self.close()
-            raise InputError(f"cannot write the edit journal {self.path} ({error.strerror or error}); "
+            reason = error.strerror or error if isinstance(error, OSError) else error
+            raise InputError(f"cannot write the edit journal {self.path} ({reason}); "
                              "the edit was not applied") from None
         except (TypeError, ValueError) as error:
             raise InputError(f"the edit cannot be recorded ({error}); it was not applied") from None
         self.next_seq = seq + 1
 
-    def _open(self):
+    def _open(self) -> BinaryIO:
         if self._handle is None:
-            existed = self.path.exists()
-            self._handle = open(self.path, "ab")
+            existed = os.path.lexists(self.path)
+            self._handle = open_append(self.root, self.path)
             if not existed:
                 fsync_folder(self.folder)
         return self._handle
@@ -121,94 +165,146 @@ class Journal:
                 pass
             self._handle = None
 
-    def restart(self) -> None:
-        """Start an empty journal (after a snapshot that includes every entry) and drop the blobs."""
+    def rotate(self, end_seq: int) -> None:
+        """Keep the journal's entries (those up to ``end_seq``, the snapshot just written) as
+        ``journal-<end_seq>.jsonl`` and start an empty journal. OSError or InputError when it fails."""
         self.close()
-        write_atomic(self.path, b"")
-        blobs = self.folder / BLOB_FOLDER
-        if blobs.is_dir():
-            for path in blobs.iterdir():
-                path.unlink(missing_ok=True)
+        refuse_links(self.root, self.path)
+        if self.path.exists() and self.path.stat().st_size > 0:
+            os.replace(self.path, self.folder / f"journal-{int(end_seq)}.jsonl")
+        write_file(self.root, self.path, b"")
+
+    def prune(self, keep_after: int) -> None:
+        """Delete the journal files and blobs of entries up to ``keep_after`` (no kept snapshot needs them)."""
+        for path in regular_files(self.root, self.folder, "journal-*.jsonl"):
+            end = _segment_end(path)
+            if end is not None and end <= keep_after:
+                remove_file(self.root, path)
+        for path in regular_files(self.root, self.folder / BLOB_FOLDER, "*.npy"):
+            match = BLOB.fullmatch(path.name)
+            if match and int(match.group(1)) <= keep_after:
+                remove_file(self.root, path)
 
     # -- reading --
-    def entries(self, after_seq: int = 0, repair: bool = True) -> tuple[list[dict[str, Any]], list[str]]:
-        """Entries with ``seq > after_seq`` and warnings. A torn last line is dropped (and cut from the
-        file when ``repair``); a damaged line elsewhere stops the reading there (the file is kept aside
-        as ``journal.jsonl.damaged-<time>`` when ``repair``)."""
-        if not self.path.exists():
-            return [], []
-        try:
-            raw = self.path.read_bytes()
-        except OSError as error:
-            raise InputError(f"cannot read the edit journal {self.path} ({error.strerror or error})") from None
-        warnings: list[str] = []
-        entries: list[dict[str, Any]] = []
-        lines = raw.split(b"\n")
-        complete, tail = lines[:-1], lines[-1]
-        good_bytes = 0
-        for number, line in enumerate(complete):
-            try:
-                entry = json.loads(line)
-                if not isinstance(entry, dict) or entry.get("op") not in OPERATIONS or "seq" not in entry:
-                    raise ValueError("not a journal entry")
-            except ValueError:
-                warnings.append(f"edit journal line {number + 1} is damaged; the edits after it were not replayed "
-                                f"(kept in {self.path.name}.damaged)")
-                if repair:
-                    self._set_aside(raw)
-                    self._truncate(good_bytes)
-                return entries, warnings
-            good_bytes += len(line) + 1
-            if int(entry["seq"]) > after_seq:
-                entries.append(entry)
-        if tail.strip():
-            warnings.append("the last edit journal entry was incomplete (the program stopped while writing it) "
-                            "and was dropped")
-            if repair:
-                self._truncate(good_bytes)
-        return entries, warnings
+    def files(self, after_seq: int = 0) -> list[Path]:
+        """The journal files that may hold entries above ``after_seq``, oldest first."""
+        segments = [(end, path) for path in regular_files(self.root, self.folder, "journal-*.jsonl")
+                    if (end := _segment_end(path)) is not None and end > after_seq]
+        current = [self.path] if os.path.lexists(self.path) else []
+        return [path for _, path in sorted(segments)] + current
 
-    def _truncate(self, size: int) -> None:
+    def entries(self, after_seq: int = 0, repair: bool = True) -> tuple[list[dict[str, Any]], list[str], int]:
+        """Entries with ``seq > after_seq`` in order, warnings and the number of damaged lines among them.
+        A torn last line of the journal is dropped (and cut from the file when ``repair``); a damaged
+        line is skipped (its file is copied to ``<name>.damaged-<time>`` when ``repair``)."""
+        warnings: list[str] = []
+        found: dict[int, dict[str, Any]] = {}
+        damaged_count = 0
+        for path in self.files(after_seq):
+            try:
+                raw = read_bytes(self.root, path)
+            except OSError as error:
+                raise InputError(f"cannot read the edit journal {path} ({error.strerror or error})") from None
+            lines = raw.split(b"\n")
+            complete, tail = lines[:-1], lines[-1]
+            parsed = [_parse(line) for line in complete]
+            damaged = [number for number, (line, entry) in enumerate(zip(complete, parsed, strict=True))
+                       if entry is None and line.strip() and _concerns(parsed, number, after_seq)]
+            for entry in parsed:
+                if entry is not None:
+                    self._highest = max(self._highest, entry["seq"])
+                    if entry["seq"] > after_seq:
+                        found.setdefault(entry["seq"], entry)
+            for number in damaged:
+                warnings.append(f"{path.name} line {number + 1} is damaged and was skipped; "
+                                "the edits after it were replayed")
+            damaged_count += len(damaged)
+            if damaged and repair:
+                self._set_aside(path, raw)
+            if tail.strip():
+                if path == self.path:
+                    warnings.append("the last edit journal entry was incomplete (the program stopped while "
+                                    "writing it) and was dropped")
+                    if repair:
+                        self._cut(len(raw) - len(tail))
+                else:
+                    warnings.append(f"{path.name} ends in an incomplete line; it was skipped")
+                    damaged_count += 1
+        ends = [end for path in self.files(after_seq) if (end := _segment_end(path)) is not None]
+        self._highest = max([self._highest, *ends])
+        return [found[seq] for seq in sorted(found)], warnings, damaged_count
+
+    def _cut(self, size: int) -> None:
         try:
-            with open(self.path, "r+b") as handle:
-                handle.truncate(size)
-                handle.flush()
-                os.fsync(handle.fileno())
-        except OSError as error:
+            truncate(self.root, self.path, size)
+        except (OSError, InputError) as error:
             _log.warning("cannot repair %s: %s", self.path, error)
 
-    def _set_aside(self, raw: bytes) -> None:
+    def _set_aside(self, path: Path, raw: bytes) -> None:
         try:
-            write_atomic(self.path.with_name(f"{self.path.name}.damaged-{time.strftime('%Y%m%d-%H%M%S')}"), raw)
-        except OSError as error:
-            _log.warning("cannot keep a copy of %s: %s", self.path, error)
+            write_file(self.root, path.with_name(f"{path.name}.damaged-{time.strftime('%Y%m%d-%H%M%S')}"), raw)
+        except (OSError, InputError) as error:
+            _log.warning("cannot keep a copy of %s: %s", path, error)
 
-    def replay(self, stack: UndoStack, after_seq: int = 0) -> tuple[int, list[str]]:
+    def replay(self, stack: UndoStack, after_seq: int = 0, repair: bool = True) -> tuple[int, list[str]]:
         """Apply the entries after ``after_seq`` to ``stack`` (whose recorder must not be this journal
-        yet). Returns the number replayed and warnings; stops at the first entry that cannot be applied
-        (the rest stay in the file, and are set aside when the caller restarts the journal)."""
-        entries, warnings = self.entries(after_seq)
+        yet). Returns the number applied and warnings (one line each). An entry that cannot be applied
+        is skipped with what hangs on it (module docstring); ``repair``: module docstring of
+        :meth:`entries`."""
+        entries, warnings, damaged = self.entries(after_seq, repair)
         blobs_folder = self.folder / BLOB_FOLDER
-        replayed = 0
-        last_seq = after_seq
+        applied = [True] * len(stack.commands)  # per undo step: whether it is in the stack (not skipped)
+        index, replayed = stack.index, 0
+        missing = (entries[-1]["seq"] - after_seq - len(entries)) if entries else 0
+        if missing > damaged:
+            warnings.append(f"{missing - damaged} journalled edits after edit {after_seq} are missing "
+                            "(a journal file was deleted or damaged)")
         for entry in entries:
-            seq, operation = int(entry["seq"]), entry["op"]
+            seq, operation = entry["seq"], entry["op"]
             try:
-                if operation in ("do", "attach"):
-                    command = command_from_json(entry.get("command", {}), FileBlobs(blobs_folder, seq))
-                    (stack.push if operation == "do" else stack.attach)(command)
-                elif operation == "undo":
+                if operation == "do":
+                    stack.push(command_from_json(entry.get("command"), FileBlobs(self.root, blobs_folder, seq)))
+                elif operation == "attach" and (index == 0 or applied[index - 1]):
+                    stack.attach(command_from_json(entry.get("command"), FileBlobs(self.root, blobs_folder, seq)))
+                elif operation == "undo" and index > 0 and applied[index - 1]:
                     stack.undo()
-                else:
+                elif operation == "redo" and index < len(applied) and applied[index]:
                     stack.redo()
-            except InputError as error:
-                warnings.append(f"edit {seq} of the journal could not be replayed ({error}); "
-                                "it and the later edits were not applied")
-                self._set_aside(self.path.read_bytes())
-                break
+                else:
+                    index = _move(operation, index, len(applied))
+                    continue
+            except MALFORMED as error:
+                reason = str(error).splitlines()[0][:200] if str(error) else type(error).__name__
+                warnings.append(f"edit {seq} of the journal could not be replayed ({reason}); it was skipped")
+                if operation == "do":
+                    applied[index:] = [False]
+                    index += 1
+                continue
+            if operation == "do":
+                applied[index:] = [True]
+                while sum(applied) > len(stack.commands):  # the stack dropped its oldest steps
+                    drop = applied.index(True) + 1
+                    del applied[:drop]
+                    index -= drop
+            index = _move(operation, index, len(applied))
             replayed += 1
-            last_seq = seq
-        self.next_seq = max(self.next_seq, last_seq + 1, after_seq + 1)
-        if entries and replayed < len(entries):
-            self.next_seq = max(self.next_seq, int(entries[-1]["seq"]) + 1)
+        self.next_seq = max(self.next_seq, after_seq + 1, self._highest + 1)
         return replayed, warnings
+
+
+def _move(operation: str, index: int, steps: int) -> int:
+    """The undo position after ``operation`` ("do" counts its step already added)."""
+    if operation == "do" or (operation == "redo" and index < steps):
+        return index + 1
+    if operation == "undo" and index > 0:
+        return index - 1
+    return index
+
+
+def _concerns(parsed: list[dict[str, Any] | None], number: int, after_seq: int) -> bool:
+    """Whether the damaged line ``number`` may be an entry above ``after_seq`` (judged by its neighbours)."""
+    following = next((entry["seq"] for entry in parsed[number + 1:] if entry is not None), None)
+    if following is not None:
+        return following > after_seq + 1
+    previous = next((entry["seq"] for entry in reversed(parsed[:number]) if entry is not None), None)
+    return previous is None or previous >= after_seq

@@ -5,8 +5,10 @@ Folder layout::
     session.json          manifest (below); replaced atomically; the previous one kept as session.json.bak
     models/<subject>.npz  calibrated subject hand models (HandModel.save)
     layouts/<name>.json   marker layouts used by the session (save_layout)
-    takes/<take id>/      review.npz (snapshot), journal.jsonl + blobs/ (edits since), lock (pid@host of
-                          the process editing it; a lock of a dead process is taken over)
+    session.lock          OS lock held while the manifest is read, changed and written (core.session.lock)
+    takes/<take id>/      review.npz + review-<seq>.npz (the last three snapshots), journal.jsonl,
+                          journal-<seq>.jsonl + blobs/ (the edits since the oldest of them), lock (OS lock
+                          of the process editing the take; it says who holds it)
 
 Raw takes are referenced, not copied (they are large and the lab keeps them in its own store): the
 manifest keeps the absolute path, and also the path relative to the session folder, tried first, so a
@@ -25,7 +27,14 @@ Manifest (``format`` "handmocap-session", ``version`` 1)::
 A corrupt manifest is never overwritten: :meth:`Session.open` raises an InputError naming it and the
 ``.bak`` copy; :meth:`Session.restore_backup` puts the backup back (keeping the damaged file aside).
 A read-only folder raises an InputError on open unless ``read_only=True`` (then nothing is written:
-edits stay in memory and saving raises an InputError).
+takes open read-only). A take already open for editing elsewhere (another process, or another
+:class:`Session` of the same folder) opens read-only too, saying who holds it; a read-only take refuses
+edits with an InputError, so no acknowledged edit can be lost.
+
+Every change of the manifest is a read-modify-write under ``session.lock``: the manifest on disk is
+read again, the change applied and the result written, so processes working on different takes keep
+each other's changes. Nothing in the folder is read, written or deleted through a symbolic link
+(:mod:`core.session.files`).
 """
 
 from __future__ import annotations
@@ -34,8 +43,6 @@ import json
 import os
 import re
 import secrets
-import shutil
-import socket
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
@@ -46,21 +53,41 @@ import numpy as np
 
 from core.errors import InputError
 from core.io import Take, load_take, looks_unlabelled
-from core.io.durable import write_atomic
 from core.model import HandModel, MarkerLayout, best_layout_for, load_layout, marker_columns
 from core.review.commands import Command, FrameSpan, UndoStack
 from core.review.take import HandTrack, ReviewTake
-from core.session.journal import Journal
-from core.session.storage import load_snapshot, snapshot_bytes
+from core.session.files import (
+    make_folder,
+    read_bytes,
+    refuse_links,
+    refuse_links_within,
+    regular_files,
+    remove_file,
+    write_file,
+)
+from core.session.journal import BLOB_FOLDER, Journal
+from core.session.lock import SESSION_LOCK_NAME, TAKE_LOCK_NAME, FileLock, manifest_lock
+from core.session.storage import (
+    SNAPSHOT_NAME,
+    SnapshotMismatch,
+    keep_older,
+    load_snapshot,
+    prune_snapshots,
+    read_snapshot_file,
+    set_aside,
+    snapshot_bytes,
+    snapshot_files,
+    strict_json,
+)
 
 MANIFEST_NAME = "session.json"
 BACKUP_SUFFIX = ".bak"
 SESSION_FORMAT = "handmocap-session"
 SESSION_VERSION = 1
 TAKE_STATES = ("raw", "labelled", "reviewed", "exported")
-SNAPSHOT_NAME = "review.npz"
-LOCK_NAME = "lock"
+LOCK_NAME = TAKE_LOCK_NAME
 AUTOSAVE_SECONDS = 60.0
+MANIFEST_LIMIT = 64 * 2**20  # bytes; a manifest of 100 000 takes is about 60 MB
 
 
 def _now() -> str:
@@ -112,11 +139,29 @@ class TakeEntry:
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> TakeEntry:
+        """The entry of a manifest item; TypeError or ValueError when a field has the wrong type."""
+        if not isinstance(data, dict):
+            raise TypeError("a take is not a JSON object")
         known = {name: data[name] for name in cls.__dataclass_fields__ if name in data}
         entry = cls(**known)
+        for name, kinds in _TAKE_FIELD_TYPES.items():
+            value = getattr(entry, name)
+            if not isinstance(value, kinds) or (isinstance(value, bool) and kinds is not bool):
+                raise TypeError(f"take field '{name}' has the wrong type")
+        if not all(isinstance(hand, str) for hand in entry.hands):
+            raise TypeError("take field 'hands' must list 'right' or 'left'")
+        for mapping in (entry.results, entry.exports):
+            if not all(isinstance(key, str) and isinstance(value, str) for key, value in mapping.items()):
+                raise TypeError("take results and exports must map names to paths")
         if entry.state not in TAKE_STATES:
             raise ValueError(f"take '{entry.name}' has unknown state '{entry.state}'")
         return entry
+
+
+_TAKE_FIELD_TYPES: dict[str, Any] = {
+    "id": str, "name": str, "source": str, "source_relative": (str, type(None)), "subject": (str, type(None)),
+    "layout": (str, type(None)), "hands": list, "labelled_source": bool, "state": str, "frames": int,
+    "points": int, "frame_rate": (int, float), "added": str, "results": dict, "exports": dict}
 
 
 class Session:
@@ -125,17 +170,38 @@ class Session:
     def __init__(self, folder: Path, manifest: dict[str, Any], read_only: bool = False) -> None:
         self.folder = folder
         self.read_only = read_only
-        self.name: str = str(manifest.get("name", folder.name))
-        self.created: str = str(manifest.get("created", ""))
-        self.modified: str = str(manifest.get("modified", ""))
-        try:
-            self.subjects = [SubjectEntry(**item) for item in manifest.get("subjects", [])]
-            self.layouts = [LayoutEntry(**item) for item in manifest.get("layouts", [])]
-            self.takes = [TakeEntry.from_json(item) for item in manifest.get("takes", [])]
-        except (TypeError, ValueError) as error:
-            raise InputError(f"{folder / MANIFEST_NAME}: damaged session manifest ({error}); it was left as it is"
-                             ) from None
+        self.subjects: list[SubjectEntry] = []
+        self.layouts: list[LayoutEntry] = []
+        self.takes: list[TakeEntry] = []
+        self._apply(manifest)
         self._open_takes: dict[str, OpenTake] = {}
+
+    def _apply(self, manifest: dict[str, Any]) -> None:
+        """Take the manifest's contents; the entries of takes already known are updated in place (an
+        :class:`OpenTake` keeps its entry). InputError when a field is malformed."""
+        try:
+            name, created, modified = (manifest.get(key, default) for key, default in
+                                       (("name", self.folder.name), ("created", ""), ("modified", "")))
+            subjects = [SubjectEntry(**item) for item in _list(manifest.get("subjects", []))]
+            layouts = [LayoutEntry(**item) for item in _list(manifest.get("layouts", []))]
+            takes = [TakeEntry.from_json(item) for item in _list(manifest.get("takes", []))]
+            if not all(isinstance(text, str) for text in (name, created, modified)):
+                raise TypeError("name and times must be text")
+            if not all(isinstance(item.name, str) for item in subjects + layouts):
+                raise TypeError("subject and layout names must be text")
+        except (TypeError, ValueError) as error:
+            raise InputError(f"{self.folder / MANIFEST_NAME}: damaged session manifest ({error}); it was left as "
+                             "it is") from None
+        self.name, self.created, self.modified = name, created, modified
+        self.subjects, self.layouts = subjects, layouts
+        known = {entry.id: entry for entry in self.takes}
+        self.takes = []
+        for fresh in takes:
+            entry = known.get(fresh.id)
+            if entry is not None:
+                entry.__dict__.update(fresh.__dict__)
+                fresh = entry
+            self.takes.append(fresh)
 
     # --- creating and opening -----------------------------------------------------------------------
 
@@ -143,8 +209,6 @@ class Session:
     def create(cls, folder: str | os.PathLike[str], name: str | None = None) -> Session:
         """A new empty session in ``folder`` (created if needed; must not hold a session already)."""
         folder = Path(folder).expanduser().absolute()
-        if (folder / MANIFEST_NAME).exists():
-            raise InputError(f"{folder} already holds a session; open it instead")
         try:
             folder.mkdir(parents=True, exist_ok=True)
         except OSError as error:
@@ -152,35 +216,28 @@ class Session:
         _check_writable(folder)
         now = _now()
         session = cls(folder, {"name": name or folder.name, "created": now, "modified": now})
-        session.save()
+        with manifest_lock(folder):
+            refuse_links(folder, session.manifest_path)
+            if os.path.lexists(session.manifest_path):
+                raise InputError(f"{folder} already holds a session; open it instead")
+            session._write()
         return session
 
     @classmethod
     def open(cls, folder: str | os.PathLike[str], read_only: bool = False) -> Session:
         """Open the session in ``folder``. InputError (one line) when there is none, the manifest is
-        damaged (left untouched; see :meth:`restore_backup`) or the folder is read-only and
-        ``read_only`` is False."""
+        damaged (left untouched; see :meth:`restore_backup`), the folder holds a symbolic link where the
+        session keeps its files, or the folder is read-only and ``read_only`` is False."""
         folder = Path(folder).expanduser().absolute()
-        path = folder / MANIFEST_NAME
         if not folder.is_dir():
             raise InputError(f"session folder {folder} does not exist")
-        if not path.exists():
+        if not os.path.lexists(folder / MANIFEST_NAME):
             raise InputError(f"{folder} is not a session folder (no {MANIFEST_NAME})")
-        try:
-            manifest = json.loads(path.read_text(encoding="utf-8"))
-            if not isinstance(manifest, dict) or manifest.get("format") != SESSION_FORMAT:
-                raise ValueError("not a Hand Mocap Studio session manifest")
-        except (OSError, UnicodeDecodeError, ValueError) as error:
-            backup = path.with_name(MANIFEST_NAME + BACKUP_SUFFIX)
-            hint = (f"; the previous manifest is in {backup.name} (Session.restore_backup puts it back)"
-                    if backup.exists() else "")
-            raise InputError(f"{path} is damaged ({str(error).splitlines()[0][:80]}); it was left untouched{hint}"
-                             ) from None
-        if int(manifest.get("version", 0)) > SESSION_VERSION:
-            raise InputError(f"{path} was written by a newer Hand Mocap Studio (version {manifest.get('version')})")
+        _refuse_session_links(folder)
+        manifest = _read_manifest(folder)
         if not read_only:
             _check_writable(folder)
-            _remove_temporaries(folder)
+            _remove_temporaries(folder, folder)
         return cls(folder, manifest, read_only=read_only)
 
     @staticmethod
@@ -190,15 +247,19 @@ class Session:
         folder = Path(folder).expanduser().absolute()
         path = folder / MANIFEST_NAME
         backup = path.with_name(MANIFEST_NAME + BACKUP_SUFFIX)
-        if not backup.exists():
+        if not os.path.lexists(backup):
             raise InputError(f"{folder} has no {backup.name} to restore")
-        try:
-            json.loads(backup.read_text(encoding="utf-8"))
-            if path.exists():
-                shutil.copy2(path, path.with_name(f"{MANIFEST_NAME}.damaged-{time.strftime('%Y%m%d-%H%M%S')}"))
-            write_atomic(path, backup.read_bytes())
-        except (OSError, ValueError) as error:
-            raise InputError(f"cannot restore {backup} ({error})") from None
+        with manifest_lock(folder):
+            try:
+                data = read_bytes(folder, backup, MANIFEST_LIMIT)
+                strict_json(data)
+                if os.path.lexists(path):
+                    damaged = read_bytes(folder, path, MANIFEST_LIMIT)
+                    write_file(folder, path.with_name(f"{MANIFEST_NAME}.damaged-{time.strftime('%Y%m%d-%H%M%S')}"),
+                               damaged)
+                write_file(folder, path, data)
+            except (OSError, InputError) as error:
+                raise InputError(f"cannot restore {backup} ({error})") from None
         return path
 
     # --- manifest -----------------------------------------------------------------------------------
@@ -212,22 +273,46 @@ class Session:
                 "modified": self.modified, "subjects": [asdict(s) for s in self.subjects],
                 "layouts": [asdict(layout) for layout in self.layouts], "takes": [asdict(t) for t in self.takes]}
 
-    def save(self) -> None:
-        """Write the manifest atomically; the manifest it replaces is kept as ``session.json.bak``
-        (only when it was valid: a damaged manifest never replaces a good backup)."""
+    def reload(self) -> None:
+        """Read the manifest again (changes other processes made); InputError when it is damaged."""
+        self._apply(_read_manifest(self.folder))
+
+    def update(self, change: Callable[[], Any]) -> Any:
+        """Change the manifest: under the session lock the manifest on disk is read again, ``change()``
+        applied to this session and the result written (see the module docstring); returns what
+        ``change`` returns. InputError when read-only or when it cannot be written (the session then
+        shows the manifest on disk)."""
         self._check_writable_session()
+        with manifest_lock(self.folder):
+            self.reload()
+            result = change()
+            try:
+                self._write()
+            except InputError:
+                self.reload()
+                raise
+        return result
+
+    def save(self) -> None:
+        """Write the manifest under the session lock (the changes of other processes to takes, subjects
+        and layouts are kept: it is :meth:`update` with no change)."""
+        self.update(lambda: None)
+
+    def _write(self) -> None:
+        """Write the manifest atomically (the lock is held); the manifest it replaces is kept as
+        ``session.json.bak`` (only when it was valid: a damaged manifest never replaces a good backup)."""
         self.modified = _now()
         data = json.dumps(self.to_json(), indent=2).encode("utf-8")
         path = self.manifest_path
         try:
-            if path.exists():
-                previous = path.read_bytes()
+            if os.path.lexists(path):
+                previous = read_bytes(self.folder, path, MANIFEST_LIMIT)
                 try:
-                    json.loads(previous)
-                    write_atomic(path.with_name(MANIFEST_NAME + BACKUP_SUFFIX), previous)
-                except ValueError:
+                    strict_json(previous)
+                    write_file(self.folder, path.with_name(MANIFEST_NAME + BACKUP_SUFFIX), previous)
+                except InputError:
                     pass
-            write_atomic(path, data)
+            write_file(self.folder, path, data)
         except OSError as error:
             raise InputError(f"cannot save the session manifest {path} ({error.strerror or error})") from None
 
@@ -261,69 +346,83 @@ class Session:
         for hand in hands:
             if hand not in ("right", "left"):
                 raise InputError(f"hand must be 'right' or 'left', not '{hand}'")
-        if subject is not None and subject not in [s.name for s in self.subjects]:
-            self.subjects.append(SubjectEntry(subject))
         if labelled is None:
             labelled = _looks_labelled(take)
-        existing = {entry.id for entry in self.takes}
-        number = len(self.takes) + 1
-        while f"t{number:04d}" in existing:
-            number += 1
-        base = name or source.stem
-        names = {entry.name for entry in self.takes}
-        unique, copy = base, 1
-        while unique in names:
-            copy += 1
-            unique = f"{base} ({copy})"
-        entry = TakeEntry(id=f"t{number:04d}", name=unique, source=str(source),
-                          source_relative=_relative(source, self.folder), subject=subject, layout=layout,
-                          hands=list(hands), labelled_source=bool(labelled), state="labelled" if labelled else "raw",
-                          frames=take.n_frames,
-                          points=take.n_markers, frame_rate=take.frame_rate, added=_now())
-        self.takes.append(entry)
-        try:
-            self.save()
-        except InputError:
-            self.takes.remove(entry)
-            raise
-        return entry
+
+        def change() -> TakeEntry:
+            if subject is not None and subject not in [s.name for s in self.subjects]:
+                self.subjects.append(SubjectEntry(subject))
+            existing = {entry.id for entry in self.takes}
+            number = len(self.takes) + 1
+            while f"t{number:04d}" in existing:
+                number += 1
+            base = name or source.stem
+            names = {entry.name for entry in self.takes}
+            unique, copy = base, 1
+            while unique in names:
+                copy += 1
+                unique = f"{base} ({copy})"
+            entry = TakeEntry(id=f"t{number:04d}", name=unique, source=str(source),
+                              source_relative=_relative(source, self.folder), subject=subject, layout=layout,
+                              hands=list(hands), labelled_source=bool(labelled),
+                              state="labelled" if labelled else "raw", frames=take.n_frames,
+                              points=take.n_markers, frame_rate=take.frame_rate, added=_now())
+            self.takes.append(entry)
+            return entry
+
+        return self.update(change)
 
     def update_take(self, take_id: str, *, name: str | None = None, subject: str | None = None,
                     layout: str | None = None, hands: list[str] | None = None) -> TakeEntry:
         """Change a take's name, subject, layout or hands (arguments left None are kept)."""
-        self._check_writable_session()
-        entry = self.take(take_id)
         if hands is not None and (not hands or any(hand not in ("right", "left") for hand in hands)):
             raise InputError(f"hands must be 'right' and/or 'left', not {hands}")
-        if name is not None:
-            if not name.strip() or any(other.name == name for other in self.takes if other is not entry):
-                raise InputError(f"take name '{name}' is empty or already used")
-            entry.name = name.strip()
-        if subject is not None:
-            entry.subject = subject
-            if subject not in [item.name for item in self.subjects]:
-                self.subjects.append(SubjectEntry(subject))
-        if layout is not None:
-            entry.layout = layout
-        if hands is not None:
-            entry.hands = list(hands)
-        self.save()
-        return entry
+
+        def change() -> TakeEntry:
+            entry = self.take(take_id)
+            if name is not None:
+                if not name.strip() or any(other.name == name for other in self.takes if other is not entry):
+                    raise InputError(f"take name '{name}' is empty or already used")
+                entry.name = name.strip()
+            if subject is not None:
+                entry.subject = subject
+                if subject not in [item.name for item in self.subjects]:
+                    self.subjects.append(SubjectEntry(subject))
+            if layout is not None:
+                entry.layout = layout
+            if hands is not None:
+                entry.hands = list(hands)
+            return entry
+
+        return self.update(change)
 
     def remove_take(self, take_id: str) -> None:
-        """Remove a take from the manifest; its result folder is kept, renamed ``takes/<id>.removed-<time>``."""
+        """Remove a take from the manifest; its result folder is kept, renamed ``takes/<id>.removed-<time>``.
+        InputError while the take is open (here or in another process)."""
         self._check_writable_session()
         entry = self.take(take_id)
-        if entry.id in self._open_takes:
+        if entry.id in self._open_takes and not self._open_takes[entry.id].closed:
             raise InputError(f"close take '{entry.name}' before removing it")
         folder = self.take_folder(entry.id)
-        if folder.exists():
-            try:
-                folder.rename(folder.with_name(f"{entry.id}.removed-{time.strftime('%Y%m%d-%H%M%S')}"))
-            except OSError as error:
-                raise InputError(f"cannot remove take '{entry.name}' ({error.strerror or error})") from None
-        self.takes.remove(entry)
-        self.save()
+        lock = FileLock(self.folder, folder / LOCK_NAME)
+        if os.path.lexists(folder):
+            refuse_links(self.folder, folder)
+            if not lock.acquire():
+                raise InputError(f"take '{entry.name}' is open for editing by {lock.holder()}; close it there first")
+        try:
+            def change() -> None:
+                removed = self.take(take_id)
+                if os.path.lexists(folder):
+                    try:
+                        folder.rename(folder.with_name(f"{removed.id}.removed-{time.strftime('%Y%m%d-%H%M%S')}"))
+                    except OSError as error:
+                        raise InputError(f"cannot remove take '{removed.name}' ({error.strerror or error})"
+                                         ) from None
+                self.takes.remove(removed)
+
+            self.update(change)
+        finally:
+            lock.release()
 
     def source_path(self, take_id: str) -> Path:
         """The raw file of a take: the session-relative path if it exists, else the absolute one.
@@ -341,15 +440,18 @@ class Session:
     def relink_take(self, take_id: str, path: str | os.PathLike[str]) -> TakeEntry:
         """Point a take at a moved raw file (must have the same frames and points)."""
         self._check_writable_session()
-        entry = self.take(take_id)
         source = Path(path).expanduser().absolute()
         take = load_take(source)
-        if (take.n_frames, take.n_markers) != (entry.frames, entry.points):
-            raise InputError(f"{source.name} has {take.n_frames} frames and {take.n_markers} points; take "
-                             f"'{entry.name}' had {entry.frames} and {entry.points}")
-        entry.source, entry.source_relative = str(source), _relative(source, self.folder)
-        self.save()
-        return entry
+
+        def change() -> TakeEntry:
+            entry = self.take(take_id)
+            if (take.n_frames, take.n_markers) != (entry.frames, entry.points):
+                raise InputError(f"{source.name} has {take.n_frames} frames and {take.n_markers} points; take "
+                                 f"'{entry.name}' had {entry.frames} and {entry.points}")
+            entry.source, entry.source_relative = str(source), _relative(source, self.folder)
+            return entry
+
+        return self.update(change)
 
     def take_folder(self, take_id: str) -> Path:
         """Result folder of a take (``takes/<id>``; not created here)."""
@@ -359,27 +461,27 @@ class Session:
         """Set a take's state: "raw", "labelled", "reviewed" or "exported"."""
         if state not in TAKE_STATES:
             raise InputError(f"unknown take state '{state}' (use {', '.join(TAKE_STATES)})")
-        self._check_writable_session()
-        entry = self.take(take_id)
-        entry.state = state
-        self.save()
+        self.update(lambda: setattr(self.take(take_id), "state", state))
 
     def record_export(self, take_id: str, kind: str, path: str | os.PathLike[str]) -> None:
         """Remember an export (``kind`` e.g. "c3d", "csv", "bvh") and mark the take exported."""
-        self._check_writable_session()
-        entry = self.take(take_id)
-        entry.exports[kind] = str(Path(path).absolute())
-        entry.state = "exported"
-        self.save()
+        def change() -> None:
+            entry = self.take(take_id)
+            entry.exports[kind] = str(Path(path).absolute())
+            entry.state = "exported"
+
+        self.update(change)
 
     def open_take(self, take_id: str, loader: Callable[[Path], Take] = load_take,
                   label_names: list[str] | None = None) -> OpenTake:
-        """Open a take for review: its raw file, its last snapshot and the journal replayed on top.
+        """Open a take for review: its raw file, its newest readable snapshot and the journal replayed on
+        top.
 
         A take never reviewed starts as :meth:`ReviewTake.from_labelled_take` when its source is labelled
         (with an unsolved hand per entry hand when every marker of the entry's layout is a column), else
         :meth:`ReviewTake.unlabelled` (with ``label_names`` if given; auto-label fills it). Opening the
-        same take twice returns the same :class:`OpenTake`.
+        same take twice returns the same :class:`OpenTake`. The take is read-only (:attr:`OpenTake.read_only`)
+        when the session is, or when another process holds it (:attr:`OpenTake.held_by` says who).
         """
         entry = self.take(take_id)
         if entry.id in self._open_takes and not self._open_takes[entry.id].closed:
@@ -402,14 +504,18 @@ class Session:
         folder = self.folder / "layouts"
         path = folder / f"{_safe_name(layout.name)}.json"
         try:
-            folder.mkdir(exist_ok=True)
+            make_folder(self.folder, folder)
+            refuse_links(self.folder, path)
             save_layout(layout, path)
         except OSError as error:
             raise InputError(f"cannot save layout '{layout.name}' ({error.strerror or error})") from None
         relative = str(path.relative_to(self.folder))
-        self.layouts = [item for item in self.layouts if item.name != layout.name] + [LayoutEntry(layout.name,
-                                                                                                  relative)]
-        self.save()
+
+        def change() -> None:
+            self.layouts = [item for item in self.layouts if item.name != layout.name] + [
+                LayoutEntry(layout.name, relative)]
+
+        self.update(change)
         return path
 
     def layout_path(self, name: str) -> Path | None:
@@ -425,18 +531,22 @@ class Session:
         folder = self.folder / "models"
         path = folder / f"{_safe_name(subject)}.npz"
         try:
-            folder.mkdir(exist_ok=True)
+            make_folder(self.folder, folder)
+            refuse_links(self.folder, path)
             model.save(path)
         except OSError as error:
             raise InputError(f"cannot save the model of '{subject}' ({error.strerror or error})") from None
         relative = str(path.relative_to(self.folder))
-        for item in self.subjects:
-            if item.name == subject:
-                item.model = relative
-                break
-        else:
-            self.subjects.append(SubjectEntry(subject, relative))
-        self.save()
+
+        def change() -> None:
+            for item in self.subjects:
+                if item.name == subject:
+                    item.model = relative
+                    break
+            else:
+                self.subjects.append(SubjectEntry(subject, relative))
+
+        self.update(change)
         return path
 
     def load_subject_model(self, subject: str) -> HandModel:
@@ -460,6 +570,12 @@ class OpenTake:
     :meth:`undo`, :meth:`redo`. ``warnings``: what recovery found on open (one line each);
     ``replayed``: journal entries applied on open (edits recovered after a crash).
 
+    The take is opened from its newest snapshot that reads; a damaged one is set aside (renamed
+    ``.damaged-<time>``) and an older one used, with the journal since it; with none, the take is built
+    from its raw file and the whole journal. ``read_only``: the session is read-only, or another
+    process holds the take (``held_by`` says who, e.g. "ana on lab-pc (process 4711) since ..."); then
+    every edit raises an InputError and the review is as it was when it was opened.
+
     Undo and redo restore the solved joint angles and residuals too, so only :meth:`push` needs a
     re-solve (attach its :class:`~core.review.commands.SetSolve` result with :meth:`attach`, after
     checking ``review.version`` did not change meanwhile).
@@ -471,64 +587,121 @@ class OpenTake:
         self.warnings: list[str] = []
         self.replayed = 0
         self.closed = False
+        self.held_by: str | None = None
+        self.journal: Journal | None = None
+        self._lock: FileLock | None = None
         self._last_save = time.monotonic()
-        snapshot = self.folder / SNAPSHOT_NAME
-        next_seq = 1
-        commands: list[Command] = []
-        history: dict[str, Any] = {}
-        if snapshot.exists():
-            review, meta, commands = load_snapshot(snapshot, take)
-            next_seq = int(meta.get("journal_seq", 0)) + 1
+        root = session.folder
+        refuse_links_within(root, self.folder)
+        writable = not session.read_only
+        if writable:
+            try:
+                make_folder(root, self.folder)
+            except OSError as error:
+                raise InputError(f"cannot create {self.folder} ({error.strerror or error})") from None
+            lock = FileLock(root, self.folder / LOCK_NAME)
+            if lock.acquire():
+                self._lock = lock
+            else:
+                self.held_by, writable = lock.holder(), False
+        try:
+            self._load(take, label_names, writable)
+        except BaseException:
+            self._release()
+            raise
+
+    def _load(self, take: Take, label_names: list[str] | None, writable: bool) -> None:
+        """The newest readable snapshot (or the initial review) and the journal replayed on top."""
+        root, entry = self.session.folder, self.entry
+        loaded, damaged = None, []
+        for path, _ in snapshot_files(root, self.folder):
+            try:
+                loaded = (path, *load_snapshot(read_snapshot_file(root, path), take, path.name))
+                break
+            except SnapshotMismatch:
+                raise
+            except InputError as error:
+                damaged.append(path)
+                self.warnings.append(str(error))
+        if loaded is not None:
+            path, review, meta, commands = loaded
+            base = int(meta["journal_seq"])
             history = meta.get("history", {})
-        elif entry.labelled_source:
-            review = ReviewTake.from_labelled_take(take, hands=_layout_hands(take, entry, session))
+            self._newest_seq: int | None = base if path.name == SNAPSHOT_NAME else None
         else:
-            review = ReviewTake.unlabelled(take, label_names)
+            path, commands, history, base, self._newest_seq = None, [], {}, 0, None
+            if entry.labelled_source:
+                review = ReviewTake.from_labelled_take(take, hands=_layout_hands(take, entry, self.session))
+            else:
+                review = ReviewTake.unlabelled(take, label_names)
+        if damaged:
+            self.warnings.append(f"take '{entry.name}' was opened from {path.name if path else 'its raw file'} "
+                                 "and the edits journalled since")
         self.review = review
         self.stack = UndoStack(review)
         if commands:
             self.stack.restore_history(commands, int(history.get("index", len(commands))),
                                        history.get("clean_index"))
-        self.journal: Journal | None = None
-        if session.read_only:
-            return
-        try:
-            self.folder.mkdir(parents=True, exist_ok=True)
-        except OSError as error:
-            raise InputError(f"cannot create {self.folder} ({error.strerror or error})") from None
-        _acquire_lock(self.folder / LOCK_NAME, entry.name)
-        _remove_temporaries(self.folder, self.folder / "blobs")
-        journal = Journal(self.folder, next_seq)
-        self.replayed, warnings = journal.replay(self.stack, after_seq=next_seq - 1)
+        journal = Journal(root, self.folder, base + 1)
+        if writable:
+            for path in damaged:
+                try:
+                    set_aside(root, path)
+                except (OSError, InputError) as error:
+                    self.warnings.append(f"cannot set the damaged {path.name} aside ({error})")
+            _remove_temporaries(root, self.folder, self.folder / BLOB_FOLDER)
+        self.replayed, warnings = journal.replay(self.stack, after_seq=base, repair=writable)
         self.warnings.extend(warnings)
+        if not writable:
+            self.stack.recorder = self._refuse
+            return
         self.journal = journal
         self.stack.recorder = journal.record
-        if warnings:
-            self.save()  # keep what was recovered; the damaged journal was set aside
+        if self.warnings:
+            self.save()  # keep what was recovered in a snapshot
 
     # --- editing ------------------------------------------------------------------------------------
 
+    @property
+    def read_only(self) -> bool:
+        """Whether edits are refused (the session is read-only or another process holds the take)."""
+        return self.journal is None
+
+    def read_only_reason(self) -> str:
+        """Why the take is read-only, as one clause."""
+        if self.held_by:
+            return f"take '{self.entry.name}' is open read-only: {self.held_by} is editing it"
+        return f"session {self.session.folder} is open read-only"
+
+    def _refuse(self, operation: str, command: Command | None) -> None:
+        raise InputError(f"{self.read_only_reason()}; the edit was not applied")
+
     def push(self, command: Command) -> FrameSpan:
         """Do ``command`` (undoable, journalled); returns the frames to re-solve."""
-        self._check_open()
+        self._check_editable()
         return self.stack.push(command)
 
     def attach(self, command: Command) -> FrameSpan:
         """Do ``command`` as part of the last step (e.g. the re-solve after an edit)."""
-        self._check_open()
+        self._check_editable()
         return self.stack.attach(command)
 
     def undo(self) -> FrameSpan:
-        self._check_open()
+        self._check_editable()
         return self.stack.undo()
 
     def redo(self) -> FrameSpan:
-        self._check_open()
+        self._check_editable()
         return self.stack.redo()
 
     def _check_open(self) -> None:
         if self.closed:
             raise InputError(f"take '{self.entry.name}' is closed")
+
+    def _check_editable(self) -> None:
+        self._check_open()
+        if self.journal is None:
+            self._refuse("", None)
 
     # --- saving -------------------------------------------------------------------------------------
 
@@ -541,29 +714,41 @@ class OpenTake:
         return not self.stack.is_clean()
 
     def save(self) -> None:
-        """Write the snapshot (state + undo history) atomically, restart the journal and update the take's
-        state in the manifest (a raw take with labels becomes "labelled")."""
+        """Write a new snapshot (state + undo history) atomically, keep the previous ones (the last three
+        in all) and their journals, start an empty journal and update the take's state in the manifest
+        (a raw take with labels becomes "labelled")."""
         self._check_open()
         if self.journal is None:
-            raise InputError(f"session {self.session.folder} is open read-only; take '{self.entry.name}' "
-                             "cannot be saved")
-        seq = self.journal.next_seq - 1
+            raise InputError(f"{self.read_only_reason()}; take '{self.entry.name}' cannot be saved")
+        root, seq = self.session.folder, self.journal.next_seq - 1
         try:
-            write_atomic(self.snapshot_path, snapshot_bytes(self.review, self.stack, seq))
-            self.journal.restart()
+            data = snapshot_bytes(self.review, self.stack, seq)
+            if seq != self._newest_seq:
+                self.journal.rotate(seq)
+                if self._newest_seq is not None:
+                    keep_older(root, self.folder, self._newest_seq)
+                elif os.path.lexists(self.snapshot_path):
+                    set_aside(root, self.snapshot_path)  # a damaged newest snapshot
+            write_file(root, self.snapshot_path, data)
+            self._newest_seq = seq
+            self.journal.prune(prune_snapshots(root, self.folder))
         except OSError as error:
             raise InputError(f"cannot save take '{self.entry.name}' ({error.strerror or error}); "
                              "the edits are still in the journal") from None
         self._last_save = time.monotonic()
         self.stack.set_clean()
         relative = str(self.snapshot_path.relative_to(self.session.folder))
-        changed = self.entry.results.get("review") != relative
-        self.entry.results["review"] = relative
-        if self.entry.state == "raw" and (self.review.assignment >= 0).any() and not self.entry.labelled_source:
-            self.entry.state = "labelled"
-            changed = True
-        if changed:
-            self.session.save()
+        labelled = bool((self.review.assignment >= 0).any())
+
+        def change() -> None:
+            entry = self.session.take(self.entry.id)
+            entry.results["review"] = relative
+            if entry.state == "raw" and labelled and not entry.labelled_source:
+                entry.state = "labelled"
+
+        if self.entry.results.get("review") != relative or (self.entry.state == "raw" and labelled
+                                                             and not self.entry.labelled_source):
+            self.session.update(change)
 
     def autosave_due(self, interval_s: float = AUTOSAVE_SECONDS) -> bool:
         """True when there are unsaved edits and the last save is older than ``interval_s``."""
@@ -577,16 +762,24 @@ class OpenTake:
         return False
 
     def close(self, save: bool = True) -> None:
-        """Save (when writable and modified) and release the journal. Without ``save`` the edits stay
-        in the journal and come back on the next open."""
+        """Save (when writable and modified), release the journal and the take lock. Without ``save`` the
+        edits stay in the journal and come back on the next open. A failed save is raised after the
+        take was released (its edits are in the journal)."""
         if self.closed:
             return
-        if save and self.journal is not None and (self.is_modified() or self.replayed):
-            self.save()
+        try:
+            if save and self.journal is not None and (self.is_modified() or self.replayed):
+                self.save()
+        finally:
+            self._release()
+            self.closed = True
+
+    def _release(self) -> None:
         if self.journal is not None:
             self.journal.close()
-            (self.folder / LOCK_NAME).unlink(missing_ok=True)
-        self.closed = True
+        if self._lock is not None:
+            self._lock.release()
+            self._lock = None
 
 
 def _looks_labelled(take: Take) -> bool:
@@ -622,46 +815,57 @@ def _relative(path: Path, folder: Path) -> str | None:
         return None
 
 
-def _acquire_lock(path: Path, name: str) -> None:
-    """Mark a take as being edited by this process (``pid@host`` in ``path``). InputError when another
-    live process on this computer holds it; a lock left by a process that died is taken over."""
-    host = socket.gethostname()
-    try:
-        holder = path.read_text(encoding="utf-8").strip()
-    except (OSError, UnicodeDecodeError):
-        holder = ""
-    pid_text, _, holder_host = holder.partition("@")
-    if pid_text.isdigit() and int(pid_text) != os.getpid():
-        if holder_host != host:
-            raise InputError(f"take '{name}' is open on computer {holder_host} (delete {path} if it is not)")
-        try:
-            os.kill(int(pid_text), 0)
-            alive = True
-        except ProcessLookupError:
-            alive = False
-        except PermissionError:
-            alive = True
-        if alive:
-            raise InputError(f"take '{name}' is open in another Hand Mocap Studio (process {pid_text}; "
-                             f"delete {path} if it is not)")
-    try:
-        write_atomic(path, f"{os.getpid()}@{host}".encode())
-    except OSError as error:
-        raise InputError(f"cannot open take '{name}' for editing ({error.strerror or error})") from None
+def _list(value: Any) -> list[Any]:
+    if not isinstance(value, list):
+        raise TypeError("subjects, layouts and takes must be lists")
+    return value
 
 
-def _remove_temporaries(*folders: Path) -> None:
-    """Delete the temporary files (``.<name>.<hex>.tmp``) an interrupted atomic write left behind (older
-    than a minute, so that a write in progress in another process is left alone)."""
+SESSION_ENTRIES = (MANIFEST_NAME, MANIFEST_NAME + BACKUP_SUFFIX, SESSION_LOCK_NAME, "takes", "models", "layouts")
+
+
+def _refuse_session_links(folder: Path) -> None:
+    """InputError when an entry the session keeps its files in is a symbolic link."""
+    for name in SESSION_ENTRIES:
+        refuse_links(folder, folder / name)
+
+
+def _read_manifest(folder: Path) -> dict[str, Any]:
+    """The manifest of the session in ``folder`` as a dict; InputError (naming the backup) when it is
+    damaged or written by a newer version."""
+    path = folder / MANIFEST_NAME
+    try:
+        manifest = strict_json(read_bytes(folder, path, MANIFEST_LIMIT))
+        if not isinstance(manifest, dict) or manifest.get("format") != SESSION_FORMAT:
+            raise InputError("not a Hand Mocap Studio session manifest")
+    except (OSError, InputError) as error:
+        if isinstance(error, InputError) and "symbolic link" in str(error):
+            raise
+        backup = path.with_name(MANIFEST_NAME + BACKUP_SUFFIX)
+        hint = (f"; the previous manifest is in {backup.name} (Session.restore_backup puts it back)"
+                if os.path.lexists(backup) else "")
+        raise InputError(f"{path} is damaged ({str(error).splitlines()[0][:80]}); it was left untouched{hint}"
+                         ) from None
+    version = manifest.get("version", 0)
+    if type(version) is not int:
+        raise InputError(f"{path} is damaged (version {str(version)[:20]}); it was left untouched")
+    if version > SESSION_VERSION:
+        raise InputError(f"{path} was written by a newer Hand Mocap Studio (version {version})")
+    return manifest
+
+
+def _remove_temporaries(root: Path, *folders: Path) -> None:
+    """Delete the temporary files (``.<name>.<hex>.tmp``) an interrupted atomic write left behind in
+    ``folders`` inside the session folder ``root`` (regular files older than a minute, so that a write in
+    progress in another process is left alone; never through a link)."""
     now = time.time()
     for folder in folders:
-        if folder.is_dir():
-            for path in folder.glob(".*.tmp"):
-                try:
-                    if now - path.stat().st_mtime > 60.0:
-                        path.unlink()
-                except OSError:
-                    pass
+        for path in regular_files(root, folder, ".*.tmp"):
+            try:
+                if now - os.lstat(path).st_mtime > 60.0:
+                    remove_file(root, path)
+            except OSError:
+                pass
 
 
 def _check_writable(folder: Path) -> None:

@@ -1,9 +1,14 @@
 """Snapshots of a review (``.npz``) and the session's marker sets; written with :mod:`core.io.durable`.
 
-A review snapshot (``review.npz``) holds the state arrays of a :class:`ReviewTake`, a JSON ``meta``
-entry (format version, label names, hands, settings, the journal sequence number it includes, the
-raw take's shape) and the undo history: each step's command JSON plus the arrays its undo restores,
-so undo works across sessions.
+A review snapshot holds the state arrays of a :class:`ReviewTake`, a JSON ``meta`` entry (format
+version, label names, hands, settings, the journal sequence number it includes, the raw take's shape)
+and the undo history: each step's command JSON plus the arrays its undo restores, so undo works across
+sessions. A take keeps its last :data:`KEEP_SNAPSHOTS`: ``review.npz`` (the newest) and
+``review-<seq>.npz`` (older ones, named by the journal entry they include), so that a damaged newest
+snapshot falls back to an older one and the journal since it.
+
+Everything read here is untrusted: sizes are checked before numpy allocates, JSON has no NaN or
+infinities, and every malformed value is an InputError of one line.
 """
 
 from __future__ import annotations
@@ -11,7 +16,11 @@ from __future__ import annotations
 import io
 import json
 import os
+import re
+import struct
+import time
 import zipfile
+import zlib
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -24,9 +33,66 @@ from core.io.durable import write_atomic
 from core.model import MarkerSet
 from core.review.commands import Command, CompoundCommand, FrameSpan, UndoStack, command_from_json
 from core.review.take import FRAME_ARRAYS, HandTrack, ReviewSettings, ReviewTake, copy_health, copy_rigid_bodies
+from core.session.files import read_bytes, refuse_links, regular_files, remove_file
 
 SNAPSHOT_FORMAT = "handmocap-review"
 SNAPSHOT_VERSION = 1
+SNAPSHOT_NAME = "review.npz"
+OLDER_SNAPSHOT = re.compile(r"review-(\d{1,15})\.npz")
+KEEP_SNAPSHOTS = 3
+# what malformed stored data raises in the code that turns it into objects (caught at the boundary)
+MALFORMED = (InputError, KeyError, TypeError, ValueError, IndexError, AttributeError, OverflowError, RecursionError)
+# what a damaged zip archive raises while it is read
+DAMAGED_ZIP = (OSError, EOFError, zipfile.BadZipFile, zlib.error, struct.error, NotImplementedError, RuntimeError,
+               MemoryError) + MALFORMED
+
+
+class SnapshotMismatch(InputError):
+    """A readable snapshot made for a raw take of another shape (the raw file changed)."""
+
+
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a number")
+
+
+def _finite(text: str) -> float:
+    value = float(text)
+    if not np.isfinite(value):
+        raise ValueError(f"{text[:20]} is too large")
+    return value
+
+
+def strict_json(data: str | bytes) -> Any:
+    """Parse JSON without NaN or infinities; InputError (one line) for anything malformed, too deep or
+    too large."""
+    try:
+        return json.loads(data, parse_constant=_no_constant, parse_float=_finite)
+    except (ValueError, RecursionError) as error:
+        text = str(error).splitlines()[0][:120] if str(error) else type(error).__name__
+        raise InputError(f"malformed JSON ({text})") from None
+
+
+def check_npy(stream: Any, available: int, name: str) -> None:
+    """InputError unless the ``.npy`` data at ``stream``'s position holds a plain array of at most
+    ``available`` bytes; checked from its header before numpy allocates. The stream is left where it was."""
+    start = stream.tell()
+    try:
+        version = np.lib.format.read_magic(stream)
+        if version == (1, 0):
+            shape, _, dtype = np.lib.format.read_array_header_1_0(stream)
+        elif version == (2, 0):
+            shape, _, dtype = np.lib.format.read_array_header_2_0(stream)
+        else:
+            raise ValueError(f"unsupported .npy version {version}")
+    except (ValueError, EOFError, OSError, SyntaxError) as error:
+        raise InputError(f"{name}: not an array ({str(error).splitlines()[0][:80]})") from None
+    finally:
+        stream.seek(start)
+    if dtype.hasobject:
+        raise InputError(f"{name}: holds Python objects, which are never loaded")
+    size = int(np.prod([int(n) for n in shape], dtype=object)) * dtype.itemsize
+    if size > available:
+        raise InputError(f"{name}: its header asks for {size} bytes, more than the {available} it holds")
 
 
 def npz_bytes(arrays: dict[str, np.ndarray], compress_level: int = 1) -> bytes:
@@ -43,13 +109,22 @@ def npz_bytes(arrays: dict[str, np.ndarray], compress_level: int = 1) -> bytes:
     return buffer.getvalue()
 
 
-def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
-    """Every array of an ``.npz`` file (no pickles); InputError naming the file when unreadable."""
+def read_npz(source: str | os.PathLike[str] | bytes, name: str | None = None) -> dict[str, np.ndarray]:
+    """Every array of an ``.npz`` file, or of its bytes (no pickles; each array's size checked against
+    its archive entry before it is allocated); InputError naming the file (``name``) when unreadable."""
+    name = name or Path(source).name
     try:
-        with np.load(path, allow_pickle=False) as data:
-            return {key: data[key] for key in data.files}
-    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as error:
-        raise InputError(f"{Path(path).name}: cannot read ({error})") from None
+        with zipfile.ZipFile(io.BytesIO(source) if isinstance(source, bytes) else source) as archive:
+            arrays = {}
+            for info in archive.infolist():
+                key = info.filename[:-4] if info.filename.endswith(".npy") else info.filename
+                with archive.open(info) as member:
+                    check_npy(member, info.file_size, f"{name} ({info.filename})")
+                    arrays[key] = np.lib.format.read_array(member, allow_pickle=False)
+            return arrays
+    except DAMAGED_ZIP as error:
+        text = str(error).splitlines()[0][:160] if str(error) else type(error).__name__
+        raise InputError(f"{name}: cannot read ({text})") from None
 
 
 MARKER_SET_ARRAYS = ("vertex", "rest_positions", "influence_joints", "influence_weights", "local_points", "offsets_mm")
@@ -170,36 +245,105 @@ def _restore_step(step: dict[str, Any], key: str, arrays: dict[str, np.ndarray],
     return command
 
 
-def load_snapshot(path: str | os.PathLike[str], take: Take) -> tuple[ReviewTake, dict[str, Any], list[Command]]:
-    """Read a snapshot made for ``take``: the review, its ``meta`` dict and the undo history commands
-    (``meta["history"]`` has ``index`` and ``clean_index``). InputError when unreadable or when the raw
-    take no longer matches (frames or point count changed)."""
-    arrays = read_npz(path)
-    name = Path(path).name
+def _int(value: Any, what: str, low: int = 0, high: int = 2**53) -> int:
+    if type(value) is not int or not low <= value < high:
+        raise ValueError(f"{what} must be a whole number from {low}, not {str(value)[:20]}")
+    return value
+
+
+def _typed(value: Any, kind: type, what: str) -> Any:
+    if not isinstance(value, kind):
+        raise TypeError(f"{what} must be a {kind.__name__}")
+    return value
+
+
+def load_snapshot(data: bytes, take: Take, name: str = SNAPSHOT_NAME) -> tuple[ReviewTake, dict[str, Any],
+                                                                                list[Command]]:
+    """Read the snapshot bytes ``data`` (file ``name``) made for ``take``: the review, its ``meta`` dict
+    and the undo history commands (``meta["history"]`` has ``index`` and ``clean_index``). InputError
+    (one line) when unreadable or malformed; :class:`SnapshotMismatch` when the raw take no longer
+    matches (frames or point count changed)."""
+    arrays = read_npz(data, name)
     try:
-        meta = json.loads(str(arrays.pop("meta")))
-    except (KeyError, ValueError) as error:
-        raise InputError(f"{name}: not a review snapshot ({error})") from None
-    if meta.get("format") != SNAPSHOT_FORMAT:
-        raise InputError(f"{name}: not a review snapshot")
-    if int(meta.get("version", 0)) > SNAPSHOT_VERSION:
-        raise InputError(f"{name}: written by a newer Hand Mocap Studio (format {meta.get('version')})")
-    shape = meta.get("take", {})
-    if (shape.get("frames"), shape.get("points")) != (take.n_frames, take.n_markers):
-        raise InputError(f"{name}: the raw take changed since it was reviewed ({shape.get('frames')} frames and "
-                         f"{shape.get('points')} points then, {take.n_frames} and {take.n_markers} now)")
-    try:
-        hands = [HandTrack(h["name"], h["side"], h.get("layout"), np.asarray(h["labels"], np.int64),
-                           arrays[f"hand{index}"]) for index, h in enumerate(meta["hands"])]
-        review = ReviewTake(take=take, label_names=list(meta["label_names"]), hands=hands,
-                            rigid_bodies=dict(meta.get("rigid_bodies", {})),
+        meta = _typed(strict_json(str(arrays.pop("meta"))), dict, "meta")
+        if meta.get("format") != SNAPSHOT_FORMAT:
+            raise InputError(f"{name}: not a review snapshot")
+        version = _int(meta.get("version", 0), "version")
+        if version > SNAPSHOT_VERSION:
+            raise InputError(f"{name}: written by a newer Hand Mocap Studio (format {version})")
+        _int(meta.get("journal_seq"), "journal_seq")
+        shape = _typed(meta.get("take", {}), dict, "take")
+        if (shape.get("frames"), shape.get("points")) != (take.n_frames, take.n_markers):
+            raise SnapshotMismatch(f"{name}: the raw take changed since it was reviewed ({shape.get('frames')} "
+                                   f"frames and {shape.get('points')} points then, {take.n_frames} and "
+                                   f"{take.n_markers} now)")
+        hands = [HandTrack(str(h["name"]), h["side"], h.get("layout"), np.asarray(h["labels"], np.int64),
+                           arrays[f"hand{index}"])
+                 for index, h in enumerate(_typed(meta["hands"], list, "hands"))]
+        review = ReviewTake(take=take, label_names=list(_typed(meta["label_names"], list, "label_names")),
+                            hands=hands, rigid_bodies=_typed(meta.get("rigid_bodies", {}), dict, "rigid_bodies"),
                             health=copy_health(meta.get("health", [])), noise_mm=meta.get("noise_mm"),
-                            settings=ReviewSettings(**meta.get("settings", {})),
+                            settings=ReviewSettings(**_typed(meta.get("settings", {}), dict, "settings")),
                             **{key: arrays[key] for key in FRAME_ARRAYS})
         blobs = DictBlobs(arrays, "blob")
-        history = meta.get("history", {})
-        commands = [_restore_step(step, f"s{number}", arrays, blobs)
-                    for number, step in enumerate(history.get("steps", []))]
-    except (KeyError, TypeError, ValueError) as error:
-        raise InputError(f"{name}: damaged review snapshot ({error})") from None
+        history = _typed(meta.get("history", {}), dict, "history")
+        steps = _typed(history.get("steps", []), list, "history steps")
+        _int(history.get("index", len(steps)), "history index", 0, len(steps) + 1)
+        clean = history.get("clean_index")
+        if clean is not None:
+            _int(clean, "history clean index", 0, len(steps) + 1)
+        commands = [_restore_step(_typed(step, dict, "history step"), f"s{number}", arrays, blobs)
+                    for number, step in enumerate(steps)]
+    except InputError as error:
+        if isinstance(error, SnapshotMismatch) or str(error).startswith(name):
+            raise
+        raise InputError(f"{name}: damaged review snapshot ({str(error)[:200]})") from None
+    except MALFORMED as error:
+        text = str(error).splitlines()[0][:200] if str(error) else type(error).__name__
+        raise InputError(f"{name}: damaged review snapshot ({text})") from None
     return review, meta, commands
+
+
+# ---------------------------------------------------------------------------------------- the kept snapshots
+def snapshot_files(root: Path, folder: Path) -> list[tuple[Path, int | None]]:
+    """The snapshots of the take folder ``folder``, newest first, with the journal entry each includes
+    as its name tells (None for ``review.npz``, whose ``meta`` tells)."""
+    older = [(path, int(match.group(1))) for path in regular_files(root, folder, "review-*.npz")
+             if (match := OLDER_SNAPSHOT.fullmatch(path.name))]
+    newest = folder / SNAPSHOT_NAME
+    refuse_links(root, newest)
+    first = [(newest, None)] if newest.is_file() else []
+    return first + sorted(older, key=lambda item: -item[1])
+
+
+def read_snapshot_file(root: Path, path: Path) -> bytes:
+    """The bytes of a snapshot file; InputError when it cannot be read."""
+    try:
+        return read_bytes(root, path)
+    except OSError as error:
+        raise InputError(f"{path.name}: cannot read ({error.strerror or error})") from None
+
+
+def keep_older(root: Path, folder: Path, seq: int) -> None:
+    """Keep the current ``review.npz`` (which includes journal entry ``seq``) as ``review-<seq>.npz``
+    before a new one is written. OSError or InputError when it cannot."""
+    newest = folder / SNAPSHOT_NAME
+    refuse_links(root, newest)
+    if newest.is_file():
+        os.replace(newest, folder / f"review-{int(seq)}.npz")
+
+
+def set_aside(root: Path, path: Path) -> None:
+    """Rename a damaged snapshot to ``<name>.damaged-<time>`` (kept for inspection, never read again)."""
+    refuse_links(root, path)
+    os.replace(path, path.with_name(f"{path.name}.damaged-{time.strftime('%Y%m%d-%H%M%S')}"))
+
+
+def prune_snapshots(root: Path, folder: Path) -> int:
+    """Delete the snapshots beyond the newest :data:`KEEP_SNAPSHOTS`; returns the journal entry up to which
+    no kept snapshot needs the journal (0 while fewer are kept: the raw take is the oldest base)."""
+    files = snapshot_files(root, folder)
+    for path, _ in files[KEEP_SNAPSHOTS:]:
+        remove_file(root, path)
+    kept = [seq for _, seq in files[:KEEP_SNAPSHOTS] if seq is not None]
+    return min(kept) if len(files) >= KEEP_SNAPSHOTS and kept else 0
