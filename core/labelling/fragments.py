@@ -64,7 +64,7 @@ def extend_trajectories(points: np.ndarray, assignment: np.ndarray, columns: np.
             # frames where a labelled stretch ends in this direction
             ends = np.flatnonzero(labelled[:-1] & ~labelled[1:]) if direction == 1 else \
                 np.flatnonzero(~labelled[:-1] & labelled[1:]) + 1
-            for end in ends:
+            for end in ends.tolist():
                 last = points[end, assignment[end, marker]]
                 before = end - direction
                 previous = points[before, assignment[before, marker]] if 0 <= before < frames and \
@@ -110,9 +110,9 @@ def free_fragments(points: np.ndarray, assignment: np.ndarray, link_mm: float, m
                 still_open.append(track)
             elif len(track[1]) >= min_frames:
                 done.append((track[0], np.array(track[1])))
-        for column in candidates:
-            if int(column) not in used:
-                still_open.append([frame, [int(column)], None, points[frame, column]])
+        for unlinked in candidates.tolist():
+            if unlinked not in used:
+                still_open.append([frame, [unlinked], None, points[frame, unlinked]])
         open_tracks = still_open
     done += [(track[0], np.array(track[1])) for track in open_tracks if len(track[1]) >= min_frames]
     return done

@@ -54,18 +54,19 @@ class Candidate:
     track_index: int
     cluster_index: int
     score: float
-    state: object
+    state: np.ndarray   # hand θ (26,) or object pose (4,4)
     matched: int
     residual_mm: float
     point_index: np.ndarray   # (K,) index into the frame's points, -1 unmatched
     #: other fits of the same track to the same cluster, as (state, point index (K,)), best first
-    alternatives: list[tuple[object, np.ndarray]] = field(default_factory=list)
+    alternatives: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
 
 
 def model_points(track: Track) -> np.ndarray:
     """The model's markers in its reference configuration (hands: mean posture of the prior) (K,3)."""
     if isinstance(track, HandTracker):
         return track.effectors(track.mean_theta)
+    assert isinstance(track, RigidTrack)
     return track.local
 
 
@@ -431,6 +432,7 @@ def initialise_frame(tracks: list[Track], candidates_for: list[int], points: np.
             if isinstance(track, HandTracker):
                 fits = fit_hand(track, cluster, settings, points[strays])
             else:
+                assert isinstance(track, RigidTrack)
                 fits = [fit_object(track, cluster, settings)]
             fits = [fit for fit in fits if np.isfinite(fit[0]) and fit[3] <= settings.init_max_residual_mm
                     and fit[2] >= least]

@@ -210,7 +210,7 @@ class Track(ABC):
     def __init__(self, name: str, marker_names: list[str], settings: SceneSettings):
         self.name, self.marker_names, self.settings = name, list(marker_names), settings
         self.count = len(marker_names)
-        self.history: list = []
+        self.history: list[np.ndarray] = []
         self.seen = np.zeros(self.count, dtype=bool)
         self.recent: deque[tuple[float, float, int]] = deque()
         self._sums = np.zeros(3)
@@ -220,7 +220,7 @@ class Track(ABC):
     def active(self) -> bool:
         return bool(self.history)
 
-    def start(self, state, seen: np.ndarray | None = None) -> None:
+    def start(self, state: np.ndarray, seen: np.ndarray | None = None) -> None:
         """(Re)start tracking from ``state`` (the previous frame's solution)."""
         self.history = [state]
         self.seen = np.ones(self.count, dtype=bool) if seen is None else seen.copy()
@@ -259,7 +259,8 @@ class Track(ABC):
         deviation = np.sqrt(max(squares / count - mean * mean, 0.0))
         return float(min(mean + settings.threshold_k * deviation, settings.threshold_ceiling_mm))
 
-    def commit(self, state, residuals: np.ndarray, seen: np.ndarray, points: np.ndarray | None = None) -> None:
+    def commit(self, state: np.ndarray, residuals: np.ndarray, seen: np.ndarray,
+               points: np.ndarray | None = None) -> None:
         """Accept a frame's solution; ``points (K,3)`` the points the markers took (NaN missing)."""
         self.history = [self.history[-1], state] if self.history else [state]
         self.seen = seen
@@ -277,15 +278,15 @@ class Track(ABC):
 
     # interface of the concrete tracks
     @abstractmethod
-    def predict(self):
+    def predict(self) -> np.ndarray:
         """The state expected in the next frame (constant velocity from the last two)."""
 
     @abstractmethod
-    def effectors(self, state) -> np.ndarray:
+    def effectors(self, state: np.ndarray) -> np.ndarray:
         """Marker positions ``(K,3)`` mm of the model in ``state``."""
 
     @abstractmethod
-    def solve(self, targets: np.ndarray, observed: np.ndarray, start) -> tuple[object, np.ndarray]:
+    def solve(self, targets: np.ndarray, observed: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The state fitting ``targets (K,3)`` mm where ``observed (K,)``, from ``start``; and its markers."""
 
 
@@ -348,12 +349,13 @@ class RigidTrack(Track):
         self.lost = 0
         self.extent = float(np.linalg.norm(self.local - self.local.mean(axis=0), axis=1).max())
 
-    def start(self, state, seen: np.ndarray | None = None) -> None:
+    def start(self, state: np.ndarray, seen: np.ndarray | None = None) -> None:
         super().start(state, seen)
         self.counts = [0, int(self.seen.sum())]
         self.lost = 0
 
-    def commit(self, state, residuals: np.ndarray, seen: np.ndarray, points: np.ndarray | None = None) -> None:
+    def commit(self, state: np.ndarray, residuals: np.ndarray, seen: np.ndarray,
+               points: np.ndarray | None = None) -> None:
         super().commit(state, residuals, seen, points)
         self.counts = [self.counts[-1], int(seen.sum())]
         self.lost = self.lost + 1 if self.counts[-1] < min(3, self.count) else 0

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -176,7 +177,7 @@ class _Run:
         self.cut = cluster_cut(tracks, settings)
         #: frame -> [(track index, known labels (K,) point columns, starting state)]: tracks to start
         #: there with the labels found by an earlier pass (the calibration pre-pass)
-        self.scheduled: dict[int, list[tuple[int, np.ndarray, object]]] = {}
+        self.scheduled: dict[int, list[tuple[int, np.ndarray, np.ndarray]]] = {}
         #: (F,P) linked point trajectories (:func:`core.labelling.swaps.point_tracklets`), made when needed
         self.tracklets: np.ndarray | None = None
         #: per hand track: consecutive frames it has been lost; frames where it was fitted afresh
@@ -198,7 +199,7 @@ class _Run:
         return columns[~np.isin(columns, foreign[foreign >= 0])]
 
     def step(self, tracks: Sequence[Track], points: np.ndarray
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list]:
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[np.ndarray]]:
         """Track one frame of ``points (N,3)`` with ``tracks`` (all active). Returns, over the tracks'
         markers in order, the point index (K,) (-1 missing), the confidence (K,) mm and the residuals
         (K,) mm, and the state per track."""
@@ -220,7 +221,7 @@ class _Run:
         chosen = first.copy()
         residuals_all = np.empty(len(first))
         effectors_all = np.empty((len(first), 3))
-        states = []
+        states: list[np.ndarray] = []
         for number, track in enumerate(tracks):
             part = slice(bounds[number], bounds[number + 1])
             index = chosen[part]
@@ -271,7 +272,7 @@ class _Run:
         for number, track in enumerate(tracks):
             part = slice(bounds[number], bounds[number + 1])
             track.commit(states[number], residuals_all[part], observed[part], taken_points[part])
-            if number in restarted:
+            if isinstance(track, RigidTrack) and number in restarted:
                 track.restart(states[number], observed[part], taken_points[part])
         return chosen, confidence, residuals_all, states
 
@@ -315,8 +316,8 @@ class _Run:
         return index, pose, track.effectors(pose), new_residuals
 
     @staticmethod
-    def _solve(track: Track, points: np.ndarray, index: np.ndarray, start
-               ) -> tuple[object, np.ndarray, np.ndarray]:
+    def _solve(track: Track, points: np.ndarray, index: np.ndarray, start: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         observed = index >= 0
         targets = np.where(observed[:, None], points[np.maximum(index, 0)], np.nan)
         state, effectors = track.solve(targets, observed, start)
@@ -324,7 +325,7 @@ class _Run:
         return state, effectors, residuals
 
     def record(self, frame: int, track_indices: list[int], columns: np.ndarray, index: np.ndarray,
-               confidence: np.ndarray, residuals: np.ndarray, states: list) -> None:
+               confidence: np.ndarray, residuals: np.ndarray, states: list[np.ndarray]) -> None:
         """Store one frame's result of the tracks ``track_indices`` (their markers concatenated)."""
         cells = slice(None) if len(track_indices) == len(self.tracks) else np.concatenate(
             [np.arange(self.offsets[number], self.offsets[number + 1]) for number in track_indices])
@@ -433,7 +434,7 @@ class _Run:
         costs = [self._window_cost(frame, number, labels, start) for labels, start in hypotheses]
         return hypotheses[int(np.argmin(costs))] if min(costs) < kept else None
 
-    def _start_with(self, frame: int, number: int, columns: np.ndarray, labels: np.ndarray, state,
+    def _start_with(self, frame: int, number: int, columns: np.ndarray, labels: np.ndarray, state: np.ndarray,
                     taken: np.ndarray) -> np.ndarray:
         """Start track ``number`` in ``frame`` with known labels (point column per marker, -1 none) and
         a starting state; returns the frame's points (mask over ``columns``) it took."""
@@ -445,7 +446,7 @@ class _Run:
         return np.isin(columns, self.assignment[frame, self.columns(number)])
 
     def _record_start(self, frame: int, number: int, track: Track, columns: np.ndarray, labels: np.ndarray,
-                      state, taken: np.ndarray | None = None) -> tuple[object, np.ndarray, np.ndarray]:
+                      state: np.ndarray, taken: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Solve ``track`` in ``frame`` from ``state`` with ``labels`` (point column per marker, -1 none; a
         column not among the frame's sorted ``columns`` or ``taken`` (mask over them) is dropped) and record
         it as track ``number``'s labelling there. Returns the state, the observed markers (K,) and their
@@ -478,11 +479,11 @@ class _Run:
         confidence = _margins(pair_distances(effectors, points), index, track.thresholds())
         self.record(frame, [candidate.track_index], columns, index, confidence, residuals, [state])
 
-    def _window_cost(self, frame: int, number: int, labels: np.ndarray, state) -> float:
+    def _window_cost(self, frame: int, number: int, labels: np.ndarray, state: np.ndarray) -> float:
         assert self.make_track is not None
         return window_cost(self.make_track(number), self.positions, frame, labels, state, self.settings)
 
-    def start_at(self, frame: int, track_index: int, state) -> None:
+    def start_at(self, frame: int, track_index: int, state: np.ndarray) -> None:
         """Start a track from a given state (e.g. a known first posture) and label ``frame``."""
         track = self.tracks[track_index]
         track.start(state)
@@ -516,10 +517,10 @@ class _Run:
         for frame in range(begin - 1, -1, -1):
             free = self.free_columns(frame, track_index)
             own = self.assignment[frame, part]
-            index, confidence, residuals, states = self.step([track], self.positions[frame, free])
+            index, confidence, residuals, solved = self.step([track], self.positions[frame, free])
             taken = _columns_of(index, free)
             if frame < init:
-                self.record(frame, [track_index], free, index, confidence, residuals, states)
+                self.record(frame, [track_index], free, index, confidence, residuals, solved)
                 continue
             add = (own < 0) & (taken >= 0) & (frame < first_seen) & ~np.isin(taken, own)
             if add.any():
@@ -768,7 +769,7 @@ def _columns_of(index: np.ndarray, columns: np.ndarray) -> np.ndarray:
     return np.where(index >= 0, columns[np.maximum(index, 0)], -1)
 
 
-def window_cost(track: Track, positions: np.ndarray, frame: int, labels: np.ndarray, state,
+def window_cost(track: Track, positions: np.ndarray, frame: int, labels: np.ndarray, state: np.ndarray,
                 settings: SceneSettings) -> float:
     """Mean eq. 2 cost per frame (mean residual mm + α · markers unlabelled) of ``track`` (fresh) started
     in ``frame`` of ``positions (F,P,3)`` with ``labels (K,)`` (point columns, -1 none) and ``state``,
@@ -833,6 +834,10 @@ def _positions(take: Take) -> np.ndarray:
     return positions
 
 
+_Refreshed = dict[int, list[tuple[int, HandModel, MarkerSet]]]
+"""Calibrations of single windows: {first frame of the window: [(hand track number, model, marker set)]}."""
+
+
 def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout = "dense",
                 objects: Sequence[ObjectSpec] | str | Path | None = None, online: bool = False,
                 settings: SceneSettings | None = None,
@@ -852,122 +857,211 @@ def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout = "d
     Raises :class:`InputError` (empty or all-NaN take, fewer than 3 points, bad spec, no frame where
     any model initialises) and :class:`CancelledError` when ``cancelled()`` turns true.
     """
-    settings = settings or SceneSettings()
     positions = _positions(take)
     statistics = measure_take(positions)
-    settings = settings.adapted(statistics)
-    layout = load_layout(layout) if isinstance(layout, str) else layout
-    specs = _objects(objects)
-    models = dict(models or {})
-    decision = _decide_sides(positions, layout, settings, models, specs) if hands == "auto" else None
-    sides = decision.sides if decision is not None else _hand_sides(hands)
-    hand_models = {side: models.get(side) or load_template(side) for side in sides}
-    prefix = len(sides) > 1
-    hand_names = {side: [(HAND_PREFIX[side] if prefix else "") + name for name in layout.names] for side in sides}
-    check_unique_names(specs, "scene", [name for names in hand_names.values() for name in names])
-    marker_sets = {side: resolve_layout(hand_models[side], layout) for side in sides}
-    frames = len(positions)
-
-    def make_tracks(current_models: dict[str, HandModel], current_sets: dict[str, MarkerSet]) -> list[Track]:
-        tracks: list[Track] = [HandTracker(side, side, current_models[side], current_sets[side], settings,
-                                         hand_names[side]) for side in sides]
-        tracks += [RigidTrack(spec, settings) for spec in specs]
-        return tracks
-
-    # progress: calibration pre-pass 0..0.15, forward pass 0.15..0.9, backward pass 0.9..1
-    def reporter(low: float, high: float, total: int) -> Callable[[int], None]:
-        every = max(1, total // 100)
-
-        def report(frame: int) -> None:
-            if frame % every == 0:
-                if cancelled is not None and cancelled():
-                    raise CancelledError("automatic labelling cancelled; the take is unchanged")
-                if progress is not None:
-                    progress(low + (high - low) * min(frame, total) / max(total, 1))
-        return report
-
-    calibrations: dict[str, dict] = {}
-    tracks = make_tracks(hand_models, marker_sets)
-    calibrate_online = settings.calibrate and online
-    pre = None
-    if settings.calibrate and not online and sides:
-        windows = _calibration_windows(frames, settings)
-        prepasses = []
-        for number, offset in enumerate(windows):
-            report = reporter(0.15 * number / len(windows), 0.15 * (number + 1) / len(windows), frames - offset)
-            prepasses.append(_prepass(positions[offset:], make_tracks(hand_models, marker_sets), settings,
-                                      initial_states if offset == 0 else None,
-                                      lambda number: make_tracks(hand_models, marker_sets)[number], report,
-                                      decision if offset == 0 else None))
-        pre = prepasses[0]
-        template_models = dict(hand_models)
-        for number, side in enumerate(sides):
-            calibrated = _calibrate([(run, len(run.positions)) for run in prepasses], number, hand_models[side],
-                                    marker_sets[side], layout)
-            if calibrated is not None:
-                hand_models[side], marker_sets[side], calibrations[side] = calibrated
-        tracks = make_tracks(hand_models, marker_sets)
-        refreshed = _refreshed_calibrations(prepasses, windows, tracks, template_models, marker_sets, layout)
-    run = _Run(tracks, positions, settings,
-               None if online else lambda number: make_tracks(hand_models, marker_sets)[number])
-    _seed(run, tracks, initial_states)
-    if pre is None:
-        _schedule_decided(run, tracks, decision)
-    if pre is not None:
-        # the calibrated models start where, and with the labels that, the pre-pass found (re-running the
-        # initial fit with a model adapted to the window could pick another, self-consistent labelling)
-        for number, init in enumerate(pre.init_frames):
-            if init >= 0 and run.init_frames[number] < 0:
-                run.scheduled.setdefault(init, []).append(
-                    (number, pre.assignment[init, pre.columns(number)].copy(), pre.states[number][init].copy()))
+    settings = (settings or SceneSettings()).adapted(statistics)
+    scene = _scene(positions, hands, layout, objects, settings, models)
+    stages = _Progress(progress, cancelled)
+    calibrate_offline = settings.calibrate and not online
+    pre: _Run | None = None
+    refreshed: _Refreshed = {}
+    if calibrate_offline and scene.sides:
+        pre, refreshed = _calibrate_offline(scene, positions, initial_states, stages)
+    run = _main_run(scene, positions, online, initial_states, pre)
     on_frame = None
-    if pre is not None and refreshed:
-        def on_frame(frame: int) -> None:
-            for number, model, markers in refreshed.get(frame + 1, []):
-                tracks[number].set_model(model, markers)
-    if calibrate_online and sides:
-        pending = set(range(len(sides)))
-
-        def on_frame(frame: int) -> None:
-            for number in list(pending):
-                init = run.init_frames[number]
-                if init >= 0 and frame >= init + settings.calibration_frames - 1:
-                    pending.discard(number)
-                    side = sides[number]
-                    calibrated = _calibrate([(run, frame + 1)], number, hand_models[side], marker_sets[side],
-                                            layout)
-                    if calibrated is not None:
-                        hand_models[side], marker_sets[side], calibrations[side] = calibrated
-                        tracks[number].set_model(hand_models[side], marker_sets[side])
-    run.forward(0, frames, reporter(0.15 if settings.calibrate and not online else 0.0, 0.9, frames), on_frame)
+    if refreshed:
+        on_frame = _refresh_hook(run, refreshed)
+    if settings.calibrate and online and scene.sides:
+        on_frame = _online_calibration_hook(scene, run)
+    run.forward(0, len(positions), stages.stage(0.15 if calibrate_offline else 0.0, 0.9, len(positions)), on_frame)
     if all(init < 0 for init in run.init_frames):
         raise InputError("no frame of the take initialises any model (is the layout right, and is each hand or "
                          "object a separate cluster with most of its markers visible in some frame?)")
     if not online:
-        report = reporter(0.9, 1.0, len(tracks))
-        for number in range(len(tracks)):
-            report(number)
-            if isinstance(tracks[number], HandTracker):
-                for frame in run.reinitialised.get(number, []):
-                    run.retrack(number, make_tracks(hand_models, marker_sets)[number], frame, 0,
-                                converge=settings.hypothesis_frames)
-                run.verify_start(number, make_tracks(hand_models, marker_sets)[number])
-                run.recheck(number)
-            run.backward(number, lambda number=number: make_tracks(hand_models, marker_sets)[number])
-    for number in range(len(tracks)):
-        track = make_tracks(hand_models, marker_sets)[number]
+        _backward_passes(run, scene, stages.stage(0.9, 1.0, len(run.tracks)))
+    _link_and_rescue(run, scene, online)
+    if progress is not None:
+        progress(1.0)
+    result = _result(run, scene, positions, online)
+    result.noise_mm = statistics.noise_mm if statistics.measured else None
+    result.side_decision = scene.decision
+    result.health = assess_labelling(result, take.frame_rate)
+    return result
+
+
+@dataclass
+class _Scene:
+    """What :func:`label_scene` tracks: the hands ``sides`` with their marker names, models and marker sets
+    (replaced by the subject calibration, whose reports are kept in ``calibrations``), then the rigid
+    objects ``specs``; ``decision`` how ``hands="auto"`` decided the sides (None when given)."""
+
+    settings: SceneSettings
+    layout: MarkerLayout
+    sides: list[str]
+    specs: list[ObjectSpec]
+    hand_names: dict[str, list[str]]
+    hand_models: dict[str, HandModel]
+    marker_sets: dict[str, MarkerSet]
+    decision: SideDecision | None
+    calibrations: dict[str, dict] = field(default_factory=dict)
+
+    def track(self, number: int) -> Track:
+        """A fresh track ``number``: the hands first (with their current models), then the objects."""
+        if number < len(self.sides):
+            side = self.sides[number]
+            return HandTracker(side, side, self.hand_models[side], self.marker_sets[side], self.settings,
+                             self.hand_names[side])
+        return RigidTrack(self.specs[number - len(self.sides)], self.settings)
+
+    def tracks(self) -> list[Track]:
+        """Fresh tracks of every model of the scene, in order."""
+        return [self.track(number) for number in range(len(self.sides) + len(self.specs))]
+
+    def calibrate(self, number: int, windows: list[tuple[_Run, int]]) -> bool:
+        """Subject calibration of hand ``number`` from its labels in ``windows`` (:func:`_calibrate`);
+        when it succeeds the hand's model and marker set are replaced. Returns whether it succeeded."""
+        side = self.sides[number]
+        calibrated = _calibrate(windows, number, self.hand_models[side], self.marker_sets[side], self.layout)
+        if calibrated is None:
+            return False
+        self.hand_models[side], self.marker_sets[side], self.calibrations[side] = calibrated
+        return True
+
+
+def _scene(positions: np.ndarray, hands: str, layout: str | MarkerLayout,
+           objects: Sequence[ObjectSpec] | str | Path | None, settings: SceneSettings,
+           models: dict[str, HandModel] | None) -> _Scene:
+    """The hands (``hands="auto"``: decided from ``positions (F,P,3)`` mm) and objects to track, with the
+    given hand models or the shipped templates; the hands' marker names prefixed ``R_``/``L_`` when
+    both are tracked. Raises :class:`InputError` for unknown ``hands``, a bad spec or clashing names."""
+    layout = load_layout(layout) if isinstance(layout, str) else layout
+    specs = _objects(objects)
+    given = dict(models or {})
+    decision = _decide_sides(positions, layout, settings, given, specs) if hands == "auto" else None
+    sides = decision.sides if decision is not None else _hand_sides(hands)
+    hand_models = {side: given.get(side) or load_template(side) for side in sides}
+    prefix = len(sides) > 1
+    hand_names = {side: [(HAND_PREFIX[side] if prefix else "") + name for name in layout.names] for side in sides}
+    check_unique_names(specs, "scene", [name for names in hand_names.values() for name in names])
+    marker_sets = {side: resolve_layout(hand_models[side], layout) for side in sides}
+    return _Scene(settings, layout, sides, specs, hand_names, hand_models, marker_sets, decision)
+
+
+class _Progress:
+    """Progress and cancellation of one labelling, in stages: calibration pre-passes 0..0.15, forward
+    pass 0.15..0.9 (from 0 without pre-passes), backward passes 0.9..1."""
+
+    def __init__(self, progress: Callable[[float], None] | None, cancelled: Callable[[], bool] | None):
+        self.progress, self.cancelled = progress, cancelled
+
+    def stage(self, low: float, high: float, total: int) -> Callable[[int], None]:
+        """A reporter for steps ``0..total`` mapped onto ``low..high``; it checks for cancellation (raising
+        :class:`CancelledError`) and reports about 100 times over the stage."""
+        every = max(1, total // 100)
+
+        def report(step: int) -> None:
+            if step % every == 0:
+                if self.cancelled is not None and self.cancelled():
+                    raise CancelledError("automatic labelling cancelled; the take is unchanged")
+                if self.progress is not None:
+                    self.progress(low + (high - low) * min(step, total) / max(total, 1))
+        return report
+
+
+def _calibrate_offline(scene: _Scene, positions: np.ndarray, initial_states: dict[str, object] | None,
+                       stages: _Progress) -> tuple[_Run, _Refreshed]:
+    """Offline subject calibration (module docstring, step 2): a pre-pass with the template hands over each
+    calibration window, one calibration per hand pooled over the windows (replacing the scene's hands),
+    and the later windows that calibration fits clearly worse calibrated alone
+    (:func:`_refreshed_calibrations`). Returns the first window's pre-pass and those refreshed calibrations."""
+    frames = len(positions)
+    windows = _calibration_windows(frames, scene.settings)
+    prepasses = []
+    for number, offset in enumerate(windows):
+        report = stages.stage(0.15 * number / len(windows), 0.15 * (number + 1) / len(windows), frames - offset)
+        prepasses.append(_prepass(positions[offset:], scene.tracks(), scene.settings,
+                                  initial_states if offset == 0 else None, scene.track, report,
+                                  scene.decision if offset == 0 else None))
+    template_models = dict(scene.hand_models)
+    for number in range(len(scene.sides)):
+        scene.calibrate(number, [(run, len(run.positions)) for run in prepasses])
+    refreshed = _refreshed_calibrations(prepasses, windows, scene.tracks(), template_models, scene.marker_sets,
+                                        scene.layout)
+    return prepasses[0], refreshed
+
+
+def _main_run(scene: _Scene, positions: np.ndarray, online: bool, initial_states: dict[str, object] | None,
+              pre: _Run | None) -> _Run:
+    """The run that labels the take with the scene's (calibrated) models: seeded with ``initial_states``;
+    the hands scheduled to start where the calibration pre-pass ``pre`` started them (with its labels and
+    states: re-running the initial fit with a model adapted to the window could pick another,
+    self-consistent labelling), or else where ``hands="auto"`` decided them. Offline, initial fits with
+    runner-up hypotheses are decided by tracking each (:meth:`_Run._window_cost`)."""
+    tracks = scene.tracks()
+    run = _Run(tracks, positions, scene.settings, None if online else scene.track)
+    _seed(run, tracks, initial_states)
+    if pre is None:
+        _schedule_decided(run, tracks, scene.decision)
+        return run
+    for number, init in enumerate(pre.init_frames):
+        if init >= 0 and run.init_frames[number] < 0:
+            run.scheduled.setdefault(init, []).append(
+                (number, pre.assignment[init, pre.columns(number)].copy(), pre.states[number][init].copy()))
+    return run
+
+
+def _refresh_hook(run: _Run, refreshed: _Refreshed) -> Callable[[int], None]:
+    """Per frame of the forward pass: from the first frame of each window with a calibration of its own
+    (:func:`_refreshed_calibrations`) on, its hands track with that calibration."""
+    def on_frame(frame: int) -> None:
+        for number, model, markers in refreshed.get(frame + 1, []):
+            track = run.tracks[number]
+            assert isinstance(track, HandTracker)
+            track.set_model(model, markers)
+    return on_frame
+
+
+def _online_calibration_hook(scene: _Scene, run: _Run) -> Callable[[int], None]:
+    """Per frame of the online forward pass: once a hand has been tracked for ``calibration_frames`` frames,
+    calibrate it on those frames (causal) and track on with the calibrated hand."""
+    pending = set(range(len(scene.sides)))
+
+    def on_frame(frame: int) -> None:
+        for number in list(pending):
+            init = run.init_frames[number]
+            if init >= 0 and frame >= init + scene.settings.calibration_frames - 1:
+                pending.discard(number)
+                if scene.calibrate(number, [(run, frame + 1)]):
+                    side, track = scene.sides[number], run.tracks[number]
+                    assert isinstance(track, HandTracker)
+                    track.set_model(scene.hand_models[side], scene.marker_sets[side])
+    return on_frame
+
+
+def _backward_passes(run: _Run, scene: _Scene, report: Callable[[int], None]) -> None:
+    """Offline, per model: a hand is tracked again backwards from each frame where it was fitted afresh,
+    its start verified and its labelling re-checked; then the frames before its first initialisation
+    are labelled backwards (:meth:`_Run.backward`)."""
+    for number in range(len(run.tracks)):
+        report(number)
+        if isinstance(run.tracks[number], HandTracker):
+            for frame in run.reinitialised.get(number, []):
+                run.retrack(number, scene.track(number), frame, 0, converge=scene.settings.hypothesis_frames)
+            run.verify_start(number, scene.track(number))
+            run.recheck(number)
+        run.backward(number, partial(scene.track, number))
+
+
+def _link_and_rescue(run: _Run, scene: _Scene, online: bool) -> None:
+    """Per model: extend its trajectories into continuing free points (forward only online); per hand,
+    give long free trajectories to the marker the IK brings onto them and, offline, repair swaps."""
+    for number in range(len(run.tracks)):
+        track = scene.track(number)
         run.link(number, track, backward=not online)
         if isinstance(track, HandTracker):
             run.rescue(number, track, causal=online)
             if not online:
                 run.repair_swaps(number, track)
-    if progress is not None:
-        progress(1.0)
-    result = _result(run, tracks, sides, specs, hand_models, marker_sets, calibrations, positions, online)
-    result.noise_mm = statistics.noise_mm if statistics.measured else None
-    result.side_decision = decision
-    result.health = assess_labelling(result, take.frame_rate)
-    return result
 
 
 def _decide_sides(positions: np.ndarray, layout: MarkerLayout, settings: SceneSettings,
@@ -1057,12 +1151,12 @@ def _prepass(positions: np.ndarray, tracks: list[Track], settings: SceneSettings
 
 def _refreshed_calibrations(prepasses: list[_Run], windows: list[int], tracks: list[Track],
                             template_models: dict[str, HandModel], marker_sets: dict[str, MarkerSet],
-                            layout: MarkerLayout) -> dict[int, list[tuple[int, HandModel, MarkerSet]]]:
+                            layout: MarkerLayout) -> _Refreshed:
     """Per later calibration window whose frames the pooled subject model fits clearly worse than the
     first window's (mean residual above :data:`REFRESH_RATIO` × the first's: the markers moved on the
     skin, a glove slipped), a calibration of that window alone, to track with from the window's first
     frame on. Returns {first frame: [(hand track number, model, marker set)]}."""
-    refreshed: dict[int, list[tuple[int, HandModel, MarkerSet]]] = {}
+    refreshed: _Refreshed = {}
     for number, track in enumerate(tracks):
         if not isinstance(track, HandTracker) or len(prepasses) < 2:
             continue
@@ -1125,21 +1219,21 @@ def _calibrate(windows: list[tuple[_Run, int]], number: int, model: HandModel, m
         return None
 
 
-def _result(run: _Run, tracks: list[Track], sides: list[str], specs: list[ObjectSpec],
-            hand_models: dict[str, HandModel], marker_sets: dict[str, MarkerSet], calibrations: dict[str, dict],
-            positions: np.ndarray, online: bool) -> SceneLabelling:
+def _result(run: _Run, scene: _Scene, positions: np.ndarray, online: bool) -> SceneLabelling:
+    """The labelling ``run`` made of the scene's models over ``positions (F,P,3)`` mm."""
     names: list[str] = []
     owner: list[int] = []
     scene_models: list[SceneModel] = []
     joint_angles: dict[str, np.ndarray] = {}
     object_poses: dict[str, np.ndarray] = {}
-    for number, track in enumerate(tracks):
+    for number, track in enumerate(run.tracks):
         names += track.marker_names
         owner += [number] * track.count
         if isinstance(track, HandTracker):
-            scene_models.append(SceneModel(track.name, track.kind, run.columns(number), hand_models[track.kind],
-                                           marker_sets[track.kind], None, run.init_frames[number],
-                                           calibrations.get(track.kind, {}), run.reinitialised.get(number, [])))
+            scene_models.append(SceneModel(track.name, track.kind, run.columns(number),
+                                           scene.hand_models[track.kind], scene.marker_sets[track.kind], None,
+                                           run.init_frames[number], scene.calibrations.get(track.kind, {}),
+                                           run.reinitialised.get(number, [])))
             joint_angles[track.name] = run.states[number]
         else:
             assert isinstance(track, RigidTrack)

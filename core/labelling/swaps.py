@@ -41,8 +41,8 @@ def neighbour_pairs(rest_positions: np.ndarray, count: int = NEIGHBOURS) -> list
     """Pairs (a < b) of markers among each marker's ``count`` nearest in ``rest_positions (K,3)`` mm."""
     distances = np.linalg.norm(rest_positions[:, None] - rest_positions[None], axis=2)
     np.fill_diagonal(distances, np.inf)
-    pairs = {tuple(sorted((int(a), int(b)))) for a in range(len(rest_positions))
-             for b in np.argsort(distances[a])[:count]}
+    pairs = {(min(a, b), max(a, b)) for a in range(len(rest_positions))
+             for b in np.argsort(distances[a])[:count].tolist()}
     return sorted(pairs)
 
 

@@ -115,5 +115,5 @@ def measure_take(positions: np.ndarray) -> TakeStatistics:
     noise = float(np.median(np.abs(fourth)) * MAD_TO_SIGMA / np.sqrt(FOURTH_DIFFERENCE_VARIANCE))
     second = samples[:, 2:] - 2 * samples[:, 1:-1] + samples[:, :-2]
     extrapolation = float(np.quantile(np.linalg.norm(second, axis=2), 0.999))
-    step = float(np.quantile(np.linalg.norm(np.diff(samples, axis=1), axis=2), 0.99))
-    return TakeStatistics(noise, extrapolation, step, len(samples))
+    step_mm = float(np.quantile(np.linalg.norm(np.diff(samples, axis=1), axis=2), 0.99))
+    return TakeStatistics(noise, extrapolation, step_mm, len(samples))
