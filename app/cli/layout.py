@@ -12,7 +12,7 @@ def _motions(values: list[str]) -> str | list[str]:
     return values[0] if len(values) == 1 and not values[0].endswith(".npz") else values
 
 
-def command_layout_optimize(args: argparse.Namespace) -> int:
+def command_layout_optimise(args: argparse.Namespace) -> int:
     from core.layout import PSOSettings
     from core.layout.workflow import optimise_layout
     from core.model import load_template, save_layout
@@ -130,21 +130,22 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     fit.add_argument("--out", required=True, metavar="LAYOUT.json")
     fit.set_defaults(handler=command_layout_fit)
 
-    optimize = layout_commands.add_parser("optimize", help="optimise a reduced marker layout for a motion set")
-    optimize.add_argument("--markers", type=int, required=True, help="number of markers")
-    optimize.add_argument("--motions", nargs="+", default=["grasps"],
+    optimise = layout_commands.add_parser("optimise", aliases=["optimize"],
+                                          help="optimise a reduced marker layout for a motion set")
+    optimise.add_argument("--markers", type=int, required=True, help="number of markers")
+    optimise.add_argument("--motions", nargs="+", default=["grasps"],
                           help="motion set: grasps, gestures, all, or solved-take result .npz files")
-    optimize.add_argument("--method", choices=["pso", "pso-swap", "greedy", "subset"], default="pso",
+    optimise.add_argument("--method", choices=["pso", "pso-swap", "greedy", "subset"], default="pso",
                           help="pso (journal), pso-swap (PSO then greedy swap polish), greedy, subset")
-    optimize.add_argument("--base", default="dense", help="base layout for --method subset (default dense)")
-    optimize.add_argument("--dims", type=int, help="subspace dimensions (default: one per marker, 2 to 6)")
-    optimize.add_argument("--keyframes", type=int, default=10, help="keyframes of the motion (3 to 10)")
-    optimize.add_argument("--particles", type=int, default=1000, help="PSO particles (default 1000)")
-    optimize.add_argument("--iterations", type=int, default=100, help="PSO iterations (default 100)")
-    optimize.add_argument("--seed", type=int, default=0)
-    optimize.add_argument("--name", help="layout name (default METHOD-K)")
-    optimize.add_argument("--out", required=True, metavar="LAYOUT.json")
-    optimize.set_defaults(handler=command_layout_optimize)
+    optimise.add_argument("--base", default="dense", help="base layout for --method subset (default dense)")
+    optimise.add_argument("--dims", type=int, help="subspace dimensions (default: one per marker, 2 to 6)")
+    optimise.add_argument("--keyframes", type=int, default=10, help="keyframes of the motion (3 to 10)")
+    optimise.add_argument("--particles", type=int, default=1000, help="PSO particles (default 1000)")
+    optimise.add_argument("--iterations", type=int, default=100, help="PSO iterations (default 100)")
+    optimise.add_argument("--seed", type=int, default=0)
+    optimise.add_argument("--name", help="layout name (default METHOD-K)")
+    optimise.add_argument("--out", required=True, metavar="LAYOUT.json")
+    optimise.set_defaults(handler=command_layout_optimise)
     evaluate_layout = layout_commands.add_parser("evaluate", help="metrics and held-out reconstruction error")
     evaluate_layout.add_argument("layout", help="layout JSON file or shipped layout name")
     evaluate_layout.add_argument("--motions", nargs="+", default=["grasps"],
