@@ -7,13 +7,12 @@ Format: ``{"units": "mm", "landmarks": {name: [x, y, z] or null}}`` with names f
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from core.errors import InputError
+from core.io.durable import write_text_atomic
 from core.model.template_mesh import LANDMARK_NAMES
 
 MIN_LANDMARKS = 6
@@ -67,19 +66,12 @@ def load_landmarks(path: str | Path) -> dict[str, np.ndarray | None]:
 
 
 def save_landmarks(landmarks: dict[str, np.ndarray | None], path: str | Path) -> None:
-    """Write a landmark set (positions in mm) as JSON, atomically (temporary file, then rename)."""
+    """Write a landmark set (positions in mm) as JSON through :mod:`core.io.durable`."""
     path = Path(path)
     checked = validate_landmarks(landmarks, path.name)
     positions = {name: None if value is None else [float(c) for c in value] for name, value in checked.items()}
     data = {"units": "mm", "landmarks": positions}
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    try:
-        with os.fdopen(handle, "w", encoding="utf-8") as stream:
-            json.dump(data, stream, indent=2)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
+    write_text_atomic(path, json.dumps(data, indent=2))
 
 
 def landmarks_from_truth(truth: dict) -> dict[str, np.ndarray | None]:

@@ -46,6 +46,7 @@ from core.calibration.report import (
 from core.calibration.rigid import similarity_transform
 from core.calibration.scan import METRE_DIAGONAL_LIMIT, Scan, load_scan
 from core.errors import CancelledError, InputError
+from core.io.durable import write_text_atomic
 from core.model import HandModel, load_template
 from core.model.hand_model import MAX_INFLUENCES, mesh_vertex_normals
 from core.model.skeleton import N_JOINTS, Skeleton
@@ -81,13 +82,11 @@ class CalibrationResult:
     theta: np.ndarray
 
     def save(self, model_path: str | Path, report_path: str | Path | None = None) -> None:
-        """Write the model (``HandModel.save`` ``.npz``) and optionally the report (JSON, atomic)."""
+        """Write the model (``HandModel.save`` ``.npz``) and optionally the report (JSON), each through
+        :mod:`core.io.durable`."""
         self.model.save(model_path)
         if report_path is not None:
-            path = Path(report_path)
-            temporary = path.with_name(path.name + ".tmp")
-            temporary.write_text(json.dumps(self.report.to_json(), indent=2), encoding="utf-8")
-            temporary.replace(path)
+            write_text_atomic(report_path, json.dumps(self.report.to_json(), indent=2))
 
 
 def _stage(progress: Progress | None, start: float, end: float) -> Progress | None:

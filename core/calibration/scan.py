@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
+from core.io.durable import durable_stream
 from core.model.hand_model import mesh_vertex_normals
 
 METRE_DIAGONAL_LIMIT = 2.0   # a hand scan with a bounding-box diagonal below this is in metres
@@ -362,7 +363,7 @@ def save_ply(scan: Scan, path: str | Path) -> None:
     face_records = np.empty(len(faces), dtype=np.dtype([("k", "u1"), ("i", "<i4", (3,))]))
     face_records["k"] = 3
     face_records["i"] = faces
-    with path.open("wb") as stream:
+    with durable_stream(path) as stream:
         stream.write(("\n".join(header) + "\n").encode("ascii"))
         stream.write(vertices.tobytes())
         stream.write(face_records.tobytes())

@@ -18,6 +18,7 @@ import numpy as np
 
 from core.errors import CancelledError, InputError
 from core.ik.kernel import frame_energy_kernel, solve_frame_kernel
+from core.io.durable import durable_stream, verify_zip
 from core.io.joint_angles import write_joint_angles_csv
 from core.model import HandModel, MarkerLayout, MarkerSet, marker_columns, marker_positions, resolve_layout
 from core.model.kinematics import ANCESTOR, vector_from_rotation
@@ -62,15 +63,13 @@ class IKResult:
         return float(np.nanmean(self.residuals_mm)) if np.isfinite(self.residuals_mm).any() else float("nan")
 
     def save(self, path: str | Path) -> None:
-        """Write ``.npz`` (atomic)."""
-        path = Path(path)
-        temporary = path.with_name(path.name + ".tmp.npz")
-        np.savez_compressed(temporary, joint_angles=self.joint_angles, residuals_mm=self.residuals_mm,
-                            effector_positions=self.effector_positions,
-                            marker_names=np.array(self.marker_names), method=self.method,
-                            frame_rate=self.frame_rate, first_frame=self.first_frame, hand_side=self.hand_side,
-                            param_names=np.array(PARAM_NAMES))
-        temporary.replace(path)
+        """Write ``.npz`` through :mod:`core.io.durable` (WriteError naming the file on failure)."""
+        with durable_stream(path, verify=verify_zip) as stream:
+            np.savez_compressed(stream, joint_angles=self.joint_angles, residuals_mm=self.residuals_mm,
+                                effector_positions=self.effector_positions,
+                                marker_names=np.array(self.marker_names), method=self.method,
+                                frame_rate=self.frame_rate, first_frame=self.first_frame, hand_side=self.hand_side,
+                                param_names=np.array(PARAM_NAMES))
 
     def save_csv(self, path: str | Path) -> None:
         """Joint angles as CSV (see :func:`core.io.joint_angles.write_joint_angles_csv`)."""

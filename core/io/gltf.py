@@ -38,6 +38,7 @@ from urllib.parse import unquote
 import numpy as np
 
 from core.errors import InputError
+from core.io.durable import durable_stream, write_text_atomic
 from core.model.hand_model import MAX_INFLUENCES, HandModel
 from core.model.skeleton import DIGITS, JOINT_NAMES, JOINT_PARENTS, N_JOINTS, Skeleton
 from core.model.template_mesh import LANDMARK_NAMES
@@ -643,17 +644,15 @@ def save_gltf_hand(model: HandModel, path: str | Path) -> None:
                                  "back_direction": [float(v) for v in model.back_direction],
                                  "hand_length": float(model.hand_length), "name": model.name}},
     }
-    temporary = path.with_name(path.name + ".tmp")
     if path.suffix.lower() == ".gltf":
         document["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(binary).decode()
-        temporary.write_text(json.dumps(document), encoding="utf-8")
+        write_text_atomic(path, json.dumps(document))
     else:
         text = json.dumps(document).encode("utf-8")
         text += b" " * ((-len(text)) % 4)
         total = 12 + 8 + len(text) + 8 + len(binary)
-        with temporary.open("wb") as stream:
+        with durable_stream(path) as stream:
             stream.write(struct.pack("<III", _GLB_MAGIC, 2, total))
             stream.write(struct.pack("<II", len(text), _JSON_CHUNK) + text)
             stream.write(struct.pack("<II", len(binary), _BIN_CHUNK) + binary)
-    temporary.replace(path)
 

@@ -102,7 +102,7 @@ class LabelledC3D:
 def encode_runs(values: np.ndarray, skip: int = 0) -> np.ndarray:
     """Runs of equal values along frames of ``values (F, N)`` int, except runs of ``skip``:
     ``(4, R)`` float64 rows point, first frame, length, value (ordered by point then frame)."""
-    values = np.asarray(values, dtype=np.int64)
+    values = np.asarray(values)
     frames, count = values.shape
     if frames == 0 or count == 0:
         return np.zeros((4, 0))
@@ -168,30 +168,30 @@ def write_labelled_c3d(path: str | PathLike[str], label_names: list[str], positi
     """
     positions = np.asarray(positions, dtype=np.float64)
     frames, count = positions.shape[:2]
-    provenance = np.asarray(provenance, dtype=np.int64)
+    provenance = np.asarray(provenance)
     if provenance.shape != (frames, count):
         raise TakeFormatError.at(path, f"provenance must be {(frames, count)}, got {provenance.shape}")
     present = np.isfinite(positions).all(axis=2)
-    codes = np.where(present, np.where(provenance == -1, 0, provenance), -1)
+    codes = np.where(present, np.where(provenance == -1, 0, provenance), -1).astype(np.int8)  # codes -1..6
     edited = np.zeros((frames, count), dtype=bool) if edited is None else np.asarray(edited, dtype=bool)
     names = list(label_names)
     columns = [positions]
     unlabelled_count = 0
     ghost_runs = np.zeros((3, 0))
     if unlabelled is not None and np.size(unlabelled):
-        unlabelled = np.asarray(unlabelled, dtype=np.float64)
+        unlabelled = np.asarray(unlabelled)
         unlabelled_count = unlabelled.shape[1]
         names += list(unlabelled_names or [f"{UNLABELLED_PREFIX}{i}" for i in range(unlabelled_count)])
         columns.append(unlabelled)
         if ghost is not None:
-            ghost_runs = encode_runs(np.asarray(ghost, dtype=np.int64))[:3]
+            ghost_runs = encode_runs(np.asarray(ghost, dtype=np.int8))[:3]
             ghost_runs[0] += count
     group: dict[str, object] = {
         "FORMAT": FORMAT_VERSION, "SOFTWARE": "Hand Mocap Studio", "DESCRIPTION": DESCRIPTION,
         "LABELLED": int(count), "CODES": CODE_LEGEND,
     }
     group.update(_split(encode_runs(codes), "RUNS"))
-    group.update(_split(encode_runs(edited.astype(np.int64))[:3], "EDITED"))
+    group.update(_split(encode_runs(edited.astype(np.int8))[:3], "EDITED"))
     group.update(_split(ghost_runs, "GHOSTS"))
     if source:
         group["SOURCE"] = str(source)

@@ -65,4 +65,6 @@ def save_take(take: Take, path: str | PathLike[str]) -> None:
         )
     if take.n_frames == 0 or take.n_markers == 0:
         raise TakeFormatError.at(path, f"nothing to write ({take.n_frames} frames, {take.n_markers} markers)")
+    if not path.parent.is_dir():
+        raise TakeFormatError.at(path, f"folder '{path.parent}' does not exist")
     writer(take, path)

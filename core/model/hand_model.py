@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
+from core.io.durable import durable_stream, verify_zip
 from core.io.npz import load_npz
 from core.model.kinematics import KinematicChain
 from core.model.skeleton import N_JOINTS, Skeleton
@@ -66,19 +67,17 @@ class HandModel:
         )
 
     def save(self, path: str | Path) -> None:
-        """Store as ``.npz`` (atomic: temporary file, then rename)."""
-        path = Path(path)
-        temporary = path.with_name(path.name + ".tmp.npz")
-        np.savez_compressed(
-            temporary,
-            rest_positions=self.skeleton.rest_positions, rest_rotations=self.skeleton.rest_rotations,
-            tip_positions=self.skeleton.tip_positions, side=self.skeleton.side,
-            vertices=self.vertices, faces=self.faces, skin_joints=self.skin_joints,
-            skin_weights=self.skin_weights, landmark_names=np.array(list(self.landmarks)),
-            landmark_vertices=np.array(list(self.landmarks.values()), dtype=np.int64),
-            back_direction=self.back_direction, hand_length=self.hand_length, name=self.name,
-        )
-        temporary.replace(path)
+        """Store as ``.npz`` through :mod:`core.io.durable` (WriteError naming the file on failure)."""
+        with durable_stream(path, verify=verify_zip) as stream:
+            np.savez_compressed(
+                stream,
+                rest_positions=self.skeleton.rest_positions, rest_rotations=self.skeleton.rest_rotations,
+                tip_positions=self.skeleton.tip_positions, side=self.skeleton.side,
+                vertices=self.vertices, faces=self.faces, skin_joints=self.skin_joints,
+                skin_weights=self.skin_weights, landmark_names=np.array(list(self.landmarks)),
+                landmark_vertices=np.array(list(self.landmarks.values()), dtype=np.int64),
+                back_direction=self.back_direction, hand_length=self.hand_length, name=self.name,
+            )
 
     @classmethod
     def load(cls, path: str | Path) -> HandModel:

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
+from core.io.durable import write_text_atomic
 from core.model.hand_model import HandModel
 from core.model.kinematics import ANCESTOR, points_and_jacobian_kernel, skinned_points_kernel
 from core.model.skeleton import DIGITS, JOINT_NAMES
@@ -162,11 +163,8 @@ def load_layout(name_or_path: str | Path) -> MarkerLayout:
 
 
 def save_layout(layout: MarkerLayout, path: str | Path) -> None:
-    """Write a layout JSON file atomically."""
-    path = Path(path)
-    temporary = path.with_name(path.name + ".tmp")
-    temporary.write_text(json.dumps(layout.to_json(), indent=2), encoding="utf-8")
-    temporary.replace(path)
+    """Write a layout JSON file durably (:mod:`core.io.durable`; WriteError naming the file on failure)."""
+    write_text_atomic(path, json.dumps(layout.to_json(), indent=2))
 
 
 @dataclass(frozen=True, eq=False)

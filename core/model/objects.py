@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
+from core.io.durable import write_text_atomic
 
 OBJECT_TYPES = ("box", "sphere", "cylinder", "rigid")
 #: largest distance (mm) of a primitive's marker centre from its surface (marker radius + base + slack)
@@ -190,11 +191,8 @@ def load_scene_spec(path: str | Path) -> list[ObjectSpec]:
 
 
 def save_scene_spec(objects: list[ObjectSpec], path: str | Path) -> None:
-    """Write a scene spec JSON file atomically."""
-    path = Path(path)
-    temporary = path.with_name(path.name + ".tmp")
-    temporary.write_text(json.dumps({"objects": [spec.to_json() for spec in objects]}, indent=2), encoding="utf-8")
-    temporary.replace(path)
+    """Write a scene spec JSON file durably (:mod:`core.io.durable`; WriteError naming the file on failure)."""
+    write_text_atomic(path, json.dumps({"objects": [spec.to_json() for spec in objects]}, indent=2))
 
 
 def rigid_body_from_points(name: str, marker_names: list[str], positions: np.ndarray) -> ObjectSpec:

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
+from core.io.durable import durable_stream, verify_zip
 from core.io.joint_angles import read_result_joint_angles
 from core.io.npz import load_npz
 from core.model.skeleton import N_GLOBAL, N_POSTURE, default_joint_limits
@@ -73,13 +74,10 @@ class PosturePrior:
         return np.cumsum(self.explained_variance_ratio)
 
     def save(self, path: str | Path) -> None:
-        """Store as ``.npz`` (atomic: temporary file, then rename)."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        temporary = path.with_name(path.name + ".tmp.npz")
-        np.savez_compressed(temporary, source=np.array(self.source), n_samples=np.array(self.n_samples),
-                            **{name: getattr(self, name) for name in _ARRAY_FIELDS})
-        temporary.replace(path)
+        """Store as ``.npz`` through :mod:`core.io.durable` (WriteError naming the file on failure)."""
+        with durable_stream(path, verify=verify_zip) as stream:
+            np.savez_compressed(stream, source=np.array(self.source), n_samples=np.array(self.n_samples),
+                                **{name: getattr(self, name) for name in _ARRAY_FIELDS})
 
     @classmethod
     def load(cls, path: str | Path) -> PosturePrior:

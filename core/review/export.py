@@ -30,7 +30,8 @@ UNLABELLED_CHOICES = ("all", "non-ghost", "none")
 
 def unlabelled_columns(review: ReviewTake, unlabelled: str = "all") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The raw columns to export as ``*<column>`` points: their indices ``(U,)``, positions ``(F, U, 3)`` mm
-    (the column's point where no label took it, NaN elsewhere) and ghost flags ``(F, U)``.
+    as float32, the precision of the C3D file (the column's point where no label took it, NaN elsewhere;
+    built a column at a time, so the export needs no float64 copy of them) and ghost flags ``(F, U)``.
     ``unlabelled``: "all" (ghosts too), "non-ghost" or "none"."""
     if unlabelled not in UNLABELLED_CHOICES:
         raise InputError(f"unlabelled points: use {', '.join(UNLABELLED_CHOICES)}, not '{unlabelled}'")
@@ -40,7 +41,9 @@ def unlabelled_columns(review: ReviewTake, unlabelled: str = "all") -> tuple[np.
     if unlabelled == "none":
         free[:] = False
     columns = np.flatnonzero(free.any(axis=0))
-    positions = np.where(free[:, columns, None], review.take.marker_positions[:, columns], np.nan)
+    positions = np.empty((review.n_frames, len(columns), 3), dtype=np.float32)
+    for index, column in enumerate(columns):
+        positions[:, index] = np.where(free[:, column, None], review.take.marker_positions[:, column], np.nan)
     return columns, positions, review.ghost[:, columns] & free[:, columns]
 
 

@@ -25,6 +25,7 @@ from numba import njit
 
 from core.errors import InputError
 from core.io import Take
+from core.io.durable import durable_stream, verify_zip
 from core.io.npz import load_npz
 from core.model import (
     HandModel,
@@ -296,11 +297,9 @@ def simulate_take(layout: str | MarkerLayout = "dense", n_frames: int = 600, see
 
 
 def save_truth(truth: dict[str, np.ndarray], path: str | Path) -> None:
-    """Store a truth dictionary as ``.npz`` (atomic: temporary file, then rename)."""
-    path = Path(path)
-    temporary = path.with_name(path.name + ".tmp.npz")
-    np.savez_compressed(temporary, **truth)
-    temporary.replace(path)
+    """Store a truth dictionary as ``.npz`` through :mod:`core.io.durable` (WriteError naming the file)."""
+    with durable_stream(path, verify=verify_zip) as stream:
+        np.savez_compressed(stream, **truth)
 
 
 def load_truth(path: str | Path) -> dict[str, np.ndarray]:
