@@ -3,7 +3,8 @@
 
 A take opened from the session is a document whose review lives in the session (:class:`OpenTake`):
 every edit is journalled at once, the snapshot is written every ``AUTOSAVE_MS`` when there are edits
-and when the take or the window closes.
+and when the take or the window closes. A take another instance is editing opens read-only: its title
+says so, the status bar says who holds it, and edits are refused with that message.
 
 Changes of the session folder go through the :class:`~app.gui.application.Application`, which announces
 them; the session browser follows those events (and the shown take), whoever made the change.
@@ -99,6 +100,8 @@ class SessionController(QObject):
         elif isinstance(event, CurrentDocumentChanged):
             document = event.document
             self.browser.set_current((document.session_take_id or "") if document is not None else "")
+            if document is not None and document.open_take is not None and document.open_take.read_only:
+                self.status_message.emit(f"{document.open_take.read_only_reason()}; edits are not possible", 0)
 
     def _show_takes(self) -> None:
         """Show the open session's takes and states in the browser (none when no session is open)."""
@@ -215,7 +218,9 @@ class SessionController(QObject):
 
     def _take_opened(self, opened: OpenTake, automatic: bool = False) -> None:
         entry = opened.entry
-        document = TakeDocument(take=opened.review.take, title=entry.name, layout_name=entry.layout,
+        automatic = automatic and not opened.read_only
+        title = f"{entry.name} (read-only)" if opened.read_only else entry.name
+        document = TakeDocument(take=opened.review.take, title=title, layout_name=entry.layout,
                                 open_take=opened, session_take_id=entry.id,
                                 auto_solve=automatic and entry.labelled_source)
         if self.session is not None and entry.subject:
@@ -261,7 +266,7 @@ class SessionController(QObject):
         """Keep the hand models the labelling calibrated to this take's subject, and their calibrated
         markers, in the take's folder, so that drawing, solves and re-solves use them when the take is
         opened again."""
-        if document.open_take is None or self.session is None or self.session.read_only:
+        if document.open_take is None or document.open_take.read_only or self.session is None:
             return
         folder = document.open_take.folder
         try:
@@ -298,7 +303,7 @@ class SessionController(QObject):
     # ---------------------------------------------------------------------------------- saving
     def save_document(self, document: TakeDocument) -> None:
         """Write the snapshot of a session take now (after auto-label, before export)."""
-        if document.open_take is None or self.session is None or self.session.read_only:
+        if document.open_take is None or document.open_take.read_only or self.session is None:
             return
         try:
             self.app.save_document(document)
