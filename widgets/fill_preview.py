@@ -11,7 +11,7 @@ from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
 from widgets.gap_list import METHOD_ORDER, METHOD_TITLES
-from widgets.marker_lanes import BACKGROUND, GAP_COLOR, METHOD_COLORS, css
+from widgets.marker_lanes import BACKGROUND, GAP_COLOUR, METHOD_COLOURS, css
 
 AXES = ("X", "Y", "Z")
 MEASURED_PEN = (205, 210, 218)
@@ -55,8 +55,8 @@ class FillPreview(QWidget):
                 plot.setXLink(self.plots[0])
             self.plots.append(plot)
         self.plots[-1].setLabel("bottom", "frame")
-        self._regions = [pg.LinearRegionItem(movable=False, brush=pg.mkBrush(*GAP_COLOR, 40),
-                                             pen=pg.mkPen(*GAP_COLOR, 90)) for _ in AXES]
+        self._regions = [pg.LinearRegionItem(movable=False, brush=pg.mkBrush(*GAP_COLOUR, 40),
+                                             pen=pg.mkPen(*GAP_COLOUR, 90)) for _ in AXES]
         self._measured = [pg.PlotDataItem(pen=pg.mkPen(MEASURED_PEN, width=1.2), symbol="o", symbolSize=3,
                                           symbolPen=None, symbolBrush=MEASURED_PEN, connect="finite")
                           for _ in AXES]
@@ -142,9 +142,9 @@ class FillPreview(QWidget):
         self._selected = method if method in self._curves else None
         for name, curves in self._curves.items():
             chosen = name == self._selected
-            color = METHOD_COLORS[name]
-            pen = (pg.mkPen(color, width=2.6) if chosen
-                   else pg.mkPen((*color, 170), width=1.1, style=Qt.PenStyle.DashLine))
+            colour = METHOD_COLOURS[name]
+            pen = (pg.mkPen(colour, width=2.6) if chosen
+                   else pg.mkPen((*colour, 170), width=1.1, style=Qt.PenStyle.DashLine))
             for curve in curves:
                 curve.setPen(pen)
                 curve.setZValue(20 if chosen else 10)
@@ -177,7 +177,7 @@ class FillPreview(QWidget):
 
     def _update_legend(self) -> None:
         parts = [f'<span style="color:{css(MEASURED_PEN)}">●</span>&nbsp;measured',
-                 f'<span style="color:{css(GAP_COLOR)}">▮</span>&nbsp;gap']
+                 f'<span style="color:{css(GAP_COLOUR)}">▮</span>&nbsp;gap']
         for method in self._curves:
             error = self._errors.get(method)
             text = METHOD_TITLES[method].replace(" ", "&nbsp;")
@@ -185,5 +185,5 @@ class FillPreview(QWidget):
                 text += f"&nbsp;{error:.2f}&nbsp;mm"
             if method == self._selected:
                 text = f"<b>{text}</b>"
-            parts.append(f'<span style="color:{css(METHOD_COLORS[method])}">■</span>&nbsp;{text}')
+            parts.append(f'<span style="color:{css(METHOD_COLOURS[method])}">■</span>&nbsp;{text}')
         self.legend_label.setText("&nbsp;&nbsp; ".join(parts))

@@ -38,7 +38,7 @@ from PySide6.QtWidgets import (
 from core.gaps import FILL_METHODS, FillCheck, Gap
 from core.gaps.check import DISPLACE_FACTOR, LOCAL_HORIZON_S
 from core.model.provenance import PROVENANCE_NAMES
-from widgets.marker_lanes import GAP_COLOR, METHOD_COLORS, css
+from widgets.marker_lanes import GAP_COLOUR, METHOD_COLOURS, css
 from widgets.marker_panel import MISSING_TEXT, SORT_ROLE, ColumnTableModel
 
 GAP_STATES = ("open", "filled", "rejected")
@@ -70,7 +70,7 @@ COLUMN_TIPS = (
 STATE_FILTERS = ("All gaps", "Open", "Filled", "Rejected")
 AUTO_DONOR = -1
 DEFAULT_MAX_FILL = 20
-REJECTED_COLOR = QColor(150, 150, 155)
+REJECTED_COLOUR = QColor(150, 150, 155)
 if set(METHOD_ORDER) != set(FILL_METHODS):
     raise ImportError("widgets.gap_list lists other fill methods than core.gaps")
 
@@ -213,15 +213,15 @@ class GapTableModel(ColumnTableModel):
     @staticmethod
     def _foreground(row: GapRow, column: int) -> QBrush | None:
         if column == 3 and row.recommended:
-            return QBrush(QColor(*METHOD_COLORS[row.recommended]).darker(115))
+            return QBrush(QColor(*METHOD_COLOURS[row.recommended]).darker(115))
         if column == 5:
             if row.state == "open":
-                return QBrush(QColor(*GAP_COLOR))
-            if row.state == "filled" and row.method in METHOD_COLORS:
-                return QBrush(QColor(*METHOD_COLORS[row.method]).darker(115))
-            return QBrush(REJECTED_COLOR)
+                return QBrush(QColor(*GAP_COLOUR))
+            if row.state == "filled" and row.method in METHOD_COLOURS:
+                return QBrush(QColor(*METHOD_COLOURS[row.method]).darker(115))
+            return QBrush(REJECTED_COLOUR)
         if column == 3 and (row.at_take_edge or row.checked):
-            return QBrush(REJECTED_COLOR)
+            return QBrush(REJECTED_COLOUR)
         return None
 
     def _tooltip(self, row: GapRow) -> str:
@@ -330,7 +330,7 @@ class GapList(QWidget):
         for row, method in enumerate(METHOD_ORDER, start=1):
             button = QRadioButton(METHOD_TITLES[method], self.detail)
             button.setToolTip(METHOD_TIPS[method])
-            button.setIcon(_chip(METHOD_COLORS[method]))
+            button.setIcon(_chip(METHOD_COLOURS[method]))
             self.method_group.addButton(button, row)
             self.method_buttons[method] = button
             error = QLabel(MISSING_TEXT, self.detail)
@@ -639,9 +639,9 @@ class GapList(QWidget):
     @staticmethod
     def _state_css(row: GapRow) -> str:
         if row.state == "open":
-            return css(GAP_COLOR)
-        if row.state == "filled" and row.method in METHOD_COLORS:
-            return css(METHOD_COLORS[row.method])
+            return css(GAP_COLOUR)
+        if row.state == "filled" and row.method in METHOD_COLOURS:
+            return css(METHOD_COLOURS[row.method])
         return css((150, 150, 155))
 
 
@@ -683,8 +683,8 @@ def _short(text: str, limit: int = 60) -> str:
     return text if len(text) <= limit else text[:limit - 1] + "…"
 
 
-def _chip(color: tuple[int, int, int]) -> QIcon:
+def _chip(colour: tuple[int, int, int]) -> QIcon:
     """A small square colour chip icon."""
     pixmap = QPixmap(10, 10)
-    pixmap.fill(QColor(*color))
+    pixmap.fill(QColor(*colour))
     return QIcon(pixmap)

@@ -28,7 +28,7 @@ from widgets.viewport import HandViewport
 MAX_VIEWS = 4
 PLAYBACK_FPS = 30.0
 #: one colour per compared layout (view title chip and marker colour)
-LAYOUT_COLORS = ((0.35, 0.70, 1.00), (1.00, 0.62, 0.25), (0.45, 0.85, 0.45), (0.90, 0.45, 0.85))
+LAYOUT_COLOURS = ((0.35, 0.70, 1.00), (1.00, 0.62, 0.25), (0.45, 0.85, 0.45), (0.90, 0.45, 0.85))
 
 
 class LayoutCompareView(QWidget):
@@ -130,14 +130,14 @@ class LayoutCompareView(QWidget):
                 continue
             self._grid.addWidget(cell, index // columns, index % columns)
             title, markers = self._layouts[index]
-            color = LAYOUT_COLORS[index % len(LAYOUT_COLORS)]
-            chip = "#" + "".join(f"{round(255 * c):02x}" for c in color)
+            colour = LAYOUT_COLOURS[index % len(LAYOUT_COLOURS)]
+            chip = "#" + "".join(f"{round(255 * c):02x}" for c in colour)
             self._titles[index].setText(f"<span style='color:{chip}'>&#9679;</span> <b>{title}</b> "
                                         f"&nbsp;{len(markers.names)} markers")
             view = self._views[index]
             view.set_hand_mesh(rest, faces)
             view.set_markers(markers.names, marker_positions(self._model, markers, self._motion[self._frame]),
-                             np.tile(color, (len(markers.names), 1)))
+                             np.tile(colour, (len(markers.names), 1)))
             view.set_labels_visible(True)
         self._framed = False
         self.set_frame(self._frame, force=True)

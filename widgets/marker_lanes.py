@@ -47,14 +47,14 @@ STATE_CODES = (NO_DATA, GAP, OBSERVED, *(FILL_CODES[m] for m in FILL_METHODS), L
 
 BACKGROUND = (30, 32, 36)     # the timeline's plot background
 CURSOR_PEN = (255, 200, 60)   # the timeline's cursor
-SELECTION_COLOR = (255, 200, 60)
-OBSERVED_COLOR = (92, 104, 120)
-NO_DATA_COLOR = (40, 43, 48)
-GAP_COLOR = (232, 66, 56)
-LOW_CONFIDENCE_COLOR = (250, 158, 36)
-EDITED_COLOR = (232, 232, 240)
+SELECTION_COLOUR = (255, 200, 60)
+OBSERVED_COLOUR = (92, 104, 120)
+NO_DATA_COLOUR = (40, 43, 48)
+GAP_COLOUR = (232, 66, 56)
+LOW_CONFIDENCE_COLOUR = (250, 158, 36)
+EDITED_COLOUR = (232, 232, 240)
 #: colour of each fill method, shared by the lanes, the gap list and the fill preview
-METHOD_COLORS: dict[str, tuple[int, int, int]] = {
+METHOD_COLOURS: dict[str, tuple[int, int, int]] = {
     "linear": (112, 140, 240),
     "spline": (72, 196, 232),
     "pattern": (178, 118, 240),
@@ -62,10 +62,10 @@ METHOD_COLORS: dict[str, tuple[int, int, int]] = {
     "model": (84, 206, 120),
     "pca": (196, 214, 72),
 }
-STATE_COLORS: dict[int, tuple[int, int, int]] = {
-    NO_DATA: NO_DATA_COLOR, GAP: GAP_COLOR, OBSERVED: OBSERVED_COLOR,
-    **{FILL_CODES[m]: METHOD_COLORS[m] for m in FILL_METHODS},
-    LOW_CONFIDENCE: LOW_CONFIDENCE_COLOR, EDITED: EDITED_COLOR,
+STATE_COLOURS: dict[int, tuple[int, int, int]] = {
+    NO_DATA: NO_DATA_COLOUR, GAP: GAP_COLOUR, OBSERVED: OBSERVED_COLOUR,
+    **{FILL_CODES[m]: METHOD_COLOURS[m] for m in FILL_METHODS},
+    LOW_CONFIDENCE: LOW_CONFIDENCE_COLOUR, EDITED: EDITED_COLOUR,
 }
 #: how a lane's tooltip names a fill method, when not by its code name
 FILL_NAMES = {"rigid": "rigid body", "pca": "PCA"}
@@ -96,7 +96,7 @@ def state_ranks(states: np.ndarray) -> np.ndarray:
 STATE_RANKS: dict[int, int] = {code: int(state_ranks(np.array([code]))[0]) for code in STATE_CODES}
 _RGBA_OF_RANK = np.zeros((max(STATE_RANKS.values()) + 1, 4), dtype=np.uint8)
 for _code, _rank in STATE_RANKS.items():
-    _RGBA_OF_RANK[_rank] = (*STATE_COLORS[_code], 255)
+    _RGBA_OF_RANK[_rank] = (*STATE_COLOURS[_code], 255)
 #: review lane code (``core.session.LANE_*``) -> lane state here; filled samples take their provenance
 _FROM_REVIEW = {LANE_NONE: NO_DATA, LANE_OBSERVED: OBSERVED, LANE_GAP: GAP, LANE_LOW_CONFIDENCE: LOW_CONFIDENCE,
                 LANE_EDITED: EDITED}
@@ -139,14 +139,14 @@ def lanes_from_review(lanes: np.ndarray, provenance: np.ndarray) -> np.ndarray:
     return states
 
 
-def css(color: tuple[int, ...]) -> str:
+def css(colour: tuple[int, ...]) -> str:
     """``#rrggbb`` of an RGB byte triple."""
-    return "#{:02x}{:02x}{:02x}".format(*color[:3])
+    return "#{:02x}{:02x}{:02x}".format(*colour[:3])
 
 
 def legend_html(states: tuple[int, ...] = STATE_CODES[1:]) -> str:
     """Rich-text legend: a coloured square and the name of each state."""
-    return "&nbsp; ".join(f'<span style="color:{css(STATE_COLORS[s])}">■</span>&nbsp;'
+    return "&nbsp; ".join(f'<span style="color:{css(STATE_COLOURS[s])}">■</span>&nbsp;'
                                f'{STATE_NAMES[s].replace(" ", "&nbsp;")}'
                                for s in states)
 
@@ -240,7 +240,7 @@ class MarkerLanes(QWidget):
         self._separators = pg.PlotCurveItem(pen=pg.mkPen(BACKGROUND, width=2), connect="pairs")
         self.plot.addItem(self._separators)
         self._selection = QGraphicsRectItem()
-        selection_pen = QPen(QColor(*SELECTION_COLOR))
+        selection_pen = QPen(QColor(*SELECTION_COLOUR))
         selection_pen.setCosmetic(True)
         selection_pen.setWidthF(2.0)
         self._selection.setPen(selection_pen)
@@ -439,7 +439,7 @@ class MarkerLanes(QWidget):
                   else f"frames {self._first_frame + first}–{self._first_frame + last}")
         return (f"<b>{self._names[marker]}</b> · frame {self._first_frame + frame} "
                 f"({frame / self._frame_rate:.2f} s)<br>"
-                f'<span style="color:{css(STATE_COLORS[state])}">■</span> {STATE_NAMES[state]}: '
+                f'<span style="color:{css(STATE_COLOURS[state])}">■</span> {STATE_NAMES[state]}: '
                 f"{frames} ({length} frame{'s' if length != 1 else ''})")
 
     def hit(self, view_x: float, view_y: float) -> tuple[int, int, int] | None:

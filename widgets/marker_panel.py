@@ -20,15 +20,15 @@ MISSING_TEXT = "—"
 SWATCH_PX = 10
 
 
-def swatch(color: np.ndarray, filled: bool) -> QIcon:
+def swatch(colour: np.ndarray, filled: bool) -> QIcon:
     """A small round colour chip: filled when the marker is observed in the current frame."""
     pixmap = QPixmap(SWATCH_PX + 2, SWATCH_PX + 2)
     pixmap.fill(QColor(0, 0, 0, 0))
     painter = QPainter(pixmap)
     painter.setRenderHint(QPainter.RenderHint.Antialiasing)
-    qcolor = QColor.fromRgbF(*(float(c) for c in color))
-    painter.setPen(qcolor)
-    painter.setBrush(qcolor if filled else QColor(0, 0, 0, 0))
+    qcolour = QColor.fromRgbF(*(float(c) for c in colour))
+    painter.setPen(qcolour)
+    painter.setBrush(qcolour if filled else QColor(0, 0, 0, 0))
     painter.drawEllipse(1, 1, SWATCH_PX - 1, SWATCH_PX - 1)
     painter.end()
     return QIcon(pixmap)
@@ -98,14 +98,14 @@ class MarkerTableModel(ColumnTableModel):
         self._icons: list[tuple[QIcon, QIcon]] = []
 
     def set_markers(self, names: list[str], observed_fraction: np.ndarray,
-                    colors: np.ndarray | None = None) -> None:
+                    colours: np.ndarray | None = None) -> None:
         """New marker list: ``names (M,)``, the share of frames each is observed in ``(M,)`` and the
         colour ``(M,3)`` in [0, 1] it has in the 3D view (shown as a chip, hollow when missing)."""
         self.beginResetModel()
         self._names = list(names)
         self._observed = np.asarray(observed_fraction, dtype=float)
-        colors = np.full((len(names), 3), 0.7) if colors is None else np.asarray(colors, dtype=float)
-        self._icons = [(swatch(color, True), swatch(color, False)) for color in colors]
+        colours = np.full((len(names), 3), 0.7) if colours is None else np.asarray(colours, dtype=float)
+        self._icons = [(swatch(colour, True), swatch(colour, False)) for colour in colours]
         self._positions = np.full((len(names), 3), np.nan)
         self._residuals = np.full(len(names), np.nan)
         self.endResetModel()
@@ -177,10 +177,10 @@ class MarkerPanel(QWidget):
         layout.addWidget(self.table)
 
     def set_markers(self, names: list[str], observed_fraction: np.ndarray,
-                    colors: np.ndarray | None = None) -> None:
+                    colours: np.ndarray | None = None) -> None:
         """Show a new marker list (see :meth:`MarkerTableModel.set_markers`); clears the selection."""
         self.table.clearSelection()
-        self.model.set_markers(names, observed_fraction, colors)
+        self.model.set_markers(names, observed_fraction, colours)
 
     def set_frame_values(self, positions: np.ndarray, residuals: np.ndarray | None) -> None:
         """Current frame's positions ``(M,3)`` mm and residuals ``(M,)`` mm (or None)."""

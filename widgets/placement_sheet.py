@@ -58,7 +58,7 @@ TOP_LEFT = Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignTop
 
 
 def _text(painter: QPainter, rect: QRectF, text: str, size_mm: float, bold: bool = False,
-          color: QColor = TEXT, flags: Qt.AlignmentFlag = TOP_LEFT) -> None:
+          colour: QColor = TEXT, flags: Qt.AlignmentFlag = TOP_LEFT) -> None:
     """Draw ``text`` in ``rect`` (mm) with a font ``size_mm`` high."""
     painter.save()
     scale = 0.1                                    # draw at 10× the size in a 0.1-scaled frame: crisp glyphs
@@ -67,7 +67,7 @@ def _text(painter: QPainter, rect: QRectF, text: str, size_mm: float, bold: bool
     font.setPixelSize(max(1, round(size_mm / scale)))
     font.setBold(bold)
     painter.setFont(font)
-    painter.setPen(color)
+    painter.setPen(colour)
     target = QRectF(rect.x() / scale, rect.y() / scale, rect.width() / scale, rect.height() / scale)
     painter.drawText(target, int(flags) | int(Qt.TextFlag.TextWordWrap), text)
     painter.restore()
@@ -120,7 +120,7 @@ def _paint_view(painter: QPainter, view: SheetView, box: QRectF, scale: float, l
         painter.setPen(Qt.PenStyle.NoPen)
         painter.setBrush(QColor(255, 255, 255, 215))
         painter.drawRoundedRect(halo, 1.0, 1.0)
-        _text(painter, halo, str(number), 3.2, bold=True, color=TEXT if visible else MUTED,
+        _text(painter, halo, str(number), 3.2, bold=True, colour=TEXT if visible else MUTED,
               flags=Qt.AlignmentFlag.AlignCenter)
     painter.restore()
     _text(painter, QRectF(box.x(), box.bottom() + 1.0, box.width(), 6.0), view.title, 3.6, bold=True,
@@ -143,9 +143,9 @@ def paint_sheet(painter: QPainter, sheet: PlacementSheet) -> None:
     left, right = MARGIN_MM, width - MARGIN_MM
     painter.fillRect(QRectF(0, 0, width, height), QColor(255, 255, 255))
     _text(painter, QRectF(left, MARGIN_MM, right - left - 40, 10), sheet.title, 6.5, bold=True)
-    _text(painter, QRectF(right - 40, MARGIN_MM + 1.5, 40, 6), sheet.date, 4.0, color=MUTED,
+    _text(painter, QRectF(right - 40, MARGIN_MM + 1.5, 40, 6), sheet.date, 4.0, colour=MUTED,
           flags=Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignTop)
-    _text(painter, QRectF(left, MARGIN_MM + 10, right - left, 10), sheet.subtitle, 3.3, color=MUTED)
+    _text(painter, QRectF(left, MARGIN_MM + 10, right - left, 10), sheet.subtitle, 3.3, colour=MUTED)
     painter.setPen(QPen(RULE, 0.3))
     painter.drawLine(QPointF(left, MARGIN_MM + 21), QPointF(right, MARGIN_MM + 21))
 
@@ -174,7 +174,7 @@ def paint_sheet(painter: QPainter, sheet: PlacementSheet) -> None:
         painter.drawLine(QPointF(tick, bar_top - 1.2), QPointF(tick, bar_top + 1.2))
     _text(painter, QRectF(left + bar + 2, bar_top - 2.2, right - left - bar - 2, 5),
           f"50 mm (drawing scale 1:{1 / scale:.1f}); dashed rings: hidden in this view, numbered in the other",
-          3.0, color=MUTED)
+          3.0, colour=MUTED)
 
     top = height - MARGIN_MM - list_height
     columns = (left, left + 9, left + 42)
@@ -192,7 +192,7 @@ def paint_sheet(painter: QPainter, sheet: PlacementSheet) -> None:
         _text(painter, QRectF(columns[2], y, right - columns[2], row_height), row.location, size)
     _text(painter, QRectF(left, height - MARGIN_MM + 3, right - left, 5),
           "Hand Mocap Studio — place each marker centre on the skin point shown; rest pose, fingers extended.",
-          2.6, color=MUTED)
+          2.6, colour=MUTED)
 
 
 def paint_full_scale_page(painter: QPainter, sheet: PlacementSheet) -> None:
@@ -206,7 +206,7 @@ def paint_full_scale_page(painter: QPainter, sheet: PlacementSheet) -> None:
     _text(painter, QRectF(left, MARGIN_MM - 4, right - left, 8), f"{sheet.title} — {view.title.lower()}, 1:1",
           5.0, bold=True)
     _text(painter, QRectF(left, MARGIN_MM + 3.5, right - left, 5),
-          "Print at 100 % (no \"fit to page\"): the bar at the bottom must measure 50 mm.", 3.0, color=MUTED)
+          "Print at 100 % (no \"fit to page\"): the bar at the bottom must measure 50 mm.", 3.0, colour=MUTED)
     view_height = view.bounds[3] - view.bounds[1]
     box = QRectF(left, MARGIN_MM + 11, right - left, view_height)
     _paint_view(painter, view, box, 1.0, view.visible | ~seen)
@@ -217,7 +217,7 @@ def paint_full_scale_page(painter: QPainter, sheet: PlacementSheet) -> None:
         painter.drawLine(QPointF(left + 10.0 * tick, bar_top - (1.6 if tick % 5 == 0 else 0.9)),
                          QPointF(left + 10.0 * tick, bar_top + (1.6 if tick % 5 == 0 else 0.9)))
     _text(painter, QRectF(left + 53, bar_top - 2.2, right - left - 53, 5),
-          "50 mm; numbers as on the first page", 3.0, color=MUTED)
+          "50 mm; numbers as on the first page", 3.0, colour=MUTED)
 
 
 def render_sheet_image(sheet: PlacementSheet, dpi: int = PNG_DPI, full_scale: bool = False) -> QImage:

@@ -14,7 +14,7 @@ from PySide6.QtGui import QBrush, QColor, QIcon
 from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
 from core.review import MarkerStats, ReviewSettings
-from widgets.marker_lanes import LOW_CONFIDENCE_COLOR
+from widgets.marker_lanes import LOW_CONFIDENCE_COLOUR
 from widgets.marker_panel import MISSING_TEXT, SORT_ROLE, ColumnTableModel, filtered_table, swatch
 
 COLUMNS = ("Marker", "Seen %", "Filled %", "Gaps", "Longest", "Resid.", "Conf.")
@@ -36,9 +36,9 @@ COLUMN_TIPS = (
 LOW_OBSERVED_PERCENT = 90.0
 HIGH_RESIDUAL_MM = 5.0
 LOW_CONFIDENCE_MM = ReviewSettings().low_confidence_mm
-WARNING_COLOR = QColor(*LOW_CONFIDENCE_COLOR)
-ERROR_COLOR = QColor(255, 110, 90)
-DIM_COLOR = QColor(140, 140, 140)
+WARNING_COLOUR = QColor(*LOW_CONFIDENCE_COLOUR)
+ERROR_COLOUR = QColor(255, 110, 90)
+DIM_COLOUR = QColor(140, 140, 140)
 
 
 class ReviewTableModel(ColumnTableModel):
@@ -52,12 +52,12 @@ class ReviewTableModel(ColumnTableModel):
         self._values = np.zeros((0, len(COLUMNS) - 1))
         self._icons: list[QIcon] = []
 
-    def set_markers(self, stats: MarkerStats, colors: np.ndarray | None = None) -> None:
+    def set_markers(self, stats: MarkerStats, colours: np.ndarray | None = None) -> None:
         """New rows: one per marker of ``stats`` (its ``names``), with the 3D-view colours ``(M,3)`` in [0, 1]."""
         self.beginResetModel()
         self._names = list(stats.names)
         self._values = self._stack(stats, len(self._names))
-        self._icons = [] if colors is None else [swatch(color, True) for color in np.asarray(colors, dtype=float)]
+        self._icons = [] if colours is None else [swatch(colour, True) for colour in np.asarray(colours, dtype=float)]
         self.endResetModel()
 
     def set_stats(self, stats: MarkerStats) -> None:
@@ -114,15 +114,15 @@ class ReviewTableModel(ColumnTableModel):
     @staticmethod
     def _foreground(column: int, value: float) -> QBrush | None:
         if np.isnan(value):
-            return QBrush(DIM_COLOR)
+            return QBrush(DIM_COLOUR)
         if column == OBSERVED_COLUMN and value < LOW_OBSERVED_PERCENT:
-            return QBrush(WARNING_COLOR)
+            return QBrush(WARNING_COLOUR)
         if column == GAPS_COLUMN and value > 0:
-            return QBrush(WARNING_COLOR)
+            return QBrush(WARNING_COLOUR)
         if column == RESIDUAL_COLUMN and value > HIGH_RESIDUAL_MM:
-            return QBrush(ERROR_COLOR)
+            return QBrush(ERROR_COLOUR)
         if column == CONFIDENCE_COLUMN and value < LOW_CONFIDENCE_MM:
-            return QBrush(WARNING_COLOR)
+            return QBrush(WARNING_COLOUR)
         return None
 
 
@@ -149,14 +149,14 @@ class ReviewTable(QWidget):
         self._selected = -1
         self._update_count()
 
-    def set_markers(self, stats: MarkerStats, colors: np.ndarray | None = None) -> None:
+    def set_markers(self, stats: MarkerStats, colours: np.ndarray | None = None) -> None:
         """Show a take's markers (see :meth:`ReviewTableModel.set_markers`); keeps the selected marker
         when it still exists, without emitting."""
         selected = self._selected
         self._quiet = True
         try:
             self.table.clearSelection()
-            self.model.set_markers(stats, colors)
+            self.model.set_markers(stats, colours)
         finally:
             self._quiet = False
         self._selected = -1

@@ -52,7 +52,7 @@ from widgets.marker_lanes import css
 #: files the session can take in (the readers of ``core.io.load_take``)
 TAKE_SUFFIXES = READ_SUFFIXES
 TAKE_FILTER = TAKE_FILE_FILTER
-STATE_COLORS: dict[str, tuple[int, int, int]] = {
+STATE_COLOURS: dict[str, tuple[int, int, int]] = {
     "raw": (118, 124, 134),
     "labelled": (62, 132, 226),
     "reviewed": (52, 164, 96),
@@ -103,7 +103,7 @@ class StateBadgeDelegate(QStyledItemDelegate):
 
     def paint(self, painter: QPainter, option: QStyleOptionViewItem, index: QModelIndex) -> None:
         state = index.data(Qt.ItemDataRole.DisplayRole)
-        if state not in STATE_COLORS:
+        if state not in STATE_COLOURS:
             super().paint(painter, option, index)
             return
         self.initStyleOption(option, index)
@@ -122,7 +122,7 @@ class StateBadgeDelegate(QStyledItemDelegate):
         height = min(option.rect.height() - 4, metrics.height() + 4)
         rect = QRect(option.rect.left() + 4, option.rect.center().y() - height // 2 + 1, width, height)
         painter.setPen(Qt.PenStyle.NoPen)
-        painter.setBrush(QColor(*STATE_COLORS[state]))
+        painter.setBrush(QColor(*STATE_COLOURS[state]))
         painter.drawRoundedRect(rect, height / 2, height / 2)
         painter.setPen(QColor(255, 255, 255))
         painter.drawText(rect, Qt.AlignmentFlag.AlignCenter, state)
@@ -443,7 +443,7 @@ class SessionBrowser(QWidget):
         shown = len(self.visible_takes())
         total = len(self._rows)
         head = f"{total} take{'s' if total != 1 else ''}" if shown == total else f"{shown} of {total} takes"
-        parts = [head] + [f'<span style="color:{css(STATE_COLORS[s])}">●</span> {counts[s]} {s}'
+        parts = [head] + [f'<span style="color:{css(STATE_COLOURS[s])}">●</span> {counts[s]} {s}'
                           for s in TAKE_STATES if counts[s]]
         self.summary_label.setText(" &nbsp;·&nbsp; ".join(parts))
 
@@ -484,7 +484,7 @@ def _badge_icon(state: str) -> QIcon:
     painter = QPainter(pixmap)
     painter.setRenderHint(QPainter.RenderHint.Antialiasing)
     painter.setPen(Qt.PenStyle.NoPen)
-    painter.setBrush(QColor(*STATE_COLORS[state]))
+    painter.setBrush(QColor(*STATE_COLOURS[state]))
     painter.drawEllipse(1, 1, 10, 10)
     painter.end()
     return QIcon(pixmap)

@@ -308,6 +308,6 @@ class TimelineWidget(QWidget):
         self.set_frame(int(round(position.x())) - self._first_frame)
 
 
-def _css(color: tuple[int, int, int]) -> str:
+def _css(colour: tuple[int, int, int]) -> str:
     """``#rrggbb`` of an RGB byte triple."""
-    return "#{:02x}{:02x}{:02x}".format(*color)
+    return "#{:02x}{:02x}{:02x}".format(*colour)

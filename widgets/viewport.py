@@ -22,15 +22,15 @@ from vtkmodules.vtkFiltersCore import vtkPolyDataNormals
 from vtkmodules.vtkRenderingCore import vtkActor2D, vtkGlyph3DMapper, vtkPolyDataMapper
 from vtkmodules.vtkRenderingLabel import vtkLabeledDataMapper
 
-SKIN_COLOR = (0.91, 0.73, 0.62)
-MARKER_COLOR = (0.55, 0.80, 1.00)
-SELECTED_MARKER_COLOR = (1.00, 0.86, 0.20)
-EFFECTOR_COLOR = (1.00, 0.55, 0.10)
-RIGID_BODY_COLOR = (0.55, 0.85, 1.00)   # lines between the markers of one rigid object
+SKIN_COLOUR = (0.91, 0.73, 0.62)
+MARKER_COLOUR = (0.55, 0.80, 1.00)
+SELECTED_MARKER_COLOUR = (1.00, 0.86, 0.20)
+EFFECTOR_COLOUR = (1.00, 0.55, 0.10)
+RIGID_BODY_COLOUR = (0.55, 0.85, 1.00)   # lines between the markers of one rigid object
 BACKGROUND_TOP = (0.24, 0.26, 0.30)
 BACKGROUND_BOTTOM = (0.07, 0.08, 0.09)
-GRID_COLOR = (0.42, 0.45, 0.50)
-LOOSE_POINT_COLOR = (0.62, 0.62, 0.62)
+GRID_COLOUR = (0.42, 0.45, 0.50)
+LOOSE_POINT_COLOUR = (0.62, 0.62, 0.62)
 
 MARKER_RADIUS_MM = 3.2
 EFFECTOR_RADIUS_MM = 2.2
@@ -85,9 +85,9 @@ def screen_distances(plotter: QtInteractor, points: np.ndarray, x: float, y: flo
     return distance, ndc[:, 2]
 
 
-def _as_rgb_bytes(colors: np.ndarray) -> np.ndarray:
+def _as_rgb_bytes(colours: np.ndarray) -> np.ndarray:
     """``(N,3)`` floats in [0, 1] to ``(N,3)`` uint8."""
-    return np.clip(np.round(np.asarray(colors, dtype=float) * 255.0), 0, 255).astype(np.uint8)
+    return np.clip(np.round(np.asarray(colours, dtype=float) * 255.0), 0, 255).astype(np.uint8)
 
 
 def _segments(starts: np.ndarray, ends: np.ndarray) -> pv.PolyData:
@@ -161,7 +161,7 @@ class HandViewport(QWidget):
 
         self._marker_names: list[str] = []
         self._marker_positions = np.zeros((0, 3))
-        self._marker_colors = np.zeros((0, 3))
+        self._marker_colours = np.zeros((0, 3))
         self._selected: int | None = None
         self._labels_visible = False
         self._effectors_visible = True
@@ -179,7 +179,7 @@ class HandViewport(QWidget):
     # ----------------------------------------------------------------------------------- scene setup
     def _build_grid(self) -> None:
         self._grid = _grid_lines(np.zeros(2), 500.0, 50.0, 0.0)
-        self._grid_actor = self._plotter.add_mesh(self._grid, color=GRID_COLOR, opacity=0.55,
+        self._grid_actor = self._plotter.add_mesh(self._grid, color=GRID_COLOUR, opacity=0.55,
                                                   line_width=1, lighting=False, pickable=False,
                                                   name="ground-grid")
 
@@ -205,7 +205,7 @@ class HandViewport(QWidget):
         mapper.ScalarVisibilityOff()
         actor = pv.Actor(mapper=mapper)
         prop = actor.prop
-        prop.color = SKIN_COLOR
+        prop.color = SKIN_COLOUR
         prop.interpolation = "phong"
         prop.ambient = 0.12
         prop.diffuse = 0.85
@@ -240,11 +240,11 @@ class HandViewport(QWidget):
         return actor
 
     @staticmethod
-    def _resize_points(data: pv.PolyData, count: int, color: tuple[float, float, float]) -> None:
+    def _resize_points(data: pv.PolyData, count: int, colour: tuple[float, float, float]) -> None:
         """Give ``data`` ``count`` points with a zero ``scale`` array and a ``colors`` array."""
         data.SetPoints(pv.vtk_points(np.zeros((count, 3))))
         for name, values in (("scale", np.zeros(count)),
-                             ("colors", np.tile(_as_rgb_bytes(color), (count, 1)))):
+                             ("colors", np.tile(_as_rgb_bytes(colour), (count, 1)))):
             array = numpy_to_vtk(values, deep=True)
             array.SetName(name)
             data.GetPointData().AddArray(array)
@@ -264,19 +264,19 @@ class HandViewport(QWidget):
 
     def _build_markers(self) -> None:
         self._marker_data = pv.PolyData()
-        self._resize_points(self._marker_data, 0, MARKER_COLOR)
+        self._resize_points(self._marker_data, 0, MARKER_COLOUR)
         self._marker_actor = self._glyph_actor(self._marker_data, MARKER_RADIUS_MM, "markers")
 
     def _build_effectors(self) -> None:
         self._effector_data = pv.PolyData()
-        self._resize_points(self._effector_data, 0, EFFECTOR_COLOR)
+        self._resize_points(self._effector_data, 0, EFFECTOR_COLOUR)
         self._effector_actor = self._glyph_actor(self._effector_data, EFFECTOR_RADIUS_MM, "effectors")
         self._residual_lines = pv.PolyData()
         mapper = vtkPolyDataMapper()
         mapper.SetInputData(self._residual_lines)
         mapper.ScalarVisibilityOff()
         self._residual_actor = pv.Actor(mapper=mapper)
-        self._residual_actor.prop.color = EFFECTOR_COLOR
+        self._residual_actor.prop.color = EFFECTOR_COLOUR
         self._residual_actor.prop.line_width = 2.0
         self._residual_actor.prop.lighting = False
         self._plotter.add_actor(self._residual_actor, name="residual-lines", reset_camera=False)
@@ -287,7 +287,7 @@ class HandViewport(QWidget):
         mapper.SetInputData(self._rigid_lines)
         mapper.ScalarVisibilityOff()
         actor = pv.Actor(mapper=mapper)
-        actor.prop.color = RIGID_BODY_COLOR
+        actor.prop.color = RIGID_BODY_COLOUR
         actor.prop.line_width = 2.5
         actor.prop.lighting = False
         self._plotter.add_actor(actor, name="rigid-bodies", reset_camera=False)
@@ -306,7 +306,7 @@ class HandViewport(QWidget):
         self._trail_actor.SetPickable(False)
         self._plotter.add_actor(self._trail_actor, name="trails", reset_camera=False)
         self._loose_data = pv.PolyData()
-        self._resize_points(self._loose_data, 0, LOOSE_POINT_COLOR)
+        self._resize_points(self._loose_data, 0, LOOSE_POINT_COLOUR)
         self._loose_actor = self._glyph_actor(self._loose_data, LOOSE_POINT_RADIUS_MM, "loose-points")
 
     def _build_labels(self) -> None:
@@ -362,15 +362,15 @@ class HandViewport(QWidget):
 
     # -------------------------------------------------------------------------------------- markers
     def set_markers(self, names: Sequence[str], positions: np.ndarray,
-                    colors: np.ndarray | None = None) -> None:
+                    colours: np.ndarray | None = None) -> None:
         """Show a new marker set: ``names (M,)``, ``positions (M,3)`` mm (NaN = missing),
-        ``colors (M,3)`` in [0, 1] (default light blue)."""
+        ``colours (M,3)`` in [0, 1] (default light blue)."""
         count = len(names)
         self._marker_names = list(names)
-        self._marker_colors = (np.tile(MARKER_COLOR, (count, 1)) if colors is None
-                               else np.asarray(colors, dtype=float).reshape(count, 3))
+        self._marker_colours = (np.tile(MARKER_COLOUR, (count, 1)) if colours is None
+                               else np.asarray(colours, dtype=float).reshape(count, 3))
         self._selected = None
-        self._resize_points(self._marker_data, count, MARKER_COLOR)
+        self._resize_points(self._marker_data, count, MARKER_COLOUR)
         self._marker_positions = np.full((count, 3), np.nan)
         self.update_markers(positions)
 
@@ -385,9 +385,9 @@ class HandViewport(QWidget):
         """Names of the current markers."""
         return list(self._marker_names)
 
-    def set_marker_colors(self, colors: np.ndarray) -> None:
+    def set_marker_colours(self, colours: np.ndarray) -> None:
         """Base colours ``(M,3)`` in [0, 1] of the current markers."""
-        self._marker_colors = np.asarray(colors, dtype=float).reshape(len(self._marker_names), 3)
+        self._marker_colours = np.asarray(colours, dtype=float).reshape(len(self._marker_names), 3)
         self._refresh_marker_style()
 
     def update_markers(self, positions: np.ndarray) -> None:
@@ -412,12 +412,12 @@ class HandViewport(QWidget):
         count = len(self._marker_names)
         visible = np.isfinite(self._marker_positions).all(axis=1) if count else np.zeros(0, dtype=bool)
         scale = visible.astype(float)
-        colors = self._marker_colors.copy()
+        colours = self._marker_colours.copy()
         if self._selected is not None:
             scale[self._selected] *= SELECTED_SCALE
-            colors[self._selected] = SELECTED_MARKER_COLOR
+            colours[self._selected] = SELECTED_MARKER_COLOUR
         self._point_array(self._marker_data, "scale")[:] = scale
-        self._point_array(self._marker_data, "colors")[:] = _as_rgb_bytes(colors)
+        self._point_array(self._marker_data, "colors")[:] = _as_rgb_bytes(colours)
         self._modified(self._marker_data)
 
     # --------------------------------------------------------------------------------------- labels
@@ -482,14 +482,14 @@ class HandViewport(QWidget):
             actor.visibility = self._mesh_visible and index < self._mesh_count
 
     # ------------------------------------------------------------------------ trails and loose points
-    def set_trails(self, trails: Sequence[np.ndarray], colors: np.ndarray | None = None) -> None:
-        """Draw a polyline per trail ``(T,3)`` mm (NaN rows break the line), coloured ``colors (N,3)``
+    def set_trails(self, trails: Sequence[np.ndarray], colours: np.ndarray | None = None) -> None:
+        """Draw a polyline per trail ``(T,3)`` mm (NaN rows break the line), coloured ``colours (N,3)``
         in [0, 1] (default the selection colour); an empty list clears them."""
-        points, cells, cell_colors = [], [], []
+        points, cells, cell_colours = [], [], []
         offset = 0
-        palette = (np.tile(SELECTED_MARKER_COLOR, (len(trails), 1)) if colors is None
-                   else np.asarray(colors, dtype=float).reshape(len(trails), 3))
-        for trail, color in zip(trails, palette, strict=True):
+        palette = (np.tile(SELECTED_MARKER_COLOUR, (len(trails), 1)) if colours is None
+                   else np.asarray(colours, dtype=float).reshape(len(trails), 3))
+        for trail, colour in zip(trails, palette, strict=True):
             trail = np.asarray(trail, dtype=float).reshape(-1, 3)
             finite = np.isfinite(trail).all(axis=1)
             bounds = np.flatnonzero(np.diff(np.concatenate([[0], finite.astype(np.int8), [0]])))
@@ -498,29 +498,29 @@ class HandViewport(QWidget):
                     continue
                 points.append(trail[start:end])
                 cells.append(np.concatenate([[end - start], offset + np.arange(end - start)]))
-                cell_colors.append(color)
+                cell_colours.append(colour)
                 offset += end - start
         if points:
             lines = pv.PolyData(np.concatenate(points), lines=np.concatenate(cells))
-            lines.cell_data["colors"] = _as_rgb_bytes(np.array(cell_colors))
+            lines.cell_data["colors"] = _as_rgb_bytes(np.array(cell_colours))
         else:
             lines = pv.PolyData()
         self._trail_data.ShallowCopy(lines)
         self._trail_data.Modified()
 
-    def set_loose_points(self, points: np.ndarray | None, colors: np.ndarray | None = None) -> None:
+    def set_loose_points(self, points: np.ndarray | None, colours: np.ndarray | None = None) -> None:
         """Show small dots that are not pickable markers, e.g. gap fills, ``(K,3)`` mm coloured
-        ``colors (K,3)`` in [0, 1] (default grey); None clears them."""
+        ``colours (K,3)`` in [0, 1] (default grey); None clears them."""
         points = np.zeros((0, 3)) if points is None else np.asarray(points, dtype=float).reshape(-1, 3)
-        colors = (np.tile(LOOSE_POINT_COLOR, (len(points), 1)) if colors is None
-                  else np.asarray(colors, dtype=float).reshape(len(points), 3))
+        colours = (np.tile(LOOSE_POINT_COLOUR, (len(points), 1)) if colours is None
+                  else np.asarray(colours, dtype=float).reshape(len(points), 3))
         finite = np.isfinite(points).all(axis=1)
-        points, colors = points[finite], colors[finite]
+        points, colours = points[finite], colours[finite]
         if self._loose_data.GetNumberOfPoints() != len(points):
-            self._resize_points(self._loose_data, len(points), LOOSE_POINT_COLOR)
+            self._resize_points(self._loose_data, len(points), LOOSE_POINT_COLOUR)
         vtk_to_numpy(self._loose_data.GetPoints().GetData())[:] = points
         self._point_array(self._loose_data, "scale")[:] = 1.0
-        self._point_array(self._loose_data, "colors")[:] = _as_rgb_bytes(colors)
+        self._point_array(self._loose_data, "colors")[:] = _as_rgb_bytes(colours)
         self._modified(self._loose_data)
 
     # ------------------------------------------------------------------------------------ effectors
@@ -532,7 +532,7 @@ class HandViewport(QWidget):
         effectors = np.asarray(effectors, dtype=float).reshape(-1, 3)
         count = len(effectors)
         if self._effector_data.GetNumberOfPoints() != count:
-            self._resize_points(self._effector_data, count, EFFECTOR_COLOR)
+            self._resize_points(self._effector_data, count, EFFECTOR_COLOUR)
         shown = np.isfinite(effectors).all(axis=1)
         vtk_to_numpy(self._effector_data.GetPoints().GetData())[shown] = effectors[shown]
         self._point_array(self._effector_data, "scale")[:] = shown.astype(float)

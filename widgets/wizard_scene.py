@@ -18,10 +18,10 @@ from vtkmodules.util.numpy_support import vtk_to_numpy
 
 from widgets.viewport import ClickFilter, screen_distances
 
-SKIN_COLOR = (0.91, 0.73, 0.62)
-POINT_COLOR = (0.75, 0.78, 0.82)
-LANDMARK_COLOR = (0.30, 0.75, 1.00)
-CURRENT_COLOR = (1.00, 0.84, 0.15)
+SKIN_COLOUR = (0.91, 0.73, 0.62)
+POINT_COLOUR = (0.75, 0.78, 0.82)
+LANDMARK_COLOUR = (0.30, 0.75, 1.00)
+CURRENT_COLOUR = (1.00, 0.84, 0.15)
 BACKGROUND_TOP = (0.24, 0.26, 0.30)
 BACKGROUND_BOTTOM = (0.07, 0.08, 0.09)
 PICK_RADIUS_PX = 10.0
@@ -59,31 +59,31 @@ class CalibrationScene(QWidget):
         self._surface_scalars: str | None = None
 
     # ------------------------------------------------------------------------------------ content
-    def set_points(self, points: np.ndarray | None, colors: np.ndarray | None = None, point_size: float = 2.0) -> None:
-        """Show ``points (N,3)`` mm with RGB ``colors (N,3)`` uint8 (grey when None); None removes them."""
+    def set_points(self, points: np.ndarray | None, colours: np.ndarray | None = None, point_size: float = 2.0) -> None:
+        """Show ``points (N,3)`` mm with RGB ``colours (N,3)`` uint8 (grey when None); None removes them."""
         self._plotter.remove_actor("cloud", render=False)
         if points is None or len(points) == 0:
             self._points, self._cloud = np.zeros((0, 3)), None
             return
         self._points = np.asarray(points, dtype=float)
         self._cloud = pv.PolyData(self._points.copy())
-        rgb = (np.tile((np.array(POINT_COLOR) * 255).astype(np.uint8), (len(points), 1)) if colors is None
-               else np.asarray(colors, dtype=np.uint8))
+        rgb = (np.tile((np.array(POINT_COLOUR) * 255).astype(np.uint8), (len(points), 1)) if colours is None
+               else np.asarray(colours, dtype=np.uint8))
         self._cloud["rgb"] = rgb
         self._plotter.add_mesh(self._cloud, scalars="rgb", rgb=True, point_size=point_size, name="cloud",
                                render_points_as_spheres=False, reset_camera=False, lighting=False)
 
-    def set_point_colors(self, colors: np.ndarray) -> None:
-        """Recolour the shown points, ``colors (N,3)`` uint8."""
+    def set_point_colours(self, colours: np.ndarray) -> None:
+        """Recolour the shown points, ``colours (N,3)`` uint8."""
         if self._cloud is None:
             return
-        self._cloud["rgb"][:] = np.asarray(colors, dtype=np.uint8)
+        self._cloud["rgb"][:] = np.asarray(colours, dtype=np.uint8)
         self._cloud.Modified()
 
     def set_surface(self, vertices: np.ndarray | None, faces: np.ndarray | None = None,
                     scalars: np.ndarray | None = None, clim: tuple[float, float] = (0.0, 5.0),
                     scalar_title: str = "distance to scan (mm)", opacity: float = 1.0,
-                    color: tuple[float, float, float] = SKIN_COLOR) -> None:
+                    colour: tuple[float, float, float] = SKIN_COLOUR) -> None:
         """Show one surface ``vertices (V,3)``, ``faces (T,3)``; with ``scalars (V,)`` coloured by them (a
         colour bar titled ``scalar_title``), else in ``color``; None removes it."""
         self._plotter.remove_actor("surface", render=False)
@@ -99,7 +99,7 @@ class CalibrationScene(QWidget):
                                    scalar_bar_args={"title": scalar_title, "color": "white"})
             self._surface_scalars = scalar_title
         else:
-            self._plotter.add_mesh(surface, color=color, smooth_shading=True, name="surface", opacity=opacity,
+            self._plotter.add_mesh(surface, color=colour, smooth_shading=True, name="surface", opacity=opacity,
                                    reset_camera=False, specular=0.2)
         self._surface = surface
 
@@ -125,11 +125,11 @@ class CalibrationScene(QWidget):
         if current is not None and 0 <= current < len(positions) and shown[current]:
             others[current] = False
             sphere = pv.Sphere(radius=1.5 * LANDMARK_RADIUS_MM, center=positions[current])
-            self._plotter.add_mesh(sphere, color=CURRENT_COLOR, name="current-landmark", reset_camera=False)
+            self._plotter.add_mesh(sphere, color=CURRENT_COLOUR, name="current-landmark", reset_camera=False)
         if others.any():
             glyphs = pv.PolyData(positions[others]).glyph(geom=pv.Sphere(radius=LANDMARK_RADIUS_MM), scale=False,
                                                           orient=False)
-            self._plotter.add_mesh(glyphs, color=LANDMARK_COLOR, name="landmarks", reset_camera=False)
+            self._plotter.add_mesh(glyphs, color=LANDMARK_COLOUR, name="landmarks", reset_camera=False)
 
     def frame(self, points: np.ndarray) -> None:
         """Look at ``points (N,3)`` from the back of the hand (+Z) and slightly from the wrist."""

@@ -54,9 +54,9 @@ from core.model import HandModel
 from core.model.template_mesh import LANDMARK_DESCRIPTIONS, LANDMARK_NAMES
 from widgets.wizard_scene import CalibrationScene
 
-REMOVED_COLOR = np.array([220, 40, 40], dtype=np.uint8)
+REMOVED_COLOUR = np.array([220, 40, 40], dtype=np.uint8)
 LIVE_INTERVAL_MS = 120
-TEMPLATE_COLOR = (0.45, 0.66, 0.95)     # the moving template, distinct from the skin-coloured scan
+TEMPLATE_COLOUR = (0.45, 0.66, 0.95)     # the moving template, distinct from the skin-coloured scan
 SCAN_FILTER = "Hand scans (*.ply *.obj)"
 TEMPLATE_CHOICES = ("Shipped right hand", "Shipped left hand", "From file (.npz, .gltf, .glb)…")
 
@@ -229,9 +229,9 @@ class CleanPage(QWizardPage):
             return
         strictness = self.slider.value() / 100.0
         keep = skin_mask(scan.colors, strictness)
-        colors = scan.colors[self._display].copy()
-        colors[~keep[self._display]] = REMOVED_COLOR
-        self.scene.set_point_colors(colors)
+        colours = scan.colors[self._display].copy()
+        colours[~keep[self._display]] = REMOVED_COLOUR
+        self.scene.set_point_colours(colours)
         self.scene.render()
         self.counts.setText(f"{int(keep.sum()):,} skin points kept, {int((~keep).sum()):,} removed")
 
@@ -482,7 +482,7 @@ class _RunPage(QWizardPage):
         vertices = self.live.take()
         if vertices is not None:
             if len(self.scene.surface_points()) != len(vertices):
-                self.scene.set_surface(vertices, self.state.template.faces, opacity=0.8, color=TEMPLATE_COLOR)
+                self.scene.set_surface(vertices, self.state.template.faces, opacity=0.8, colour=TEMPLATE_COLOUR)
             else:
                 self.scene.update_surface(vertices)
             self.scene.render()

@@ -63,8 +63,8 @@ from widgets.window_image import window_image
 
 HAND_SIDES = ("right", "left")
 APP_NAME = "Hand Mocap Studio"
-HAND_MARKER_COLOR = (0.55, 0.80, 1.00)     # markers of the hand layout
-OTHER_MARKER_COLOR = (0.62, 0.62, 0.66)    # arm, body and object markers
+HAND_MARKER_COLOUR = (0.55, 0.80, 1.00)     # markers of the hand layout
+OTHER_MARKER_COLOUR = (0.62, 0.62, 0.66)    # arm, body and object markers
 FRAMING_RADIUS_MM = 90.0                   # half-size of the box the camera frames around the hand
 TAKE_SUFFIXES = READ_SUFFIXES
 TAKE_FILTER = TAKE_FILE_FILTER
@@ -435,9 +435,9 @@ class MainWindow(QMainWindow):
         self.side_box.blockSignals(True)
         self.side_box.setCurrentText(document.side)
         self.side_box.blockSignals(False)
-        colors = self._marker_colors(document)
-        self.viewport.set_markers(take.marker_names, take.marker_positions[0], colors)
-        self.marker_panel.set_markers(take.marker_names, document.observed_fraction, colors)
+        colours = self._marker_colours(document)
+        self.viewport.set_markers(take.marker_names, take.marker_positions[0], colours)
+        self.marker_panel.set_markers(take.marker_names, document.observed_fraction, colours)
         self._show_result_geometry()
         self.timeline.blockSignals(True)
         self.timeline.set_take(take.n_frames, take.first_frame, take.frame_rate, document.markers_seen)
@@ -462,10 +462,10 @@ class MainWindow(QMainWindow):
         if self.document.has_solved_hands():
             self.timeline.set_residuals(self.document.review_residual_per_frame())
 
-    def _marker_colors(self, document: TakeDocument) -> np.ndarray:
-        colors = np.tile(OTHER_MARKER_COLOR, (document.take.n_markers, 1))
-        colors[document.hand_columns()] = HAND_MARKER_COLOR
-        return colors
+    def _marker_colours(self, document: TakeDocument) -> np.ndarray:
+        colours = np.tile(OTHER_MARKER_COLOUR, (document.take.n_markers, 1))
+        colours[document.hand_columns()] = HAND_MARKER_COLOUR
+        return colours
 
     @staticmethod
     def _take_summary(take: Take) -> str:
@@ -534,10 +534,10 @@ class MainWindow(QMainWindow):
     def _layout_chosen(self, name: str) -> None:
         if self.document is not None and name:
             self.document.layout_name = name
-            colors = self._marker_colors(self.document)
-            self.viewport.set_marker_colors(colors)
+            colours = self._marker_colours(self.document)
+            self.viewport.set_marker_colours(colours)
             self.marker_panel.set_markers(self.document.take.marker_names, self.document.observed_fraction,
-                                          colors)
+                                          colours)
             self.show_frame(self.app.frame)
 
     # --------------------------------------------------------------------------------------- solve

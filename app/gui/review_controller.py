@@ -91,10 +91,10 @@ from widgets.review_table import ReviewTable
 from widgets.timeline import TimelineWidget
 from widgets.viewport import HandViewport
 
-UNLABELLED_COLOR = (0.62, 0.62, 0.64)
-GHOST_COLOR = (0.55, 0.22, 0.22)
-FILL_COLOR = (0.45, 0.95, 0.55)
-RIGID_SELECTION_COLOR = (1.0, 1.0, 1.0)
+UNLABELLED_COLOUR = (0.62, 0.62, 0.64)
+GHOST_COLOUR = (0.55, 0.22, 0.22)
+FILL_COLOUR = (0.45, 0.95, 0.55)
+RIGID_SELECTION_COLOUR = (1.0, 1.0, 1.0)
 JOB_NAME = "review"                # the worker of auto-label, re-solves and fills in Application.jobs
 TRAIL_FRAMES = 60                  # frames of trail on each side of the current frame
 SCOPE_TITLES = {"fragment": "to end of fragment", "range": "in the marked range", "take": "whole take"}
@@ -105,7 +105,7 @@ PALETTE = np.array([                # Tableau-like qualitative colours, distinct
 ])
 
 
-def label_colors(count: int) -> np.ndarray:
+def label_colours(count: int) -> np.ndarray:
     """A distinct colour per label ``(count, 3)`` in [0, 1]."""
     return PALETTE[np.arange(count) % len(PALETTE)]
 
@@ -368,12 +368,12 @@ class ReviewController(QObject):
         if review is None:
             return
         take = review.take
-        colors = label_colors(review.n_labels)
+        colours = label_colours(review.n_labels)
         stats = review.marker_stats()
         states = lanes_from_review(review.lane_states(), review.provenance)
         if structure or self.lanes.n_markers != review.n_labels or self.lanes.n_frames != review.n_frames:
             self.lanes.set_lanes(review.label_names, states, take.first_frame, take.frame_rate)
-            self.table.set_markers(stats, colors)
+            self.table.set_markers(stats, colours)
             self._set_hand_meshes()
         else:
             x_range = self.lanes.x_range()
@@ -438,19 +438,19 @@ class ReviewController(QObject):
         point_label = np.full(review.n_points, -1, dtype=np.int64)
         taken = labels >= 0
         point_label[labels[taken]] = np.flatnonzero(taken)
-        colors = np.tile(UNLABELLED_COLOR, (review.n_points, 1))
-        colors[review.ghost[frame]] = GHOST_COLOR
-        palette = label_colors(review.n_labels)
-        colors[point_label >= 0] = palette[point_label[point_label >= 0]]
-        colors[self.selection.rigid_points] = RIGID_SELECTION_COLOR
+        colours = np.tile(UNLABELLED_COLOUR, (review.n_points, 1))
+        colours[review.ghost[frame]] = GHOST_COLOUR
+        palette = label_colours(review.n_labels)
+        colours[point_label >= 0] = palette[point_label[point_label >= 0]]
+        colours[self.selection.rigid_points] = RIGID_SELECTION_COLOUR
         names = [review.label_names[label] if label >= 0 else f"*{column}"
                  for column, label in enumerate(point_label)]
         viewport.set_marker_names(names)
-        viewport.set_marker_colors(colors)
+        viewport.set_marker_colours(colours)
         viewport.set_rigid_bodies(review.rigid_body_segments(frame))
         fills = review.provenance[frame] > 0
-        fill_colors = palette[fills] * 0.5 + np.array(FILL_COLOR) * 0.5
-        viewport.set_loose_points(review.filled_positions[frame, fills], fill_colors)
+        fill_colours = palette[fills] * 0.5 + np.array(FILL_COLOUR) * 0.5
+        viewport.set_loose_points(review.filled_positions[frame, fills], fill_colours)
         effectors, targets = [], []
         labelled = review.labelled_positions()[frame]
         for number, hand in enumerate(review.hands):
@@ -477,7 +477,7 @@ class ReviewController(QObject):
             return
         first, last = max(0, frame - TRAIL_FRAMES), min(review.n_frames, frame + TRAIL_FRAMES + 1)
         trail = review.labelled_positions()[first:last, label]
-        self.viewport.set_trails([trail], label_colors(review.n_labels)[[label]])
+        self.viewport.set_trails([trail], label_colours(review.n_labels)[[label]])
 
     # ------------------------------------------------------------------------------- selection
     def _show_selection(self) -> None:

@@ -9,7 +9,7 @@ from core.io import Take
 from core.simulate import simulate_take
 from widgets.fill_preview import FillPreview
 from widgets.gap_list import METHOD_TITLES, GapList, gap_rows
-from widgets.marker_lanes import METHOD_COLORS, STATE_COLORS, STATE_NAMES, STATE_RANKS, lane_states
+from widgets.marker_lanes import METHOD_COLOURS, STATE_COLOURS, STATE_NAMES, STATE_RANKS, lane_states
 
 pytestmark = pytest.mark.gui
 
@@ -57,7 +57,7 @@ def test_fill_preview_draws_the_pca_fill(qtbot, hand_take):
     assert widget.methods() == ["pca", "spline"] and widget.selected() == "pca"
     _, values = widget.curve_data("pca", 0)
     np.testing.assert_allclose(values[1:-1], candidates["pca"][:, 0])
-    assert widget._curves["pca"][0].opts["pen"].color().getRgb()[:3] == METHOD_COLORS["pca"]
+    assert widget._curves["pca"][0].opts["pen"].color().getRgb()[:3] == METHOD_COLOURS["pca"]
     assert "PCA&nbsp;0.80&nbsp;mm" in widget.legend_label.text()
 
 
@@ -65,6 +65,6 @@ def test_marker_lanes_show_pca_fills():
     provenance = np.array([[0, METHOD_CODES["pca"], -1, METHOD_CODES["model"]]], dtype=np.int8)
     states = lane_states(provenance, low_confidence=np.array([[True, False, False, False]]), no_data_outside=False)
     assert states[0, 1] == METHOD_CODES["pca"] == 6
-    assert STATE_COLORS[6] == METHOD_COLORS["pca"] and STATE_NAMES[6] == "filled (PCA)"
+    assert STATE_COLOURS[6] == METHOD_COLOURS["pca"] and STATE_NAMES[6] == "filled (PCA)"
     assert STATE_RANKS[states[0, 0]] > STATE_RANKS[6] > STATE_RANKS[0]      # low confidence > fill > observed
     assert len(set(STATE_RANKS.values())) == len(STATE_RANKS)

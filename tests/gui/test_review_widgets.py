@@ -28,7 +28,7 @@ from widgets.marker_lanes import (
     LOW_CONFIDENCE,
     NO_DATA,
     OBSERVED,
-    STATE_COLORS,
+    STATE_COLOURS,
     STATE_RANKS,
     MarkerLanes,
     lane_states,
@@ -160,7 +160,7 @@ def test_a_one_frame_gap_survives_zooming_out_and_is_picked(lanes, qtbot):
     qtbot.wait(20)
     image = lanes._image.image
     assert image.shape[0] <= lanes.view_box.width() + 1             # one column per pixel, not per frame
-    gap_columns = np.flatnonzero((image[:, 7, :3] == STATE_COLORS[GAP]).all(axis=1))
+    gap_columns = np.flatnonzero((image[:, 7, :3] == STATE_COLOURS[GAP]).all(axis=1))
     assert len(gap_columns) == 1
     marker, frame, snapped = lanes.hit(1 + 54_321 + 0.4 * lanes._frames_per_column, 7.5)
     assert (marker, snapped) == (7, 54_321) and frame != snapped
@@ -290,7 +290,7 @@ def test_table_shows_core_review_statistics(qtbot):
     review = ReviewTake.from_labelled_take(Take(take.marker_names, positions, 100.0))
     widget = ReviewTable()
     qtbot.addWidget(widget)
-    widget.set_markers(review.marker_stats(), colors=np.full((4, 3), 0.5))
+    widget.set_markers(review.marker_stats(), colours=np.full((4, 3), 0.5))
     assert widget.model.index(1, TABLE_COLUMNS.index("Gaps")).data() == "2"
     assert widget.model.index(1, TABLE_COLUMNS.index("Longest")).data() == "40"
     assert widget.model.index(1, TABLE_COLUMNS.index("Seen %")).data() == "75.0"

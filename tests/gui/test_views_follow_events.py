@@ -19,8 +19,8 @@ from app.gui.application import (
     SessionPart,
 )
 from app.gui.document import TakeDocument
-from core.review import AcceptFills, GapFill, Unlabel
 from core.io import save_take
+from core.review import AcceptFills, GapFill, Unlabel
 from core.review.events import Change, ReviewChanged
 from core.session import Session
 from core.simulate import simulate_take
