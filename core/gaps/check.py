@@ -6,7 +6,7 @@ Provenance codes per (frame, marker): 0 measured, 1 linear, 2 spline, 3 pattern,
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -14,6 +14,7 @@ import numpy as np
 from core.errors import CancelledError, InputError
 from core.gaps.detect import Gap, find_gaps
 from core.gaps.fills import (
+    MODEL_FIT,
     SPLINE_CONTEXT,
     fill_linear,
     fill_model,
@@ -24,7 +25,7 @@ from core.gaps.fills import (
 from core.gaps.pca import PCA_WINDOW, fill_pca
 from core.ik import IKResult, match_layout, solve_positions, solve_take
 from core.io import Take
-from core.model import HandModel, MarkerLayout, MarkerSet, load_template, resolve_layout
+from core.model import N_PARAMS, HandModel, MarkerLayout, MarkerSet, load_template, resolve_layout
 from core.model.provenance import FILL_CODES as METHOD_CODES  # the fill methods' provenance codes
 from core.model.provenance import MEASURED, MISSING
 from core.prior import load_default_prior
@@ -44,6 +45,8 @@ DISPLACE_FACTOR = 2.0
 IK_PAD = 30
 #: frames on each side of a gap over which a donor's distance to the gap marker must stay steady
 DONOR_WINDOW = 20
+#: the fill check first looks for its hidden stretches within this many stretch sizes on each side of the gap
+SEARCH_REACH = 4
 
 
 @dataclass(frozen=True, eq=False)
@@ -130,7 +133,14 @@ def fill_gap(positions: np.ndarray, marker: int, start: int, length: int, method
         first, last = max(0, start - IK_PAD), min(len(positions), start + length + IK_PAD)
         window = context.layout_positions(positions[first:last])
         window[start - first:start - first + length, index] = np.nan
-        angles = context.solve(window) if joint_angles is None else joint_angles[first:last]
+        if joint_angles is None:
+            # IK runs forwards (each frame warm-started from the ones before) and the fill reads no angle
+            # past MODEL_FIT frames after the gap, so the frames after those are not solved
+            solved = min(len(window), start - first + length + MODEL_FIT)
+            angles = np.full((len(window), N_PARAMS), np.nan)
+            angles[:solved] = context.solve(window[:solved])
+        else:
+            angles = joint_angles[first:last]
         return fill_model(window, start - first, length, index, angles, context.model, context.markers)
     if method == "pca":
         return fill_pca(positions, marker, start, length)
@@ -180,54 +190,99 @@ class FillCheck:
         return [first] + [method for method in order if method != first]
 
 
-def _test_stretches(observed: np.ndarray, gap: Gap, margin: int, per_side: int = STRETCHES_PER_SIDE) -> list[int]:
+def _pick_stretches(candidates: np.ndarray, length: int, per_side: int) -> list[int]:
+    """Up to ``per_side`` of ``candidates`` (stretch starts, the nearest to the gap first), each at least
+    ``length`` frames from those already taken."""
+    taken: list[int] = []
+    for start in candidates.tolist():
+        if all(abs(start - other) >= length for other in taken):
+            taken.append(start)
+            if len(taken) == per_side:
+                break
+    return taken
+
+
+def _test_stretches(trajectory: np.ndarray, gap: Gap, margin: int, per_side: int = STRETCHES_PER_SIDE) -> list[int]:
     """Starts of up to ``per_side`` observed stretches of ``gap.length`` frames before the gap and as many
     after it, each with ``margin`` observed frames on each side, the nearest first and not overlapping;
-    InputError when there is none."""
+    InputError when there is none. ``trajectory (F, 3)`` mm, NaN where missing.
+
+    Only a window around the gap is read: it starts at :data:`SEARCH_REACH` stretch sizes on each side and
+    doubles until each side has its stretches or reaches the end of the take. The candidates in a window
+    are the nearest ones of the whole take, so the choice is the same as over the whole take."""
     size = gap.length + 2 * margin
-    counts = np.convolve(observed.astype(np.int64), np.ones(size, dtype=np.int64), mode="valid")
-    starts = np.flatnonzero(counts == size) + margin
-    if not starts.size:
+    reach = SEARCH_REACH * size
+    while True:
+        first, last = max(0, gap.start - reach), min(len(trajectory), gap.end + reach)
+        observed = (~np.isnan(trajectory[first:last]).any(axis=1)).astype(np.int64)
+        counts = np.convolve(observed, np.ones(size, dtype=np.int64), mode="valid") if len(observed) >= size \
+            else np.zeros(0, dtype=np.int64)
+        starts = np.flatnonzero(counts == size) + margin + first
+        before = _pick_stretches(starts[starts < gap.start][::-1], gap.length, per_side)
+        after = _pick_stretches(starts[starts >= gap.end], gap.length, per_side)
+        if (len(before) == per_side or first == 0) and (len(after) == per_side or last == len(trajectory)):
+            break
+        reach *= 2
+    if not before and not after:
         raise InputError(f"fill check of '{gap.name}' needs {size} consecutive observed frames near the gap; "
                          "there are none")
-    chosen: list[int] = []
-    for side in (starts[starts < gap.start][::-1], starts[starts >= gap.end]):
-        taken: list[int] = []
-        for start in side.tolist():
-            if all(abs(start - other) >= gap.length for other in taken):
-                taken.append(start)
-                if len(taken) == per_side:
-                    break
-        chosen += taken
-    return sorted(chosen, key=lambda start: abs(start - gap.start))
+    return sorted(before + after, key=lambda start: abs(start - gap.start))
+
+
+class HiddenStretches:
+    """The fill check's hidden stretches of one gap (:func:`_test_stretches`) and each method's errors on
+    them, each fill computed once and only when asked for. Only the frames the fills of the stretches read
+    are kept, so the cost does not grow with the take."""
+
+    def __init__(self, take: Take, gap: Gap, context: ModelContext | None = None,
+                 margin: int = SPLINE_CONTEXT) -> None:
+        self.gap, self.context = gap, context
+        self.starts = _test_stretches(take.marker_positions[:, gap.marker], gap, margin)
+        pad = max(PCA_WINDOW, IK_PAD, DONOR_WINDOW, margin) + 1
+        self.first = max(0, min(self.starts) - pad)
+        self.positions = take.marker_positions[self.first:max(self.starts) + gap.length + pad]
+        self._hidden: dict[int, np.ndarray] = {}
+        self._errors: dict[tuple[str, int], np.ndarray | InputError] = {}
+
+    def errors(self, method: str, index: int) -> np.ndarray:
+        """3D errors (length,) mm of ``method`` on stretch ``index``; its InputError when it does not apply."""
+        key = (method, index)
+        if key not in self._errors:
+            gap, start = self.gap, self.starts[index] - self.first
+            if index not in self._hidden:
+                self._hidden[index] = self.positions.copy()
+                self._hidden[index][start:start + gap.length, gap.marker] = np.nan
+            truth = self.positions[start:start + gap.length, gap.marker]
+            try:
+                values = fill_gap(self._hidden[index], gap.marker, start, gap.length, method, self.context)
+                self._errors[key] = np.linalg.norm(values - truth, axis=1)
+            except InputError as error:
+                self._errors[key] = error
+        result = self._errors[key]
+        if isinstance(result, InputError):
+            raise result
+        return result
 
 
 def check_gap(take: Take, gap: Gap, context: ModelContext | None = None,
-              methods: tuple[str, ...] = FILL_METHODS, margin: int = SPLINE_CONTEXT) -> FillCheck:
+              methods: tuple[str, ...] = FILL_METHODS, margin: int = SPLINE_CONTEXT,
+              stretches: HiddenStretches | None = None) -> FillCheck:
     """Hide measured stretches of ``gap.length`` frames near the gap (up to :data:`STRETCHES_PER_SIDE` on
     each side, ``margin`` observed frames around each), fill each with every method and report the mean
     and worst-frame 3D error in mm (ranked by :meth:`FillCheck.ranking`). The model fill solves its IK
-    with the stretch hidden; a method that fails on any stretch is not applicable. Only the frames the
-    fills of the stretches read are copied, so the cost does not grow with the take."""
-    starts = _test_stretches(~take.missing_mask[:, gap.marker], gap, margin)
-    check = FillCheck(gap, tuple(starts), take.frame_rate)
-    pad = max(PCA_WINDOW, IK_PAD, DONOR_WINDOW, margin) + 1
-    first = max(0, min(starts) - pad)
-    positions = take.marker_positions[first:max(starts) + gap.length + pad]
+    with the stretch hidden; a method that fails on any stretch is not applicable. ``stretches``: the
+    stretches of this gap with fills already computed (:func:`fill_order`)."""
+    stretches = stretches or HiddenStretches(take, gap, context, margin)
+    check = FillCheck(gap, tuple(stretches.starts), take.frame_rate)
     errors: dict[str, list[np.ndarray]] = {method: [] for method in methods}
-    for start in np.asarray(starts) - first:
-        hidden = positions.copy()
-        hidden[start:start + gap.length, gap.marker] = np.nan
-        truth = positions[start:start + gap.length, gap.marker]
+    for index in range(len(stretches.starts)):
         for method in methods:
             if method in check.reasons:
                 continue
             try:
-                values = fill_gap(hidden, gap.marker, int(start), gap.length, method, context)
+                errors[method].append(stretches.errors(method, index))
             except InputError as error:
                 check.reasons[method] = str(error)
-                continue
-            errors[method].append(np.linalg.norm(values - truth, axis=1))
     for method, per_stretch in errors.items():
         if method not in check.reasons:
             frames = np.concatenate(per_stretch)
@@ -235,6 +290,61 @@ def check_gap(take: Take, gap: Gap, context: ModelContext | None = None,
             check.worst_mm[method] = float(frames.max())
             check.stretch_errors_mm[method] = [(float(error.mean()), float(error.max())) for error in per_stretch]
     return check
+
+
+def _first_choice(stretches: HiddenStretches, frame_rate: float) -> str | None:
+    """The first method of the ranking of the full fill check (:meth:`FillCheck.ranking`), found with as few
+    fills as that takes; None when PCA does not apply (the whole ranking is then by score).
+
+    PCA comes first unless the gap is short and a method beats it by :data:`DISPLACE_FACTOR` on every
+    stretch: a method stops being filled at the first stretch where it does not (it can no longer
+    displace PCA, and where it ranks after the first only matters when the first fails on the gap)."""
+    pca = []
+    for index in range(len(stretches.starts)):
+        try:
+            pca.append(stretches.errors("pca", index))
+        except InputError:
+            return None
+    if stretches.gap.length > LOCAL_HORIZON_S * frame_rate:
+        return "pca"
+    best, best_score = "pca", np.inf
+    for method in FILL_METHODS:
+        if method == "pca":
+            continue
+        per_stretch = []
+        for index, pca_errors in enumerate(pca):
+            try:
+                errors = stretches.errors(method, index)
+            except InputError:
+                break
+            if not (DISPLACE_FACTOR * float(errors.mean()) < float(pca_errors.mean())
+                    and DISPLACE_FACTOR * float(errors.max()) < float(pca_errors.max())):
+                break
+            per_stretch.append(errors)
+        else:
+            frames = np.concatenate(per_stretch)
+            score = 0.5 * (float(frames.mean()) + float(frames.max()))
+            if score < best_score:
+                best, best_score = method, score
+    return best
+
+
+def fill_order(take: Take, gap: Gap, context: ModelContext | None = None,
+               none_applies: tuple[str, ...] = FALLBACK_ORDER) -> Iterator[str]:
+    """The methods to try on ``gap``, in the order of its fill check's ranking (:func:`check_gap`); the
+    first is found with as few fills of the hidden stretches as that takes (:func:`_first_choice`), the
+    full check runs only when more are asked for. :data:`FALLBACK_ORDER` when no stretch can be hidden,
+    ``none_applies`` when no method applies to the stretches."""
+    try:
+        stretches = HiddenStretches(take, gap, context)
+    except InputError:
+        yield from FALLBACK_ORDER
+        return
+    first = _first_choice(stretches, take.frame_rate)
+    if first is not None:
+        yield first
+    ranking = check_gap(take, gap, context, stretches=stretches).ranking()
+    yield from [method for method in ranking if method != first] if ranking else none_applies
 
 
 def recommend(take: Take, gap: Gap, context: ModelContext | None = None) -> str:
@@ -279,12 +389,7 @@ def fill_all(take: Take, max_gap: int, method: str = "auto", ik_result: IKResult
     for number, gap in enumerate(gaps):
         if cancelled is not None and cancelled():
             raise CancelledError("gap filling cancelled; the take is unchanged")
-        order: tuple[str, ...] | list[str] = (method,)
-        if method == "auto":
-            try:
-                order = check_gap(take, gap, context).ranking()
-            except InputError:
-                order = FALLBACK_ORDER
+        order = fill_order(take, gap, context, none_applies=()) if method == "auto" else (method,)
         for name in order:
             try:
                 values = fill_gap(positions, gap.marker, gap.start, gap.length, name, context, joint_angles)

@@ -50,10 +50,15 @@ def observed_run(observed: np.ndarray, start: int, length: int) -> tuple[int, in
     return count_before, count_after
 
 
-def _require_sides(trajectory: np.ndarray, start: int, length: int, needed: int,
-                   method: str) -> tuple[int, int]:
+def _require_sides(trajectory: np.ndarray, start: int, length: int, needed: int, method: str,
+                   reach: int = 0) -> tuple[int, int]:
+    """Observed frames right before and right after the gap, each counted up to ``max(needed, reach)``
+    (only those frames are read, so the cost does not grow with the take); InputError below ``needed``."""
     _validate_gap(trajectory, start, length)
-    before, after = observed_run(np.isfinite(trajectory).all(axis=1), start, length)
+    reach = max(needed, reach)
+    first = max(0, start - reach)
+    window = np.isfinite(trajectory[first:start + length + reach]).all(axis=1)
+    before, after = observed_run(window, start - first, length)
     if before < needed or after < needed:
         raise InputError(f"{method} fill needs {needed} observed frame(s) on each side of the gap "
                          f"(frames {start}..{start + length - 1}); the marker has {before} before and "
@@ -79,7 +84,7 @@ def fill_linear(trajectory: np.ndarray, start: int, length: int) -> np.ndarray:
 
 def fill_spline(trajectory: np.ndarray, start: int, length: int, context: int = SPLINE_CONTEXT) -> np.ndarray:
     """Cubic spline (not-a-knot) through up to ``context`` observed frames on each side, (length, 3) mm."""
-    before, after = _require_sides(trajectory, start, length, 2, "spline")
+    before, after = _require_sides(trajectory, start, length, 2, "spline", context)
     frames = np.concatenate([np.arange(start - min(before, context), start),
                              np.arange(start + length, start + length + min(after, context))])
     spline = CubicSpline(frames, trajectory[frames], axis=0)
@@ -91,7 +96,7 @@ def fill_pattern(trajectory: np.ndarray, start: int, length: int, donor: np.ndar
     _require_sides(trajectory, start, length, 1, "pattern")
     _require_donors(donor[:, None, :], start, length, "pattern")
     end = start + length
-    offsets = fill_linear(trajectory - donor, start, length)
+    offsets = fill_linear(trajectory[start - 1:end + 1] - donor[start - 1:end + 1], 1, length)
     return donor[start:end] + offsets
 
 

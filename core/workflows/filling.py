@@ -16,7 +16,7 @@ import numpy as np
 
 from core.errors import CancelledError, InputError
 from core.gaps import FILL_METHODS, FillCheck, Gap, ModelContext, check_gap, fill_gap, find_gaps
-from core.gaps.check import FALLBACK_ORDER
+from core.gaps.check import fill_order
 from core.gaps.fills import fill_pattern
 from core.io import Take
 from core.model import HandModel, MarkerSet, best_layout_for, load_layout, load_template
@@ -152,12 +152,7 @@ def fill_gaps(groups: list[GapGroup], gaps: list[ReviewGap], method: str = "auto
         if cancelled is not None and cancelled():
             raise CancelledError("gap filling cancelled; nothing was filled")
         group = groups[gap.group]
-        order: list[str] = [method]
-        if method == "auto":
-            try:
-                order = check_review_gap(group, gap).ranking() or list(FALLBACK_ORDER)
-            except InputError:
-                order = list(FALLBACK_ORDER)
+        order = fill_order(group.take, gap.gap, group.context) if method == "auto" else (method,)
         for name in order:
             try:
                 values = preview_fill(group, gap, name)
