@@ -273,6 +273,30 @@ class GapList(QWidget):
 
     # ------------------------------------------------------------------------------------ building
     def _build(self) -> None:
+        """The filters and the gap table over the fill-all row, and the selected gap's detail below."""
+        filters = self._build_filters()
+        self._build_table()
+        self._build_detail()
+        fill_all = self._build_fill_all()
+        top = QWidget(self)
+        top_layout = QVBoxLayout(top)
+        top_layout.setContentsMargins(0, 0, 0, 0)
+        top_layout.addLayout(filters)
+        self.table.setMinimumHeight(110)     # about four rows, however little room the dock has
+        top_layout.addWidget(self.table)
+        top_layout.addLayout(fill_all)
+        self.splitter = QSplitter(Qt.Orientation.Vertical, self)
+        self.splitter.addWidget(top)
+        self.splitter.addWidget(self.detail)
+        self.splitter.setStretchFactor(0, 3)
+        self.splitter.setStretchFactor(1, 0)
+        self.splitter.setChildrenCollapsible(False)
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(2, 2, 2, 2)
+        layout.addWidget(self.splitter)
+
+    def _build_filters(self) -> QHBoxLayout:
+        """The table model behind its sort/filter proxy, and the marker filter, state filter and count."""
         self.model = GapTableModel(self)
         self.proxy = _GapFilter(self)
         self.proxy.setSourceModel(self.model)
@@ -291,7 +315,10 @@ class GapList(QWidget):
         filters.addWidget(self.filter_edit, 1)
         filters.addWidget(self.state_box)
         filters.addWidget(self.count_label)
+        return filters
 
+    def _build_table(self) -> None:
+        """The gap table: one row per gap, sortable, one selected at a time."""
         self.table = QTableView(self)
         self.table.setModel(self.proxy)
         self.table.setSortingEnabled(True)
@@ -309,11 +336,24 @@ class GapList(QWidget):
         header.setMinimumSectionSize(48)
         self.table.selectionModel().selectionChanged.connect(self._selection_changed)
 
+    def _build_detail(self) -> None:
+        """The selected gap's box: its title, a row per fill method, a note, and Preview/Accept/Reject."""
         self.detail = QGroupBox("Selected gap", self)
         self.detail_title = QLabel(self.detail)
         self.detail_title.setTextFormat(Qt.TextFormat.RichText)
         self.detail_note = QLabel(self.detail)
         self.detail_note.setWordWrap(True)
+        grid = self._build_method_grid()
+        buttons = self._build_gap_buttons()
+        detail_layout = QVBoxLayout(self.detail)
+        detail_layout.addWidget(self.detail_title)
+        detail_layout.addLayout(grid)
+        detail_layout.addWidget(self.detail_note)
+        detail_layout.addLayout(buttons)
+
+    def _build_method_grid(self) -> QGridLayout:
+        """A row per fill method: its radio button, its check error and a note (the donor choice for the
+        pattern fill)."""
         grid = QGridLayout()
         grid.setHorizontalSpacing(10)
         grid.setVerticalSpacing(3)
@@ -352,6 +392,10 @@ class GapList(QWidget):
                 grid.addWidget(note, row, 2)
         grid.setColumnStretch(2, 1)
         self.method_group.idClicked.connect(lambda _id: self._method_clicked())
+        return grid
+
+    def _build_gap_buttons(self) -> QHBoxLayout:
+        """Preview, Accept and Reject of the selected gap, right-aligned."""
         pixmap = QStyle.StandardPixmap
         self.preview_button = QPushButton(self.style().standardIcon(pixmap.SP_FileDialogContentsView), "Preview",
                                           self.detail)
@@ -369,12 +413,10 @@ class GapList(QWidget):
         buttons.addStretch(1)
         for button in (self.preview_button, self.accept_button, self.reject_button):
             buttons.addWidget(button)
-        detail_layout = QVBoxLayout(self.detail)
-        detail_layout.addWidget(self.detail_title)
-        detail_layout.addLayout(grid)
-        detail_layout.addWidget(self.detail_note)
-        detail_layout.addLayout(buttons)
+        return buttons
 
+    def _build_fill_all(self) -> QGridLayout:
+        """Fill all gaps up to a length with their recommended method, and how many that is."""
         self.max_length_box = QSpinBox(self)
         self.max_length_box.setRange(1, 100_000)
         self.max_length_box.setValue(DEFAULT_MAX_FILL)
@@ -395,23 +437,7 @@ class GapList(QWidget):
         fill_all.addWidget(self.fill_all_button, 1, 0)
         fill_all.addWidget(self.fill_all_count, 1, 1, 1, 3)
         fill_all.setColumnStretch(3, 1)
-
-        top = QWidget(self)
-        top_layout = QVBoxLayout(top)
-        top_layout.setContentsMargins(0, 0, 0, 0)
-        top_layout.addLayout(filters)
-        self.table.setMinimumHeight(110)     # about four rows, however little room the dock has
-        top_layout.addWidget(self.table)
-        top_layout.addLayout(fill_all)
-        self.splitter = QSplitter(Qt.Orientation.Vertical, self)
-        self.splitter.addWidget(top)
-        self.splitter.addWidget(self.detail)
-        self.splitter.setStretchFactor(0, 3)
-        self.splitter.setStretchFactor(1, 0)
-        self.splitter.setChildrenCollapsible(False)
-        layout = QVBoxLayout(self)
-        layout.setContentsMargins(2, 2, 2, 2)
-        layout.addWidget(self.splitter)
+        return fill_all
 
     # ------------------------------------------------------------------------------------- public
     def set_gaps(self, rows: list[GapRow], marker_names: list[str], first_frame: int = 1) -> None:
