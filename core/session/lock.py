@@ -25,6 +25,7 @@ from core.session.files import open_lock_file, read_bytes
 
 SESSION_LOCK_NAME = "session.lock"
 TAKE_LOCK_NAME = "lock"
+HOLDER_WAIT_S = 1.0  # the holder writes itself in right after taking the lock
 MANIFEST_WAIT_S = 10.0  # a manifest update takes milliseconds; this long means the folder is stuck
 
 
@@ -92,13 +93,18 @@ class FileLock:
 
     def holder(self) -> str:
         """Who holds the lock, as one phrase (e.g. "ana on lab-pc (process 4711) since 2026-11-24 21:55:02
-        UTC"); "another Hand Mocap Studio" when the file does not say."""
-        try:
-            data = json.loads(read_bytes(self.root, self.path, limit=4096))
-            return (f"{str(data['user'])[:64]} on {str(data['host'])[:64]} (process {int(data['pid'])}) "
-                    f"since {str(data['since'])[:32]}")
-        except (InputError, OSError, ValueError, KeyError, TypeError, RecursionError):
-            return "another Hand Mocap Studio"
+        UTC"); "another Hand Mocap Studio" when the file does not say (a holder that has just taken the
+        lock is given up to ``HOLDER_WAIT_S`` to write itself in)."""
+        deadline = time.monotonic() + HOLDER_WAIT_S
+        while True:
+            try:
+                data = json.loads(read_bytes(self.root, self.path, limit=4096))
+                return (f"{str(data['user'])[:64]} on {str(data['host'])[:64]} (process {int(data['pid'])}) "
+                        f"since {str(data['since'])[:32]}")
+            except (InputError, OSError, ValueError, KeyError, TypeError, RecursionError):
+                if time.monotonic() >= deadline:
+                    return "another Hand Mocap Studio"
+                time.sleep(0.01)
 
     def __enter__(self) -> FileLock:
         if not self.acquire(MANIFEST_WAIT_S):

@@ -8,7 +8,8 @@ Folder layout::
     session.lock          OS lock held while the manifest is read, changed and written (core.session.lock)
     takes/<take id>/      review.npz + review-<seq>.npz (the last three snapshots), journal.jsonl,
                           journal-<seq>.jsonl + blobs/ (the edits since the oldest of them), lock (OS lock
-                          of the process editing the take; it says who holds it)
+                          of the process editing the take; it says who holds it), save.lock (held while
+                          a save renames files, so that a read-only opening never sees them half-way)
 
 Raw takes are referenced, not copied (they are large and the lab keeps them in its own store): the
 manifest keeps the absolute path, and also the path relative to the session folder, tried first, so a
@@ -86,6 +87,7 @@ SESSION_FORMAT = "handmocap-session"
 SESSION_VERSION = 1
 TAKE_STATES = ("raw", "labelled", "reviewed", "exported")
 LOCK_NAME = TAKE_LOCK_NAME
+SAVE_LOCK_NAME = "save.lock"  # held while a take's snapshot and journal files are being rotated
 AUTOSAVE_SECONDS = 60.0
 MANIFEST_LIMIT = 64 * 2**20  # bytes; a manifest of 100 000 takes is about 60 MB
 
@@ -605,7 +607,11 @@ class OpenTake:
             else:
                 self.held_by, writable = lock.holder(), False
         try:
-            self._load(take, label_names, writable)
+            if self.held_by:
+                with FileLock(root, self.folder / SAVE_LOCK_NAME):  # not in the middle of the holder's save
+                    self._load(take, label_names, writable)
+            else:
+                self._load(take, label_names, writable)
         except BaseException:
             self._release()
             raise
@@ -723,15 +729,16 @@ class OpenTake:
         root, seq = self.session.folder, self.journal.next_seq - 1
         try:
             data = snapshot_bytes(self.review, self.stack, seq)
-            if seq != self._newest_seq:
-                self.journal.rotate(seq)
-                if self._newest_seq is not None:
-                    keep_older(root, self.folder, self._newest_seq)
-                elif os.path.lexists(self.snapshot_path):
-                    set_aside(root, self.snapshot_path)  # a damaged newest snapshot
-            write_file(root, self.snapshot_path, data)
-            self._newest_seq = seq
-            self.journal.prune(prune_snapshots(root, self.folder))
+            with FileLock(root, self.folder / SAVE_LOCK_NAME):  # a read-only opening waits for the files
+                if seq != self._newest_seq:
+                    self.journal.rotate(seq)
+                    if self._newest_seq is not None:
+                        keep_older(root, self.folder, self._newest_seq)
+                    elif os.path.lexists(self.snapshot_path):
+                        set_aside(root, self.snapshot_path)  # a damaged newest snapshot
+                write_file(root, self.snapshot_path, data)
+                self._newest_seq = seq
+                self.journal.prune(prune_snapshots(root, self.folder))
         except OSError as error:
             raise InputError(f"cannot save take '{self.entry.name}' ({error.strerror or error}); "
                              "the edits are still in the journal") from None
