@@ -106,5 +106,5 @@ def test_layout_optimize_and_evaluate(tmp_path, capsys):
     assert main(["layout", "evaluate", str(out), "--json"]) == 0
     figures = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert figures["markers"] == 4 and 0 < figures["mean_mm"] <= figures["max_mm"]
-    assert main(["layout", "optimize", "--markers", "100000", "--out", str(out)]) == 2
+    assert main(["layout", "optimize", "--markers", "100000", "--out", str(out), "--overwrite"]) == 2
     assert "cannot place 100000 markers" in capsys.readouterr().err

@@ -34,11 +34,11 @@ def test_layout_optimize_names_and_bad_input(tmp_path, capsys):
     data = json.loads(out.read_text())
     assert data["name"] == "tiny" and len(data["markers"]) == 5 and "pso" in data["description"]
     capsys.readouterr()
-    assert main(["layout", "optimize", "--markers", "2", "--dims", "6", "--out", str(out)]) == 2
+    assert main(["layout", "optimize", "--markers", "2", "--dims", "6", "--out", str(out), "--overwrite"]) == 2
     assert "cannot constrain" in capsys.readouterr().err
     assert main(["layout", "optimize", "--markers", "6", "--motions", str(tmp_path / "none.npz"),
-                 "--out", str(out)]) == 2
+                 "--out", str(out), "--overwrite"]) == 2
     assert "none.npz" in capsys.readouterr().err
-    assert main(["layout", "optimize", "--markers", "6", "--particles", "0", "--out", str(out)]) == 2
+    assert main(["layout", "optimize", "--markers", "6", "--particles", "0", "--out", str(out), "--overwrite"]) == 2
     assert "particle" in capsys.readouterr().err
     assert json.loads(out.read_text())["name"] == "tiny"          # a failed run left the earlier file alone

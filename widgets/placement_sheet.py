@@ -25,6 +25,7 @@ from PySide6.QtGui import (
 from PySide6.QtWidgets import QApplication
 
 from core.errors import InputError
+from core.io.durable import durable_path
 from core.layout.label_placement import place_labels
 from core.layout.placement_sheet import PlacementSheet, SheetView, rasterise_view
 
@@ -247,27 +248,26 @@ def save_placement_sheet(sheet: PlacementSheet, path: str | Path, dpi: int = PNG
     if not path.parent.exists():
         raise InputError(f"{path}: the folder {path.parent} does not exist")
     ensure_gui_application()
-    temporary = path.with_name(path.stem + ".tmp" + path.suffix)
-    if suffix == ".png":
-        if not render_sheet_image(sheet, dpi).save(str(temporary), "PNG"):
-            raise InputError(f"{path}: could not write the image")
-    else:
-        writer = QPdfWriter(str(temporary))
-        writer.setResolution(600)
-        writer.setTitle(sheet.title)
-        writer.setCreator("Hand Mocap Studio")
-        writer.setPageLayout(QPageLayout(QPageSize(QPageSize.PageSizeId.A4), QPageLayout.Orientation.Portrait,
-                                         QMarginsF(0, 0, 0, 0), QPageLayout.Unit.Millimeter))
-        painter = QPainter()
-        if not painter.begin(writer):
-            raise InputError(f"{path}: could not write the PDF")
-        per_mm = writer.resolution() / 25.4
-        painter.scale(per_mm, per_mm)
-        paint_sheet(painter, sheet)
-        writer.newPage()
-        paint_full_scale_page(painter, sheet)
-        painter.end()
-        if not temporary.exists():
-            raise InputError(f"{path}: could not write the PDF")
-    temporary.replace(path)
+    with durable_path(path) as temporary:  # Qt writes by file name; the rename keeps the old file on failure
+        if suffix == ".png":
+            if not render_sheet_image(sheet, dpi).save(str(temporary), "PNG"):
+                raise InputError(f"{path}: could not write the image")
+        else:
+            writer = QPdfWriter(str(temporary))
+            writer.setResolution(600)
+            writer.setTitle(sheet.title)
+            writer.setCreator("Hand Mocap Studio")
+            writer.setPageLayout(QPageLayout(QPageSize(QPageSize.PageSizeId.A4), QPageLayout.Orientation.Portrait,
+                                             QMarginsF(0, 0, 0, 0), QPageLayout.Unit.Millimeter))
+            painter = QPainter()
+            if not painter.begin(writer):
+                raise InputError(f"{path}: could not write the PDF")
+            per_mm = writer.resolution() / 25.4
+            painter.scale(per_mm, per_mm)
+            paint_sheet(painter, sheet)
+            writer.newPage()
+            paint_full_scale_page(painter, sheet)
+            painter.end()
+            if temporary.stat().st_size == 0:
+                raise InputError(f"{path}: could not write the PDF")
     return path

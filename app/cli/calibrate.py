@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from app.cli.common import add_json_flag, print_figures, print_summary, progress_printer
+from app.cli.common import add_json_flag, add_outputs, print_figures, print_summary, progress_printer
 
 
 def command_calibrate(args: argparse.Namespace) -> int:
@@ -67,6 +67,7 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     calibrate.add_argument("--strictness", type=float, default=0.5, help="skin filter strictness 0..1 (default 0.5)")
     calibrate.add_argument("--no-clean", action="store_true", help="skip the skin and outlier filters")
     calibrate.add_argument("--quiet", action="store_true", help="no progress output")
+    add_outputs(calibrate, "out", "report", "gltf")
     calibrate.set_defaults(handler=command_calibrate)
 
     bench = bench_commands.add_parser("calibrate", help="seconds of the whole calibration of a 200 000-point scan")

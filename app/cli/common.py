@@ -1,11 +1,45 @@
-"""Helpers shared by the ``handmocap`` subcommand modules: figure printing and progress output."""
+"""Helpers shared by the ``handmocap`` subcommand modules: output checks, figure printing and progress output."""
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from collections.abc import Callable
+from pathlib import Path
+
+from core.errors import InputError
+from core.io.durable import check_target
+
+
+def add_outputs(parser: argparse.ArgumentParser, *options: str) -> None:
+    """Declare the options of ``parser`` that name files the command writes (e.g. ``"out"``, ``"report"``),
+    checked by :func:`check_outputs` before the command starts, and add its ``--overwrite`` flag."""
+    parser.add_argument("--overwrite", action="store_true", help="replace output files that already exist")
+    parser.set_defaults(outputs=options)
+
+
+def check_outputs(args: argparse.Namespace) -> None:
+    """Check every output file the command was given (see :func:`add_outputs`) before any work starts."""
+    given = [getattr(args, option) for option in getattr(args, "outputs", ()) if getattr(args, option, None)]
+    seen: set[Path] = set()
+    for path in given:
+        target = check_output(path, args.overwrite)
+        if target.resolve() in seen:
+            raise InputError(f"{path} is named as two outputs; give each output its own file")
+        seen.add(target.resolve())
+
+
+def check_output(path: str | os.PathLike[str], overwrite: bool) -> Path:
+    """``path`` once it can be written as a new output: its folder exists and is writable, it is not a folder
+    or a symbolic link, and it does not exist unless ``overwrite``. InputError (one line) otherwise."""
+    target = check_target(path)
+    if target.exists() and not overwrite:
+        raise InputError(f"{path} exists; use --overwrite to replace it")
+    if not os.access(target.parent, os.W_OK | os.X_OK):
+        raise InputError(f"cannot write {path}: folder {target.parent} is not writable")
+    return target
 
 
 def print_json(figures: dict) -> None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from app.cli.common import add_json_flag, print_figures, print_json, progress_printer
+from app.cli.common import add_json_flag, add_outputs, print_figures, print_json, progress_printer
 
 
 def _motions(values: list[str]) -> str | list[str]:
@@ -128,6 +128,7 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     fit.add_argument("--side", choices=["right", "left"], default="right")
     fit.add_argument("--iterations", type=int, default=3)
     fit.add_argument("--out", required=True, metavar="LAYOUT.json")
+    add_outputs(fit, "out")
     fit.set_defaults(handler=command_layout_fit)
 
     optimise = layout_commands.add_parser("optimise", aliases=["optimize"],
@@ -145,6 +146,7 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     optimise.add_argument("--seed", type=int, default=0)
     optimise.add_argument("--name", help="layout name (default METHOD-K)")
     optimise.add_argument("--out", required=True, metavar="LAYOUT.json")
+    add_outputs(optimise, "out")
     optimise.set_defaults(handler=command_layout_optimise)
     evaluate_layout = layout_commands.add_parser("evaluate", help="metrics and held-out reconstruction error")
     evaluate_layout.add_argument("layout", help="layout JSON file or shipped layout name")
@@ -159,12 +161,14 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     sheet.add_argument("layout", help="layout JSON file or shipped layout name")
     sheet.add_argument("--side", choices=["right", "left"], default="right")
     sheet.add_argument("--out", required=True, metavar="SHEET.png|SHEET.pdf")
+    add_outputs(sheet, "out")
     sheet.set_defaults(handler=command_layout_sheet)
 
     view = layout_commands.add_parser("view", help="open the layout view (optimise, compare, placement sheets)")
     view.add_argument("--compare", nargs="+", metavar="LAYOUT", help="tick these layouts for comparison")
     view.add_argument("--frame", type=int, default=700, help="frame shown in the comparison (0-based)")
     view.add_argument("--screenshot", metavar="PNG", help="save a screenshot of the window and quit")
+    add_outputs(view, "screenshot")
     view.set_defaults(handler=command_layout_view)
 
     table = layout_commands.add_parser("table", help="held-out grasp error against the number of markers, "

@@ -6,13 +6,23 @@ Errors are one line on stderr and exit code 2, never a traceback.
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 from pathlib import Path
 
 from app.cli import calibrate as calibrate_commands
 from app.cli import layout as layout_commands
 from app.cli import review as review_commands
-from app.cli.common import add_json_flag, print_figures, print_json, print_summary, progress_printer
+from app.cli.common import (
+    add_json_flag,
+    add_outputs,
+    check_output,
+    check_outputs,
+    print_figures,
+    print_json,
+    print_summary,
+    progress_printer,
+)
 from core.errors import HandMocapError, InputError
 
 #: modules that add their own subcommands (``register(commands, bench_commands, evaluate_commands)``)
@@ -135,7 +145,7 @@ def command_evaluate_ik(args: argparse.Namespace) -> int:
 def command_template(args: argparse.Namespace) -> int:
     from core.model.template_mesh import DEFAULT_TEMPLATE_PATH, write_default_template
 
-    path = Path(args.out) if args.out else DEFAULT_TEMPLATE_PATH
+    path = check_output(args.out or DEFAULT_TEMPLATE_PATH, args.overwrite)
     write_default_template(path)
     print(f"wrote template {path}")
     return 0
@@ -145,11 +155,11 @@ def command_prior(args: argparse.Namespace) -> int:
     from core.prior import DEFAULT_PRIOR_PATH, build_default_prior, build_prior_from_results, describe_prior
 
     if args.results:
+        path = check_output(args.out or "prior.npz", args.overwrite)
         prior = build_prior_from_results([Path(p) for p in args.results])
-        path = Path(args.out or "prior.npz")
     else:
+        path = check_output(args.out or DEFAULT_PRIOR_PATH, args.overwrite)
         prior = build_default_prior()
-        path = Path(args.out) if args.out else DEFAULT_PRIOR_PATH
     prior.save(path)
     print(describe_prior(prior))
     print(f"wrote prior {path}")
@@ -168,6 +178,7 @@ def build_parser() -> argparse.ArgumentParser:
     gui.add_argument("--frame", type=int, help="0-based frame to show in the screenshot")
     gui.add_argument("--solve", action="store_true", help="solve the opened takes at once")
     gui.add_argument("--demo", action="store_true", help="also open the demo session")
+    add_outputs(gui, "screenshot")
     gui.set_defaults(handler=command_gui)
 
     info = commands.add_parser("info", help="frames, rate, units, markers, vendor and missing share of a take")
@@ -186,6 +197,7 @@ def build_parser() -> argparse.ArgumentParser:
     simulate.add_argument("--unlabelled", action="store_true", help="per-frame shuffled, unnamed points")
     simulate.add_argument("--out", required=True, metavar="TAKE.c3d")
     simulate.add_argument("--truth", required=True, metavar="TRUTH.npz")
+    add_outputs(simulate, "out", "truth")
     simulate.set_defaults(handler=command_simulate)
 
     solve = commands.add_parser("solve", help="inverse kinematics of a labelled take")
@@ -200,6 +212,7 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--out", required=True, metavar="RESULT.npz")
     solve.add_argument("--csv", metavar="ANGLES.csv", help="also write the joint angles as CSV")
     solve.add_argument("--quiet", action="store_true", help="no progress output")
+    add_outputs(solve, "out", "csv")
     solve.set_defaults(handler=command_solve)
 
     bench = commands.add_parser("bench", help="speed benchmarks (one JSON object as the last line with --json)")
@@ -223,6 +236,7 @@ def build_parser() -> argparse.ArgumentParser:
     template = commands.add_parser("template", help="regenerate the template hand mesh")
     template.add_argument("action", choices=["build"])
     template.add_argument("--out", help="output .npz (default: resources/template/right_hand.npz)")
+    add_outputs(template, "out")
     template.set_defaults(handler=command_template)
 
     prior = commands.add_parser("prior", help="build a posture prior")
@@ -230,6 +244,7 @@ def build_parser() -> argparse.ArgumentParser:
     prior.add_argument("--results", nargs="+", metavar="RESULT.npz",
                        help="solved takes to build from (default: the authored canonical postures)")
     prior.add_argument("--out", help="output .npz (default: resources/priors/default_prior.npz)")
+    add_outputs(prior, "out")
     prior.set_defaults(handler=command_prior)
 
     for module in SUBCOMMAND_MODULES:
@@ -242,7 +257,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.command is None:
         args = parser.parse_args(["gui"])
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # past a file-size limit (ulimit -f) a write fails: one line
     try:
+        check_outputs(args)
         return args.handler(args)
     except HandMocapError as error:
         print(f"handmocap: error: {error}", file=sys.stderr)
@@ -260,9 +277,11 @@ def _write_crash_log() -> Path:
     """Save the current traceback to ``~/.cache/handmocap/last-error.log``; returns the path."""
     import traceback
 
+    from core.io.durable import write_text_atomic
+
     log = Path.home() / ".cache" / "handmocap" / "last-error.log"
     log.parent.mkdir(parents=True, exist_ok=True)
-    log.write_text(traceback.format_exc(), encoding="utf-8")
+    write_text_atomic(log, traceback.format_exc())
     return log
 
 

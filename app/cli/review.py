@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from app.cli.common import add_json_flag, print_figures, print_json, print_summary, progress_printer
+from app.cli.common import add_json_flag, add_outputs, print_figures, print_json, print_summary, progress_printer
 from core.errors import InputError
 
 
@@ -36,6 +36,7 @@ def _subject_hands(parameters: dict, source: str) -> tuple[dict, dict]:
 
 def command_label(args: argparse.Namespace) -> int:
     from core.io import load_take, looks_unlabelled
+    from core.io.durable import write_text_atomic
     from core.model import load_layout, marker_columns
     from core.review import ReviewTake, export_labelled_c3d
     from core.workflows.labelling import auto_label
@@ -51,7 +52,7 @@ def command_label(args: argparse.Namespace) -> int:
                                "hands": args.hands, "relabel": bool(args.relabel),
                                "subject_calibration": [subject.side for subject in outcome.subjects]}
     if args.report:
-        Path(args.report).write_text(json.dumps(report, indent=2), encoding="utf-8")
+        write_text_atomic(args.report, json.dumps(report, indent=2))
     residual, noise = report["mean_residual_mm"], report["noise_mm"]
     health = report["health"]
     no_hand = any(warning["kind"] == "no_hand" and not warning["model"] for warning in health)
@@ -240,6 +241,7 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     label.add_argument("--out", required=True, metavar="LABELLED.c3d")
     label.add_argument("--report", metavar="REPORT.json", help="write what was found as JSON")
     label.add_argument("--quiet", action="store_true", help="no progress output")
+    add_outputs(label, "out", "report")
     label.set_defaults(handler=command_label)
 
     fill = commands.add_parser("fill", help="fill the short gaps of a labelled take")
@@ -251,6 +253,7 @@ def register(commands, bench_commands, evaluate_commands) -> None:
                       "marker intercorrelations, Gløersen & Federolf 2016)")
     fill.add_argument("--out", required=True, metavar="FILLED.c3d")
     fill.add_argument("--quiet", action="store_true", help="no progress output")
+    add_outputs(fill, "out")
     add_json_flag(fill)
     fill.set_defaults(handler=command_fill)
 

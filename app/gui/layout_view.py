@@ -41,6 +41,7 @@ from PySide6.QtWidgets import (
 
 from app.gui.workers import TaskRunner
 from core.errors import HandMocapError, InputError
+from core.io.durable import durable_path
 from core.layout import PSOSettings, default_subspace_dims, evaluate_layout, motion_set
 from core.layout.placement_sheet import placement_sheet
 from core.layout.workflow import GENERIC_MOTIONS, error_against_markers, optimise_layout
@@ -628,8 +629,12 @@ class LayoutWindow(QMainWindow):
 
     def save_screenshot(self, path: str | Path) -> bool:
         """Save the window as a PNG; shows the reason and returns False when it cannot."""
-        if not self.window_image().save(str(path)):
-            self.show_error("Cannot save the screenshot", f"{path}: could not write the image")
+        try:
+            with durable_path(path) as temporary:  # same suffix: Qt picks the image format from it
+                if not self.window_image().save(str(temporary)):
+                    raise InputError(f"{path}: could not write the image")
+        except InputError as error:
+            self.show_error("Cannot save the screenshot", str(error))
             return False
         return True
 

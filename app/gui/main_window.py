@@ -50,9 +50,10 @@ from app.gui.load_queue import LoadQueue
 from app.gui.review_controller import ReviewController
 from app.gui.session_controller import SessionController
 from app.gui.workers import TaskRunner, one_line
-from core.errors import CancelledError, HandMocapError
+from core.errors import CancelledError, HandMocapError, InputError
 from core.ik import METHODS, IKResult
 from core.io import READ_SUFFIXES, TAKE_FILE_FILTER, Take, load_take
+from core.io.durable import durable_path
 from core.model import layout_names, load_layout, skin_vertices
 from core.review.events import ReviewChanged
 from core.workflows.resolve import check_layout_names, solve_labelled_take
@@ -733,8 +734,12 @@ class MainWindow(QMainWindow):
 
     def save_screenshot(self, path: str | Path) -> bool:
         """Save the whole window as a PNG; shows the reason and returns False when it cannot."""
-        if not self.window_image().save(str(path)):
-            self.show_error("Cannot save the screenshot", f"{path}: could not write the image")
+        try:
+            with durable_path(path) as temporary:  # same suffix: Qt picks the image format from it
+                if not self.window_image().save(str(temporary)):
+                    raise InputError(f"{path}: could not write the image")
+        except InputError as error:
+            self.show_error("Cannot save the screenshot", str(error))
             return False
         return True
 

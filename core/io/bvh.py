@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
-from core.io.take import atomic_target
+from core.io.durable import write_text_atomic
 from core.model.kinematics import KinematicChain
 from core.model.skeleton import JOINT_NAMES, JOINT_PARENTS, N_JOINTS, N_PARAMS, Skeleton
 
@@ -126,11 +126,7 @@ def write_bvh(path: str | PathLike[str], skeleton: Skeleton, joint_angles: np.nd
     lines += ["}", "MOTION", f"Frames: {len(motion)}", f"Frame Time: {1.0 / frame_rate:.8f}"]
     body = "\n".join(" ".join(f"{value:.6f}" for value in row) for row in motion)
     text = "\n".join(lines) + "\n" + body + "\n"
-    try:
-        with atomic_target(path) as temporary:
-            Path(temporary).write_text(text, encoding="ascii")
-    except OSError as error:
-        raise InputError(f"cannot write {Path(path).name} ({error.strerror or error})") from None
+    write_text_atomic(path, text)
 
 
 @dataclass

@@ -17,7 +17,7 @@ def write_joint_angles_csv(path: str | os.PathLike[str], hands: list[tuple[str, 
                            frame_rate: float) -> None:
     """One CSV of ``frame, time_s`` then per hand ``(column prefix, joint_angles (F, 26))`` the 26 parameters:
     translations in mm (``wrist_tx_mm``...), angles in degrees; unsolved samples are empty cells.
-    Atomic; InputError when the file cannot be written."""
+    Durable (:mod:`core.io.durable`); WriteError (an InputError) naming the file when it cannot be written."""
     n_frames = len(hands[0][1])
     frames = np.arange(n_frames) + first_frame
     header = ["frame", "time_s"]
@@ -32,10 +32,7 @@ def write_joint_angles_csv(path: str | os.PathLike[str], hands: list[tuple[str, 
     for row in table:
         cells = [f"{int(row[0])}", f"{row[1]:.6f}"] + ["" if not np.isfinite(v) else f"{v:.6f}" for v in row[2:]]
         rows.append(",".join(cells))
-    try:
-        write_atomic(path, ("\n".join(rows) + "\n").encode("utf-8"))
-    except OSError as error:
-        raise InputError(f"cannot write {Path(path).name} ({error.strerror or error})") from None
+    write_atomic(path, ("\n".join(rows) + "\n").encode("utf-8"))
 
 
 def read_result_joint_angles(path: str | os.PathLike[str]) -> np.ndarray:

@@ -6,9 +6,7 @@ indices are 0-based; `Take.first_frame` keeps the number the file gave to frame 
 
 import math
 import operator
-import os
 import re
-import secrets
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -259,18 +257,6 @@ def format_number_rows(first_frame: int, frame_rate: float, positions: np.ndarra
     table = np.column_stack([frames, (frames - first_frame) / frame_rate, positions.reshape(n_frames, -1)])
     row_format = delimiter.join(["%d"] + ["%.6f"] * (table.shape[1] - 1)) + "\n"
     return "".join(row_format % tuple(row) for row in table.tolist()).replace("nan", "")
-
-
-@contextmanager
-def atomic_target(path: str | PathLike[str]) -> Iterator[Path]:
-    """Yield a temporary path next to `path`; on success it replaces `path` at once, else it is removed."""
-    target = Path(path)
-    temporary = target.with_name(f".{target.name}.{secrets.token_hex(4)}{target.suffix.lower()}")
-    try:
-        yield temporary
-        os.replace(temporary, target)
-    finally:
-        temporary.unlink(missing_ok=True)
 
 
 #: point names that carry no label: "*12" (Vicon), "Unlabeled 3" (Motive), "point_004", "M7", "2003", and
