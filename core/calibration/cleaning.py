@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from core.calibration.nearest import nearest_neighbours
 from core.calibration.scan import Scan
 from core.errors import InputError
 
@@ -35,7 +36,7 @@ def statistical_outlier_mask(points: np.ndarray, k: int = 16, std_ratio: float =
     the mean of that distance over the cloud by more than ``std_ratio`` standard deviations."""
     if len(points) <= k:
         return np.zeros(len(points), dtype=bool)
-    distances, _ = cKDTree(points).query(points, k=k + 1, workers=-1)
+    distances, _ = nearest_neighbours(cKDTree(points), points, k=k + 1)
     mean_distance = distances[:, 1:].mean(axis=1)
     return mean_distance > mean_distance.mean() + std_ratio * mean_distance.std()
 

@@ -25,17 +25,19 @@ MIN_OFFSET_MM, MAX_OFFSET_MM = 2.0, 20.0
 
 def _portable_spec(model: HandModel, spec: MarkerSpec, rest_position: np.ndarray) -> MarkerSpec:
     """A ``between/along/side`` spec whose ray from the bone axis reaches ``rest_position (3,)``."""
-    start, end = joint_rest_point(model, spec.between[0]), joint_rest_point(model, spec.between[1])
+    first, second = spec.joints
+    start, end = joint_rest_point(model, first), joint_rest_point(model, second)
     axis = end - start
     along = float(np.clip((rest_position - start) @ axis / (axis @ axis), -0.6, 1.2))
     origin = start + along * axis
-    frame = model.skeleton.rest_rotations[frame_joint_of(spec.between[0])]
+    frame = model.skeleton.rest_rotations[frame_joint_of(first)]
     local = frame.T @ (rest_position - origin)
     if model.side == "left":
         local[0] = -local[0]
     local /= max(np.linalg.norm(local), 1e-9)
-    return MarkerSpec(name=spec.name, between=spec.between, along=round(along, 3),
-                      side=tuple(round(float(v), 3) for v in local), offset_mm=spec.offset_mm)
+    x, y, z = (round(float(v), 3) for v in local)
+    return MarkerSpec(name=spec.name, between=spec.between, along=round(along, 3), side=(x, y, z),
+                      offset_mm=spec.offset_mm)
 
 
 def fit_marker_placement(positions: np.ndarray, marker_names: list[str], model: HandModel,
@@ -82,7 +84,7 @@ def fit_marker_placement(positions: np.ndarray, marker_names: list[str], model: 
 
 def _carrier_joint(spec: MarkerSpec) -> int:
     """The joint whose segment the marker sits on (the first joint of ``between``; tips: distal)."""
-    joint = spec.between[0]
+    joint = spec.joints[0]
     if joint.endswith("_tip"):
         return 3 + 3 * DIGITS.index(joint[:-4])
     return JOINT_NAMES.index(joint)

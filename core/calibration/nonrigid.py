@@ -39,12 +39,14 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 from scipy import sparse
 from scipy.sparse.linalg import splu
 from scipy.spatial import cKDTree
 
+from core.calibration.nearest import nearest_neighbours
 from core.errors import CancelledError, InputError
 from core.model.hand_model import mesh_vertex_normals
 
@@ -139,7 +141,7 @@ def best_rotations(rest: np.ndarray, deformed: np.ndarray, rows: np.ndarray, col
 
 def estimate_normals(points: np.ndarray, k: int = 12) -> np.ndarray:
     """Unoriented unit normals (N,3) of a point cloud from the PCA of ``k`` nearest neighbours."""
-    _, neighbours = cKDTree(points).query(points, k=min(k, len(points)), workers=-1)
+    _, neighbours = nearest_neighbours(cKDTree(points), points, k=min(k, len(points)))
     local = points[neighbours] - points[neighbours].mean(axis=1, keepdims=True)
     covariance = np.einsum("nka,nkb->nab", local, local)
     _, vectors = np.linalg.eigh(covariance)
@@ -187,6 +189,11 @@ class _LandmarkSolver:
         return solution - self.k_inverse_u @ np.linalg.solve(small, self.selector @ solution)
 
 
+def _solve_landmarks(solver: _LandmarkSolver, w_reg: float, beta: float, rhs: np.ndarray) -> np.ndarray:
+    """``(w_reg LᵀL + w_lm SᵀS) x = rhs`` solved as ``(LᵀL + β SᵀS) x = rhs / w_reg`` (β = w_lm / w_reg)."""
+    return solver.solve(rhs / w_reg, beta)
+
+
 @dataclass
 class FitResult:
     """Output of :func:`fit_nonrigid`: ``vertices (V,3)`` mm, ``iterations``, last correspondence count,
@@ -210,7 +217,7 @@ def closest_point_pairs(vertices: np.ndarray, normals: np.ndarray, tree: cKDTree
     scan point is more than that closer to another vertex (vertices over a hole all pairing with its rim).
     """
     indices = np.arange(len(vertices)) if candidates is None else candidates
-    distances, nearest = tree.query(vertices[indices], distance_upper_bound=MAX_REJECT_MM, workers=-1)
+    distances, nearest = nearest_neighbours(tree, vertices[indices], upper_bound_mm=MAX_REJECT_MM)
     finite = np.isfinite(distances)
     if not np.any(finite):
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
@@ -230,7 +237,7 @@ def closest_point_pairs(vertices: np.ndarray, normals: np.ndarray, tree: cKDTree
     if mutual_mm is not None and np.any(accepted):
         chosen = np.flatnonzero(accepted)
         points = scan_points[nearest[chosen]]
-        nearest_vertex_distance, _ = cKDTree(vertices).query(points, workers=-1)
+        nearest_vertex_distance, _ = nearest_neighbours(cKDTree(vertices), points)
         accepted[chosen] = distances[chosen] <= nearest_vertex_distance + mutual_mm
     return indices[accepted], nearest[accepted]
 
@@ -240,8 +247,8 @@ def _surface_targets(vertices: np.ndarray, normals: np.ndarray, nearest: np.ndar
     """The scan surface point under each vertex (C,3): the vertex moved along its normal onto the plane
     through the centroid of the :data:`SURFACE_NEIGHBOURS` scan points around its closest scan point
     (within ``radius_mm``). Averaging the scanner noise this way keeps the fitted surface smooth."""
-    distances, neighbours = tree.query(scan_points[nearest], k=SURFACE_NEIGHBOURS, distance_upper_bound=radius_mm,
-                                       workers=-1)
+    distances, neighbours = nearest_neighbours(tree, scan_points[nearest], k=SURFACE_NEIGHBOURS,
+                                               upper_bound_mm=radius_mm)
     distances, neighbours = distances.reshape(len(nearest), -1), neighbours.reshape(len(nearest), -1)
     valid = np.isfinite(distances)
     safe = np.where(valid, neighbours, 0)
@@ -290,7 +297,7 @@ def fit_nonrigid(template_vertices: np.ndarray, faces: np.ndarray, landmark_vert
     landmark_rms: list[float] = []
     n_pairs = 0
     w_lm = schedule.lambda_landmark / len(landmark_vertices)
-    spacing = float(np.median(tree.query(scan_points[:: max(1, len(scan_points) // 2000)], k=2)[0][:, 1]))
+    spacing = float(np.median(nearest_neighbours(tree, scan_points[:: max(1, len(scan_points) // 2000)], k=2)[0][:, 1]))
     tangential_mm = max(TANGENTIAL_REJECT_MM, 3.0 * spacing)
     landmark_solver = _LandmarkSolver(normal_matrix, landmark_selector, reference=w_lm * count)
     for step_index, (phase, reg) in enumerate(steps):
@@ -298,12 +305,9 @@ def fit_nonrigid(template_vertices: np.ndarray, faces: np.ndarray, landmark_vert
             raise CancelledError("the fit was cancelled; the scan and landmarks are unchanged")
         w_reg = reg / count
         fit_rhs = np.zeros((count, 3))
+        solve: Callable[[np.ndarray], np.ndarray]
         if phase == "landmarks":
-            # (w_reg LᵀL + w_lm SᵀS) x = r  <=>  (LᵀL + β SᵀS) x = r / w_reg
-            beta = w_lm / w_reg
-
-            def solve(rhs: np.ndarray, beta: float = beta, w_reg: float = w_reg) -> np.ndarray:
-                return landmark_solver.solve(rhs / w_reg, beta)
+            solve = partial(_solve_landmarks, landmark_solver, w_reg, w_lm / w_reg)
         else:
             system = w_reg * normal_matrix + w_lm * landmark_matrix
             normals = mesh_vertex_normals(deformed, faces)

@@ -13,6 +13,7 @@ from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from core.calibration.nearest import nearest_neighbours
 from core.model.skeleton import JOINT_NAMES
 
 SWAP_RESIDUAL_MM = 8.0         # a landmark with a larger residual is examined for a swap
@@ -59,7 +60,7 @@ def point_to_mesh_distances(points: np.ndarray, vertices: np.ndarray, faces: np.
     """Distance (N,) in mm of each point to the triangle mesh (exact over the ``candidates`` triangles
     with the nearest centroids, which is exact for meshes with even triangles)."""
     centroids = vertices[faces].mean(axis=1)
-    _, nearest = cKDTree(centroids).query(points, k=min(candidates, len(faces)), workers=-1)
+    _, nearest = nearest_neighbours(cKDTree(centroids), points, k=min(candidates, len(faces)))
     nearest = np.atleast_2d(nearest.T).T if nearest.ndim == 1 else nearest
     best = np.full(len(points), np.inf)
     for column in range(nearest.shape[1]):

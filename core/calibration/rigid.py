@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from core.calibration.nearest import nearest_neighbours
 from core.errors import InputError
 
 MAX_NORMAL_ANGLE_DEG = 60.0   # ICP rejects pairs whose normals disagree by more than this
@@ -58,17 +59,16 @@ def rigid_icp(source_points: np.ndarray, target_points: np.ndarray, source_norma
     """
     scale, rotation, translation = initial if initial is not None else (1.0, np.eye(3), np.zeros(3))
     rotation, translation = np.asarray(rotation, dtype=np.float64), np.asarray(translation, dtype=np.float64)
-    use_normals = source_normals is not None and target_normals is not None
     tree = cKDTree(target_points)
     min_cosine = np.cos(np.radians(MAX_NORMAL_ANGLE_DEG))
     previous_rms = np.inf
     for iteration in range(iterations + 1):
         moved = scale * source_points @ rotation.T + translation
-        distances, nearest = tree.query(moved, distance_upper_bound=max_distance_mm, workers=-1)
+        distances, nearest = nearest_neighbours(tree, moved, upper_bound_mm=max_distance_mm)
         accepted = np.isfinite(distances)
         if np.any(accepted):
             accepted &= distances <= REJECT_MEDIAN_FACTOR * np.median(distances[accepted])
-        if use_normals:
+        if source_normals is not None and target_normals is not None:
             paired_normals = target_normals[np.minimum(nearest, len(target_points) - 1)]
             agreement = np.einsum("na,na->n", source_normals @ rotation.T, paired_normals)
             accepted &= agreement >= min_cosine

@@ -90,36 +90,44 @@ class _Problem:
         full[SCALED_JOINTS] = scales
         return np.ascontiguousarray(self.offsets0 * full[:, None])
 
-    def evaluate(self, thetas: np.ndarray, scales: np.ndarray, offsets: np.ndarray, with_jacobian: bool):
-        """Residuals (N,M,3) (target − model, 0 where unobserved) and, when asked, the pose Jacobians
-        (N,M,3,26) and the shape Jacobians (N,M,3,15+3M)."""
+    def residuals(self, thetas: np.ndarray, scales: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+        """Residuals (N,M,3) of the poses ``thetas (N,26)``: target − model, 0 where unobserved."""
+        joint_offsets, local = self.joint_offsets(scales), self.local_points(offsets)
+        residuals = np.zeros((len(self.observed), self.observed.shape[1], 3))
+        mask = self.observed[:, :, None].astype(float)
+        for n, theta in enumerate(thetas):
+            rotations, positions, _, _ = forward_kinematics_kernel(theta, self.relative_rest, joint_offsets,
+                                                                   self.abduction)
+            points = skinned_points_kernel(rotations, positions, self.joints, self.weights, local)
+            residuals[n] = (self.clean[n] - points) * mask[n]
+        return residuals
+
+    def linearise(self, thetas: np.ndarray, scales: np.ndarray, offsets: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Residuals (N,M,3) as :meth:`residuals`, the pose Jacobians (N,M,3,26) and the shape Jacobians
+        (N,M,3,15+3M)."""
         joint_offsets, local = self.joint_offsets(scales), self.local_points(offsets)
         count, markers = self.observed.shape
         residuals = np.zeros((count, markers, 3))
-        pose_jacobians = np.zeros((count, markers, 3, N_PARAMS)) if with_jacobian else None
-        shape_jacobians = np.zeros((count, markers, 3, len(SCALED_JOINTS) + 3 * markers)) if with_jacobian else None
+        pose_jacobians = np.zeros((count, markers, 3, N_PARAMS))
+        shape_jacobians = np.zeros((count, markers, 3, len(SCALED_JOINTS) + 3 * markers))
         mask = self.observed[:, :, None].astype(float)
         for n, theta in enumerate(thetas):
-            if with_jacobian:
-                points, jacobian = points_and_jacobian_kernel(theta, self.relative_rest, joint_offsets,
-                                                              self.abduction, ANCESTOR, self.joints,
-                                                              self.weights, local)
-                rotations, _, _, _ = forward_kinematics_kernel(theta, self.relative_rest, joint_offsets,
-                                                               self.abduction)
-                pose_jacobians[n] = jacobian * mask[n, :, :, None]
-                moved = np.einsum("jab,jb->ja", rotations[JOINT_PARENTS[SCALED_JOINTS]], self.offsets0[SCALED_JOINTS])
-                shape_jacobians[n, :, :, :len(SCALED_JOINTS)] = (
-                    self.reach[:, SCALED_JOINTS, None] * moved[None]).transpose(0, 2, 1)
-                carried = np.einsum("mk,mkab,mkbc->mac", self.weights, rotations[self.joints],
-                                    self.rest_rotations[self.joints])
-                for i in range(markers):
-                    column = len(SCALED_JOINTS) + 3 * i
-                    shape_jacobians[n, i, :, column:column + 3] = carried[i]
-                shape_jacobians[n] *= mask[n, :, :, None]
-            else:
-                rotations, positions, _, _ = forward_kinematics_kernel(theta, self.relative_rest, joint_offsets,
-                                                                       self.abduction)
-                points = skinned_points_kernel(rotations, positions, self.joints, self.weights, local)
+            points, jacobian = points_and_jacobian_kernel(theta, self.relative_rest, joint_offsets,
+                                                          self.abduction, ANCESTOR, self.joints,
+                                                          self.weights, local)
+            rotations, _, _, _ = forward_kinematics_kernel(theta, self.relative_rest, joint_offsets,
+                                                           self.abduction)
+            pose_jacobians[n] = jacobian * mask[n, :, :, None]
+            moved = np.einsum("jab,jb->ja", rotations[JOINT_PARENTS[SCALED_JOINTS]], self.offsets0[SCALED_JOINTS])
+            shape_jacobians[n, :, :, :len(SCALED_JOINTS)] = (
+                self.reach[:, SCALED_JOINTS, None] * moved[None]).transpose(0, 2, 1)
+            carried = np.einsum("mk,mkab,mkbc->mac", self.weights, rotations[self.joints],
+                                self.rest_rotations[self.joints])
+            for i in range(markers):
+                column = len(SCALED_JOINTS) + 3 * i
+                shape_jacobians[n, i, :, column:column + 3] = carried[i]
+            shape_jacobians[n] *= mask[n, :, :, None]
             residuals[n] = (self.clean[n] - points) * mask[n]
         return residuals, pose_jacobians, shape_jacobians
 
@@ -185,16 +193,7 @@ def calibrate_subject(positions: np.ndarray, model: HandModel, layout: MarkerLay
     layered IK, as tracking does), ``iterations``.
     """
     markers = resolve_layout(model, layout) if isinstance(layout, MarkerLayout) else layout
-    positions = np.asarray(positions, dtype=float)
-    if positions.ndim != 3 or positions.shape[1:] != (len(markers.names), 3):
-        raise InputError(f"calibration positions must be (F, {len(markers.names)}, 3), got {positions.shape}")
-    observed = np.isfinite(positions).all(axis=2)
-    if initial_angles is not None:
-        observed &= np.isfinite(np.asarray(initial_angles)).all(axis=1)[:, None]
-    if not observed.any() or observed.sum(axis=1).max() < 3:
-        raise InputError("subject calibration needs frames with at least 3 labelled markers")
-    frames = _select_frames(observed, max_frames)
-    targets = np.where(observed[frames][:, :, None], positions[frames], np.nan)
+    frames, targets = _calibration_frames(positions, len(markers.names), initial_angles, max_frames)
     if initial_angles is not None:
         thetas = np.array(initial_angles, dtype=float)[frames]
     else:
@@ -202,51 +201,28 @@ def calibrate_subject(positions: np.ndarray, model: HandModel, layout: MarkerLay
     thetas = np.ascontiguousarray(thetas)
     lower, upper = default_joint_limits()
     problem = _Problem(model, markers, targets)
-    marker_count = len(markers.names)
-    scales, offsets = np.ones(len(SCALED_JOINTS)), np.zeros((marker_count, 3))
-    residuals, pose_jacobians, shape_jacobians = problem.evaluate(thetas, scales, offsets, True)
+    scales, offsets = np.ones(len(SCALED_JOINTS)), np.zeros((len(markers.names), 3))
+    residuals, pose_jacobians, shape_jacobians = problem.linearise(thetas, scales, offsets)
     before = _mean_residual(residuals, problem.observed)
     cost = _cost(residuals, scales, offsets)
     damping = 1e-3
-    shape_size = len(SCALED_JOINTS) + 3 * marker_count
     done = 0
     for iteration in range(iterations):
         if cancelled is not None and cancelled():
             raise CancelledError("subject calibration cancelled; the model is unchanged")
         if progress is not None:
             progress(iteration / iterations)
-        count = len(thetas)
-        pose_j = pose_jacobians.reshape(count, -1, N_PARAMS)
-        shape_j = shape_jacobians.reshape(count, -1, shape_size)
-        flat = residuals.reshape(count, -1)
-        shape_vector = np.concatenate([scales - 1.0, offsets.ravel()])
-        prior = np.concatenate([np.full(len(SCALED_JOINTS), SCALE_PRIOR ** 2), np.full(3 * marker_count,
-                                                                                      OFFSET_PRIOR ** 2)])
-        pose_t = pose_j.transpose(0, 2, 1)
-        system = pose_t @ pose_j
-        system[:, np.arange(N_PARAMS), np.arange(N_PARAMS)] *= 1.0 + damping
-        system[:, np.arange(N_PARAMS), np.arange(N_PARAMS)] += damping * 1e-6
-        coupling = pose_t @ shape_j
-        gradient = pose_t @ flat[:, :, None]
-        solved = np.linalg.solve(system, np.concatenate([coupling, gradient], axis=2))
-        stacked = shape_j.reshape(-1, shape_size)
-        reduced = np.diag(prior) + stacked.T @ stacked \
-            - coupling.reshape(-1, shape_size).T @ solved[:, :, :-1].reshape(-1, shape_size)
-        reduced_rhs = -prior * shape_vector + stacked.T @ flat.ravel() \
-            - coupling.reshape(-1, shape_size).T @ solved[:, :, -1].ravel()
-        reduced[np.diag_indices(shape_size)] += damping * (np.diag(reduced) + 1e-6)
-        shape_step = np.linalg.solve(reduced, reduced_rhs)
+        pose_steps, shape_step = _damped_step(residuals, pose_jacobians, shape_jacobians, scales, offsets, damping)
         new_scales = np.clip(scales + shape_step[:len(SCALED_JOINTS)], *SCALE_LIMITS)
-        new_offsets = offsets + shape_step[len(SCALED_JOINTS):].reshape(marker_count, 3)
-        pose_steps = solved[:, :, -1] - solved[:, :, :-1] @ shape_step
-        new_thetas = np.array([_apply_pose_step(thetas[n], pose_steps[n], lower, upper) for n in range(count)])
-        new_residuals, _, _ = problem.evaluate(new_thetas, new_scales, new_offsets, False)
+        new_offsets = offsets + shape_step[len(SCALED_JOINTS):].reshape(offsets.shape)
+        new_thetas = np.array([_apply_pose_step(thetas[n], pose_steps[n], lower, upper) for n in range(len(thetas))])
+        new_residuals = problem.residuals(new_thetas, new_scales, new_offsets)
         new_cost = _cost(new_residuals, new_scales, new_offsets)
         done = iteration + 1
         if new_cost < cost:
             improvement = (cost - new_cost) / max(cost, 1e-12)
             thetas, scales, offsets, cost = new_thetas, new_scales, new_offsets, new_cost
-            residuals, pose_jacobians, shape_jacobians = problem.evaluate(thetas, scales, offsets, True)
+            residuals, pose_jacobians, shape_jacobians = problem.linearise(thetas, scales, offsets)
             damping = max(damping / 3.0, 1e-7)
             if improvement < 1e-6:
                 break
@@ -263,3 +239,51 @@ def calibrate_subject(positions: np.ndarray, model: HandModel, layout: MarkerLay
               "residual_after_mm": round(_mean_residual(residuals, problem.observed), 4),
               "residual_after_ik_mm": round(resolved.mean_residual_mm, 4), "iterations": done}
     return new_model, new_markers, report
+
+
+def _calibration_frames(positions: np.ndarray, marker_count: int, initial_angles: np.ndarray | None,
+                        max_frames: int) -> tuple[np.ndarray, np.ndarray]:
+    """The frames (S,) of ``positions (F,M,3)`` mm the calibration uses (:func:`_select_frames`; a marker
+    counts as observed where its position, and the frame's ``initial_angles`` when given, are finite) and
+    their targets (S,M,3) mm (NaN unobserved). Raises :class:`InputError` for a wrong shape or fewer than
+    3 labelled markers in every frame."""
+    positions = np.asarray(positions, dtype=float)
+    if positions.ndim != 3 or positions.shape[1:] != (marker_count, 3):
+        raise InputError(f"calibration positions must be (F, {marker_count}, 3), got {positions.shape}")
+    observed = np.isfinite(positions).all(axis=2)
+    if initial_angles is not None:
+        observed &= np.isfinite(np.asarray(initial_angles)).all(axis=1)[:, None]
+    if not observed.any() or observed.sum(axis=1).max() < 3:
+        raise InputError("subject calibration needs frames with at least 3 labelled markers")
+    frames = _select_frames(observed, max_frames)
+    return frames, np.where(observed[frames][:, :, None], positions[frames], np.nan)
+
+
+def _damped_step(residuals: np.ndarray, pose_jacobians: np.ndarray, shape_jacobians: np.ndarray,
+                 scales: np.ndarray, offsets: np.ndarray, damping: float) -> tuple[np.ndarray, np.ndarray]:
+    """One Levenberg–Marquardt step of the joint fit: the pose steps (N,26) and the shape step (15+3M,)
+    (scales, then marker offsets) from the linearisation (:meth:`_Problem.linearise`), the shape priors
+    and ``damping``; the per-frame pose blocks are eliminated first (Schur complement on the shape)."""
+    count, marker_count = len(residuals), len(offsets)
+    shape_size = len(SCALED_JOINTS) + 3 * marker_count
+    pose_j = pose_jacobians.reshape(count, -1, N_PARAMS)
+    shape_j = shape_jacobians.reshape(count, -1, shape_size)
+    flat = residuals.reshape(count, -1)
+    shape_vector = np.concatenate([scales - 1.0, offsets.ravel()])
+    prior = np.concatenate([np.full(len(SCALED_JOINTS), SCALE_PRIOR ** 2), np.full(3 * marker_count,
+                                                                                  OFFSET_PRIOR ** 2)])
+    pose_t = pose_j.transpose(0, 2, 1)
+    system = pose_t @ pose_j
+    system[:, np.arange(N_PARAMS), np.arange(N_PARAMS)] *= 1.0 + damping
+    system[:, np.arange(N_PARAMS), np.arange(N_PARAMS)] += damping * 1e-6
+    coupling = pose_t @ shape_j
+    gradient = pose_t @ flat[:, :, None]
+    solved = np.linalg.solve(system, np.concatenate([coupling, gradient], axis=2))
+    stacked = shape_j.reshape(-1, shape_size)
+    reduced = np.diag(prior) + stacked.T @ stacked \
+        - coupling.reshape(-1, shape_size).T @ solved[:, :, :-1].reshape(-1, shape_size)
+    reduced_rhs = -prior * shape_vector + stacked.T @ flat.ravel() \
+        - coupling.reshape(-1, shape_size).T @ solved[:, :, -1].ravel()
+    reduced[np.diag_indices(shape_size)] += damping * (np.diag(reduced) + 1e-6)
+    shape_step = np.linalg.solve(reduced, reduced_rhs)
+    return solved[:, :, -1] - solved[:, :, :-1] @ shape_step, shape_step

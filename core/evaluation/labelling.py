@@ -49,13 +49,14 @@ def evaluate_labelling(layouts: Sequence[str] = ("dense", "glove-13"), seeds: Se
     ``scene_objects`` rigid objects, per layout and seed (``online``: in online mode); returns
     ``{"runs": [...], "summary": {...}}`` with each run's accuracy, time and whether it meets the
     targets, and the pooled figures per layout and case."""
-    from core.simulate import simulate_scene, simulate_take
+    from core.simulate import SimulatedScene, SimulatedTake, simulate_scene, simulate_take
 
     runs = []
     for layout in layouts:
         for seed in seeds:
             cases = [("one_hand", None)] + ([("scene", None)] if scene else [])
             for case, _ in cases:
+                simulated: SimulatedTake | SimulatedScene
                 if case == "one_hand":
                     simulated = simulate_take(layout=layout, n_frames=frames, seed=seed, noise_mm=0.3,
                                               ghost_rate=0.05, occlusion=True, unlabelled=True)
@@ -135,26 +136,27 @@ def evaluate_real_recording(path: str | Path = REAL_RECORDING, frames: int | Non
     label_frames, label_markers = np.nonzero(result.assignment >= 0)
     labelled_points[label_frames, result.assignment[label_frames, label_markers]] = True
     other_names = [name for name, index in zip(recording_names, recording_to_layout, strict=True) if index < 0]
+    correct = round(accuracy["correct_share"], 5)
+    other_labelled = int((other & labelled_points).sum())
+    mean_residual = round(float(np.nanmean(result.residuals_mm)), 4)
     report = {"frames": int(take.n_frames), "layout": layout, "hand_markers": len(hand_names),
               "other_markers": other_names, "seconds": round(seconds, 2),
-              "hand_samples_correct_share": round(accuracy["correct_share"], 5),
+              "hand_samples_correct_share": correct,
               "hand_samples_missed_share": round(accuracy["missed_share"], 5),
               "hand_samples_wrong_share": round(accuracy["wrong_share"], 5),
               "hand_samples": accuracy["observed_samples"],
-              "other_marker_samples_given_hand_label": int((other & labelled_points).sum()),
+              "other_marker_samples_given_hand_label": other_labelled,
               "other_marker_samples": int(other.sum()),
               "ghost_points_given_hand_label": int(((point_marker < 0) & labelled_points
                                                     & np.isfinite(take.marker_positions).all(axis=2)).sum()),
               "ghost_points": int(((point_marker < 0) & np.isfinite(take.marker_positions).all(axis=2)).sum()),
               "longest_swap_frames": accuracy["longest_swap_frames"],
-              "mean_ik_residual_mm": round(float(np.nanmean(result.residuals_mm)), 4),
+              "mean_ik_residual_mm": mean_residual,
               "calibration": result.models[0].calibration}
     if compare_uncalibrated:
         base = settings or SceneSettings()
         plain = label_scene(take, "right", layout, online=online,
                             settings=SceneSettings(**{**base.__dict__, "calibrate": False}))
         report["mean_ik_residual_uncalibrated_mm"] = round(float(np.nanmean(plain.residuals_mm)), 4)
-    report["meets_targets"] = (report["hand_samples_correct_share"] >= 0.995
-                               and report["other_marker_samples_given_hand_label"] == 0
-                               and report["mean_ik_residual_mm"] <= 3.0)
+    report["meets_targets"] = correct >= 0.995 and other_labelled == 0 and mean_residual <= 3.0
     return report

@@ -202,6 +202,5 @@ def evaluate_long_take(frames: int | None = None, seed: int = 0, noise_mm: float
     halves = [figures["first_half"], figures["second_half"]]
     pooled = sum(half["correct_share"] * half["observed_samples"] for half in halves) / max(
         sum(half["observed_samples"] for half in halves), 1)
-    figures["halves_pooled_correct_share"] = round(pooled, 5)
-    figures["whole_at_least_halves"] = figures["whole"]["correct_share"] >= round(pooled, 5)
-    return figures
+    return {**figures, "halves_pooled_correct_share": round(pooled, 5),
+            "whole_at_least_halves": figures["whole"]["correct_share"] >= round(pooled, 5)}

@@ -248,10 +248,10 @@ class IKSolver:
             start[:6] = global_pose
         theta, energy, points = self._solve_from(start, clean_targets, observed)
         if energy > LOST_TRACK_MM ** 2 * observed.sum():
-            restart = self.initial_pose(clean_targets, observed)
+            fresh_start = self.initial_pose(clean_targets, observed)
             if global_pose is not None:
-                restart[:6] = global_pose
-            restart = self._solve_from(restart, clean_targets, observed)
+                fresh_start[:6] = global_pose
+            restart = self._solve_from(fresh_start, clean_targets, observed)
             if restart[1] < energy:
                 theta, energy, points = restart
         self._history = (self._history + [theta])[-HISTORY_FRAMES:]

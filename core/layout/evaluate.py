@@ -90,12 +90,12 @@ def evaluate_layout(model: HandModel, layout: MarkerLayout, motion: np.ndarray, 
     n_markers = len(markers.names)
     basis = prior.components[:, :subspace_dims]
     frames = np.arange(0, len(motion), step)
-    points, jacobians = [], []
+    point_list, jacobian_list = [], []
     for frame in frames:
         frame_points, jacobian = marker_jacobian(model, markers, motion[frame])
-        points.append(frame_points)
-        jacobians.append(np.concatenate([jacobian[:, :, 3:N_GLOBAL], jacobian[:, :, N_GLOBAL:] @ basis], axis=2))
-    points, jacobians = np.stack(points), np.stack(jacobians)                 # (F', k, 3), (F', k, 3, c)
+        point_list.append(frame_points)
+        jacobian_list.append(np.concatenate([jacobian[:, :, 3:N_GLOBAL], jacobian[:, :, N_GLOBAL:] @ basis], axis=2))
+    points, jacobians = np.stack(point_list), np.stack(jacobian_list)         # (F', k, 3), (F', k, 3, c)
     columns = jacobians.shape[-1]
     mean_condition = float(_condition(jacobians.reshape(len(frames), -1, columns)).mean())
     occluded = [float(_condition(np.delete(jacobians, marker, axis=1).reshape(len(frames), -1, columns)).mean())
@@ -104,14 +104,14 @@ def evaluate_layout(model: HandModel, layout: MarkerLayout, motion: np.ndarray, 
     first, second = np.triu_indices(n_markers, k=1)
     distances = np.linalg.norm(points[:, first] - points[:, second], axis=2)  # (F', pairs)
     risk = float((distances.min(axis=1) < LABELLING_RISK_MM).mean()) if distances.size else 0.0
-    frame, pair = np.unravel_index(np.argmin(distances), distances.shape) if distances.size else (0, 0)
+    closest, pair = np.unravel_index(np.argmin(distances), distances.shape) if distances.size else (0, 0)
     error = (reconstruction_error(model, layout, prior, reconstruction_frames, subspace_dims=subspace_dims,
                                   progress=progress, cancelled=cancelled)
              if reconstruction_frames > 0 else (float("nan"), float("nan")))
     return LayoutMetrics(
         mean_condition=mean_condition, worst_occluded_condition=occluded[worst],
         worst_occluded_marker=markers.names[worst],
-        min_distance_mm=float(distances[frame, pair]) if distances.size else float("inf"),
+        min_distance_mm=float(distances[closest, pair]) if distances.size else float("inf"),
         closest_pair=(markers.names[first[pair]], markers.names[second[pair]]) if distances.size else ("", ""),
-        closest_frame=int(frames[frame]), reconstruction_mean_mm=error[0], reconstruction_max_mm=error[1],
+        closest_frame=int(frames[closest]), reconstruction_mean_mm=error[0], reconstruction_max_mm=error[1],
         risk_fraction=risk)

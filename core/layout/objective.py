@@ -109,14 +109,15 @@ def build_problem(model: HandModel, motion: np.ndarray, subspace_dims: int, n_ke
     angles = np.asarray(motion, dtype=float)[keyframes(motion, n_keyframes)]
     basis = prior.components[:, :subspace_dims]
     chain = model.chain
-    positions, jacobians = [], []
+    positions, frame_jacobians = [], []
     for theta in angles:
         points, jacobian = points_and_jacobian_kernel(
             np.ascontiguousarray(theta), chain.relative_rest, chain.offsets, chain.abduction_sign, ANCESTOR,
             candidates.influence_joints, candidates.influence_weights, candidates.local_points)
         positions.append(points)
-        jacobians.append(np.concatenate([jacobian[:, :, 3:N_GLOBAL], jacobian[:, :, N_GLOBAL:] @ basis], axis=2))
-    jacobians = np.stack(jacobians)
+        frame_jacobians.append(np.concatenate([jacobian[:, :, 3:N_GLOBAL], jacobian[:, :, N_GLOBAL:] @ basis],
+                                              axis=2))
+    jacobians = np.stack(frame_jacobians)
     gram = np.einsum("kcri,kcrj->kcij", jacobians, jacobians)
     return LayoutProblem(model, candidates, angles, np.stack(positions), jacobians, gram, subspace_dims,
                          model.hand_length)

@@ -157,7 +157,7 @@ def bench_pso(n_markers: int = 6, n_keyframes: int = 10, seed: int = 0, seeds: i
     start = time.perf_counter()
     polished = refine_by_swaps(problem, pso)
     swap_seconds = time.perf_counter() - start
-    figures = {"pso_seconds": round(pso_seconds, 3), "pso_energy": round(pso.energy, 4),
+    figures: dict[str, float | list[float]] = {"pso_seconds": round(pso_seconds, 3), "pso_energy": round(pso.energy, 4),
                "greedy_seconds": round(greedy_seconds, 3), "greedy_energy": round(greedy.energy, 4),
                "pso_evaluations": pso.evaluations, "greedy_evaluations": greedy.evaluations,
                "pso_swap_seconds": round(pso_seconds + swap_seconds, 3), "pso_swap_energy": round(polished.energy, 4),

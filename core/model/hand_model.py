@@ -148,6 +148,5 @@ def mean_vertex_error(model: HandModel, estimated: np.ndarray, truth: np.ndarray
         if not np.isfinite(estimated[frame]).all():
             continue
         difference = skin_vertices(model, estimated[frame]) - skin_vertices(model, truth[frame])
-        errors.append(np.linalg.norm(difference, axis=1).mean())
-    errors = np.asarray(errors)
-    return float(errors.mean()), float(errors.max())
+        errors.append(float(np.linalg.norm(difference, axis=1).mean()))
+    return float(np.mean(errors)), float(np.max(errors))

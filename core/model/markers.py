@@ -47,10 +47,17 @@ class MarkerSpec:
     vertex: int | None = None
     offset_mm: float = 4.0
 
+    @property
+    def joints(self) -> tuple[str, str]:
+        """The two joints a ray-placed marker sits between (ValueError for a marker on a vertex)."""
+        if self.between is None:
+            raise ValueError(f"marker '{self.name}' sits on a vertex, not between two joints")
+        return self.between
+
     def to_json(self) -> dict:
         if self.vertex is not None:
             return {"name": self.name, "vertex": int(self.vertex), "offset_mm": self.offset_mm}
-        return {"name": self.name, "between": list(self.between), "along": self.along,
+        return {"name": self.name, "between": list(self.joints), "along": self.along,
                 "side": self.side if isinstance(self.side, str) else list(self.side),
                 "offset_mm": self.offset_mm}
 
@@ -98,9 +105,11 @@ def _spec_from_json(entry: dict) -> MarkerSpec:
     side = entry.get("side", "dorsal")
     if isinstance(side, str) and side not in SIDE_DIRECTIONS:
         raise ValueError(f"unknown side '{side}' in marker '{entry['name']}'")
+    direction = side if isinstance(side, str) else tuple(float(v) for v in side)
+    if not isinstance(direction, str) and len(direction) != 3:
+        raise ValueError(f"the side of marker '{entry['name']}' must be a name or 3 numbers")
     return MarkerSpec(name=str(entry["name"]), between=(between[0], between[1]),
-                      along=float(entry.get("along", 0.5)),
-                      side=side if isinstance(side, str) else tuple(float(v) for v in side),
+                      along=float(entry.get("along", 0.5)), side=direction,
                       offset_mm=float(entry.get("offset_mm", 4.0)))
 
 
@@ -143,7 +152,7 @@ def best_layout_for(marker_names: list[str], minimum_matches: int = 3) -> str | 
     none shares at least ``minimum_matches``."""
     matches = {layout: int((marker_columns(marker_names, load_layout(layout).names) >= 0).sum())
                for layout in layout_names()}
-    best = max(matches, key=matches.get, default=None)
+    best = max(matches, key=lambda layout: matches[layout], default=None)
     return best if best is not None and matches[best] >= minimum_matches else None
 
 
@@ -210,9 +219,9 @@ def frame_joint_of(joint: str) -> int:
 
 def _surface_vertex(model: HandModel, spec: MarkerSpec) -> int:
     """The vertex where the ray from the bone axis point in the ``side`` direction leaves the skin."""
-    frame = model.skeleton.rest_rotations[frame_joint_of(spec.between[0])]
-    origin = ((1.0 - spec.along) * joint_rest_point(model, spec.between[0])
-              + spec.along * joint_rest_point(model, spec.between[1]))
+    first, second = spec.joints
+    frame = model.skeleton.rest_rotations[frame_joint_of(first)]
+    origin = (1.0 - spec.along) * joint_rest_point(model, first) + spec.along * joint_rest_point(model, second)
     local = np.array(SIDE_DIRECTIONS[spec.side] if isinstance(spec.side, str) else spec.side, float)
     if model.side == "left":
         local[0] = -local[0]  # mirrored frames keep x on the right hand's radial side: flip it back

@@ -26,6 +26,7 @@ marker names must be unique over the whole scene.
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -51,23 +52,30 @@ class ObjectSpec:
     kind: str
     marker_names: tuple[str, ...]
     marker_positions: np.ndarray
-    dimensions: dict[str, object] = field(default_factory=dict)
+    dimensions: dict[str, float | list[float]] = field(default_factory=dict)
+
+    def _length(self, key: str) -> float:
+        """The single-number dimension ``key`` (mm): ``radius_mm`` or ``height_mm``."""
+        value = self.dimensions[key]
+        if isinstance(value, list):
+            raise TypeError(f"object '{self.name}': '{key}' is not one number")
+        return float(value)
 
     def surface_distance(self, points: np.ndarray) -> np.ndarray:
         """Unsigned distance (N,) mm of object-frame ``points (N,3)`` from the primitive's surface
         (zeros for a ``rigid`` object)."""
         points = np.asarray(points, dtype=float)
         if self.kind == "sphere":
-            return np.abs(np.linalg.norm(points, axis=1) - float(self.dimensions["radius_mm"]))
+            return np.abs(np.linalg.norm(points, axis=1) - self._length("radius_mm"))
         if self.kind == "box":
             half = 0.5 * np.asarray(self.dimensions["size_mm"], dtype=float)
             outside = np.maximum(np.abs(points) - half, 0.0)
             inside_depth = np.min(half - np.abs(points), axis=1)
             return np.where((outside > 0).any(axis=1), np.linalg.norm(outside, axis=1), inside_depth)
         if self.kind == "cylinder":
-            radius, half = float(self.dimensions["radius_mm"]), 0.5 * float(self.dimensions["height_mm"])
+            radius, half_height = self._length("radius_mm"), 0.5 * self._length("height_mm")
             radial = np.linalg.norm(points[:, :2], axis=1) - radius
-            axial = np.abs(points[:, 2]) - half
+            axial = np.abs(points[:, 2]) - half_height
             outside = np.linalg.norm(np.stack([np.maximum(radial, 0.0), np.maximum(axial, 0.0)], axis=1), axis=1)
             return np.where((radial > 0) | (axial > 0), outside, np.minimum(-radial, -axial))
         return np.zeros(len(points))
@@ -77,15 +85,15 @@ class ObjectSpec:
         if self.kind == "box":
             return np.asarray(self.dimensions["size_mm"], dtype=float)
         if self.kind == "sphere":
-            return np.full(3, 2.0 * float(self.dimensions["radius_mm"]))
+            return np.full(3, 2.0 * self._length("radius_mm"))
         if self.kind == "cylinder":
-            radius = float(self.dimensions["radius_mm"])
-            return np.array([2.0 * radius, 2.0 * radius, float(self.dimensions["height_mm"])])
+            radius = self._length("radius_mm")
+            return np.array([2.0 * radius, 2.0 * radius, self._length("height_mm")])
         return np.ptp(self.marker_positions, axis=0)
 
     def to_json(self) -> dict:
         entry: dict[str, object] = {"name": self.name, "type": self.kind}
-        entry.update({key: (list(map(float, value)) if np.ndim(value) else float(value))
+        entry.update({key: ([float(v) for v in value] if isinstance(value, list) else float(value))
                       for key, value in self.dimensions.items()})
         entry["markers"] = {name: [round(float(v), 4) for v in position]
                             for name, position in zip(self.marker_names, self.marker_positions, strict=True)}
@@ -128,7 +136,7 @@ def object_from_json(entry: dict, source: str = "scene spec") -> ObjectSpec:
     if singular[1] / np.sqrt(len(positions)) < MIN_SPREAD_MM:
         raise InputError(f"{source}: object '{name}': its markers are (nearly) collinear; a rigid pose "
                          "needs 3 markers off one line")
-    dimensions: dict[str, object] = {}
+    dimensions: dict[str, float | list[float]] = {}
     if kind == "box":
         try:
             size = [float(v) for v in entry["size_mm"]]
@@ -163,7 +171,7 @@ def scene_spec_from_json(data: object, source: str = "scene spec") -> list[Objec
     return objects
 
 
-def check_unique_names(objects: list[ObjectSpec], source: str = "scene", reserved: list[str] = ()) -> None:
+def check_unique_names(objects: list[ObjectSpec], source: str = "scene", reserved: Sequence[str] = ()) -> None:
     """Raise :class:`InputError` when two objects share a name or a marker name (or one is ``reserved``)."""
     names = [spec.name for spec in objects]
     duplicate = next((name for name in names if names.count(name) > 1), None)

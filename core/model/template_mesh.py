@@ -364,8 +364,8 @@ def _largest_component(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndar
 def _adjacency(faces: np.ndarray, count: int) -> sparse.csr_matrix:
     """Symmetric vertex adjacency (V,V) with unit entries."""
     edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    graph = sparse.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(count, count))
-    graph = (graph + graph.T).tocsr()
+    directed = sparse.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(count, count))
+    graph = (directed + directed.T).tocsr()
     graph.data[:] = 1.0
     return graph
 

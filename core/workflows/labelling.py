@@ -135,10 +135,9 @@ def merge_file_labels(arrays: LabellingArrays, take: Take, known: FileLabels, re
         arrays.ghost_points[differs, column] = False
     columns, names = (known.kept_columns[:0], []) if relabel else (known.kept_columns, list(known.kept_names))
     kept = present[:, columns]
-    frames = len(assignment)
     arrays.marker_names = list(arrays.marker_names) + names
     arrays.assignment = np.concatenate([assignment, np.where(kept, columns[None, :], -1)], axis=1)
-    extra = np.full((frames, len(columns)), np.nan)
+    extra = np.full((len(assignment), len(columns)), np.nan)
     arrays.confidence = np.concatenate([arrays.confidence, extra], axis=1)
     arrays.residuals_mm = np.concatenate([arrays.residuals_mm, extra], axis=1)
     arrays.ghost_points = arrays.ghost_points.copy()
@@ -297,7 +296,8 @@ def auto_label(take: Take, layout: str | MarkerLayout = "dense", hands: str = "a
     subjects = [subject for subject in (subject_calibration(model.kind, layout, model.calibration)
                                         for model in found if models is None or model.kind not in models)
                 if subject is not None]
-    return AutoLabelOutcome(command, result, {model.kind: model.hand_model for model in found}, report,
+    return AutoLabelOutcome(command, result,
+                            {model.kind: model.hand_model for model in found if model.hand_model is not None}, report,
                             {model.kind: model.marker_set for model in found if model.marker_set is not None},
                             subjects)
 
