@@ -95,7 +95,7 @@ def _write_frames(stream: BinaryIO, blocks: Sequence[np.ndarray], frame_bytes: i
         missing = ~np.isfinite(chunk[..., :3]).all(axis=2)
         chunk[..., 3] = np.where(missing, -1.0, 0.0)
         chunk[missing, :3] = 0.0
-        stream.write(memoryview(chunk).cast("B"))
+        stream.write(chunk.data)
 
 
 def _header(points: int, frames: int, first_frame: int, frame_rate: float, data_block: int) -> bytes:
@@ -134,7 +134,8 @@ def _parameter_section(path: str | PathLike[str], names: list[str], frames: int,
     groups.setdefault("TRIAL", {}).update(ACTUAL_START_FIELD=_int16_words(first_frame),
                                           ACTUAL_END_FIELD=_int16_words(last))
     groups.setdefault("MANUFACTURER", {}).update(COMPANY="handmocap", SOFTWARE="Hand Mocap Studio")
-    ordered = {"POINT": point, "ANALOG": {"USED": 0, "RATE": 0.0, "GEN_SCALE": 1.0}, **groups}
+    analog: dict[str, ParameterValue] = {"USED": 0, "RATE": 0.0, "GEN_SCALE": 1.0}
+    ordered = {"POINT": point, "ANALOG": analog, **groups}
 
     def encode(data_start: int) -> bytes:
         point["DATA_START"] = data_start
