@@ -138,8 +138,9 @@ def test_ghosts_appear_at_the_requested_rate(occluded):
     ghosts = occluded.truth["ghost_positions"]
     alive = ~np.isnan(ghosts).any(axis=2)
     assert alive.any(axis=1).mean() == pytest.approx(0.05, abs=0.01)
-    lives = alive.sum(axis=0)
+    lives = gap_lengths(~alive)             # a column holds ghosts one after the other, apart
     assert lives.min() >= 1 and lives.max() <= 10
+    assert ghosts.shape[1] < len(lives) / 5
     count = occluded.truth["marker_positions"].shape[1]
     ghost_columns = occluded.take.marker_positions[:, count:]
     np.testing.assert_array_equal(~np.isnan(ghost_columns).any(axis=2), alive)

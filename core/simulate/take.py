@@ -62,6 +62,8 @@ OWN_SEGMENT_WEIGHT = 0.1
 #: ghost marker life (frames) and distance from the marker they appear next to (mm)
 GHOST_LIFE = (1, 10)
 GHOST_DISTANCE = (10.0, 60.0)
+#: frames whose visibility is computed at once (the working memory is a few kB per frame)
+VISIBILITY_BLOCK = 4096
 
 REQUIRED_TRUTH = ("joint_angles", "marker_positions", "marker_names", "visible")
 
@@ -171,7 +173,17 @@ def _capsules(model: HandModel, proportions: HandProportions) -> tuple[np.ndarra
 
 def _visibility(model: HandModel, markers: MarkerSet, proportions: HandProportions, thetas: np.ndarray,
                 marker_positions: np.ndarray) -> np.ndarray:
-    """Which markers the cameras reconstruct, ``(F, M)`` bool (see the module docstring)."""
+    """Which markers the cameras reconstruct, ``(F, M)`` bool (see the module docstring), computed
+    :data:`VISIBILITY_BLOCK` frames at a time (each frame on its own) so the working memory stays small."""
+    return np.concatenate([_visibility_block(model, markers, proportions, thetas[first:first + VISIBILITY_BLOCK],
+                                             marker_positions[first:first + VISIBILITY_BLOCK])
+                           for first in range(0, len(thetas), VISIBILITY_BLOCK)] or [np.zeros((0, len(markers.names)),
+                                                                                              dtype=bool)])
+
+
+def _visibility_block(model: HandModel, markers: MarkerSet, proportions: HandProportions, thetas: np.ndarray,
+                      marker_positions: np.ndarray) -> np.ndarray:
+    """:func:`_visibility` of a block of frames, ``(F, M)`` bool."""
     chain = model.chain
     transforms = [chain.skinning_matrices(theta) for theta in thetas]
     linear = np.stack([transform[0] for transform in transforms])            # (F, 16, 3, 3)
@@ -199,32 +211,50 @@ def _visibility(model: HandModel, markers: MarkerSet, proportions: HandProportio
     return visible
 
 
-def _ghosts(marker_positions: np.ndarray, ghost_rate: float, rng: np.random.Generator) -> np.ndarray:
-    """Ghost trajectories ``(F, G, 3)`` mm, NaN outside their life.
+def _ghost_events(frames: int, count: int, ghost_rate: float, rng: np.random.Generator
+                  ) -> list[tuple[int, int, int, np.ndarray]]:
+    """Ghosts as ``(first frame, end frame (exclusive), marker, offset (3,) mm)``, in the order drawn.
 
     Ghost events start at random frames until about ``ghost_rate`` of the frames hold a ghost; an
     event lasts 1-10 frames and brings 1-3 ghosts (the first lives the whole event, the others part
-    of it), each at a fixed offset of 10-60 mm from a random marker and moving with it.
-    """
-    frames, count = marker_positions.shape[:2]
+    of it), each at a fixed offset of 10-60 mm from a random marker and moving with it."""
     target = round(ghost_rate * frames)
     has_ghost = np.zeros(frames, dtype=bool)
-    tracks = []
-    while has_ghost.sum() < target:
+    covered = 0
+    events = []
+    while covered < target:
         start = int(rng.integers(frames))
         life = int(rng.integers(GHOST_LIFE[0], GHOST_LIFE[1] + 1))
         for index in range(int(rng.integers(1, 4))):
             own_life = life if index == 0 else int(rng.integers(1, life + 1))
             offset = rng.normal(size=3)
             offset *= rng.uniform(*GHOST_DISTANCE) / np.linalg.norm(offset)
-            track = np.full((frames, 3), np.nan)
-            span = slice(start, min(frames, start + own_life))
-            track[span] = marker_positions[span, rng.integers(count)] + offset
-            tracks.append(track)
+            events.append((start, min(frames, start + own_life), int(rng.integers(count)), offset))
+        covered += int((~has_ghost[start:start + life]).sum())
         has_ghost[start:start + life] = True
-    if not tracks:
-        return np.zeros((frames, 0, 3))
-    return np.stack(tracks, axis=1)
+    return events
+
+
+def _ghosts(marker_positions: np.ndarray, ghost_rate: float, rng: np.random.Generator) -> np.ndarray:
+    """Ghost trajectories ``(F, G, 3)`` mm, NaN where a column holds no ghost (:func:`_ghost_events`).
+
+    A column holds ghosts one after the other, at least one empty frame apart, so ``G`` is the largest
+    number of ghosts alive at once (plus those that would touch), not the number of ghosts: the memory
+    stays proportional to the take's length."""
+    frames, count = marker_positions.shape[:2]
+    events = _ghost_events(frames, count, ghost_rate, rng)
+    free_from: list[int] = []                   # per column: the first frame a new ghost may start
+    placed = []
+    for first, end, marker, offset in sorted(events, key=lambda event: event[0]):
+        column = next((column for column, frame in enumerate(free_from) if frame <= first), len(free_from))
+        if column == len(free_from):
+            free_from.append(0)
+        free_from[column] = end + 1
+        placed.append((column, first, end, marker, offset))
+    ghosts = np.full((frames, len(free_from), 3), np.nan)
+    for column, first, end, marker, offset in placed:
+        ghosts[first:end, column] = marker_positions[first:end, marker] + offset
+    return ghosts
 
 
 def _shuffled_points(observed: np.ndarray, marker_count: int, rng: np.random.Generator
