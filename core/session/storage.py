@@ -218,13 +218,23 @@ def _step_json(command: Command, key: str, arrays: dict[str, np.ndarray], blobs:
     return step
 
 
-def _restore_step(step: dict[str, Any], key: str, arrays: dict[str, np.ndarray], blobs: DictBlobs) -> Command:
+def _span(value: Any, frames: int) -> FrameSpan:
+    """A stored frame span ``[start, stop]``, checked against the take's ``frames``."""
+    if not isinstance(value, list) or len(value) != 2:
+        raise TypeError("a frame span must be [start, stop]")
+    start = _int(value[0], "span start", 0, frames + 1)
+    return FrameSpan(start, _int(value[1], "span stop", start, frames + 1))
+
+
+def _restore_step(step: dict[str, Any], key: str, arrays: dict[str, np.ndarray], blobs: DictBlobs,
+                  frames: int) -> Command:
     command = command_from_json(step["command"], blobs)
     if isinstance(command, CompoundCommand):
-        children = [_restore_step(child, f"{key}c{index}", arrays, blobs)
-                    for index, child in enumerate(step.get("children", []))]
+        children = [_restore_step(_typed(child, dict, "history step"), f"{key}c{index}", arrays, blobs, frames)
+                    for index, child in enumerate(_typed(step.get("children", []), list, "children"))]
         command.children = children
-        command._span, command._saved, command._text = FrameSpan(*step.get("span", (0, 0))), {}, step.get("text", "")
+        command._span, command._saved = _span(step.get("span", [0, 0]), frames), {}
+        command._text = str(step.get("text", ""))
         return command
     if "span" not in step:
         command._text = str(step.get("text", ""))
@@ -241,8 +251,38 @@ def _restore_step(step: dict[str, Any], key: str, arrays: dict[str, np.ndarray],
         saved["noise_mm"] = step.get("noise_mm")
     else:
         saved = {name: arrays[prefix + name] for name in step.get("keys", [])}
-    command.set_saved_state(FrameSpan(*step["span"]), saved, str(step.get("text", "")))
+    command.set_saved_state(_span(step["span"], frames), saved, str(step.get("text", "")))
     return command
+
+
+def _settings(value: Any) -> ReviewSettings:
+    """Review settings from their JSON: known names with finite numbers."""
+    for name, number in _typed(value, dict, "settings").items():
+        if type(number) not in (int, float):
+            raise TypeError(f"setting {str(name)[:40]} must be a number")
+    return ReviewSettings(**value)
+
+
+def _check_history(review: ReviewTake, commands: list[Command], index: int) -> None:
+    """Undo every done step, redo every step and undo back to ``index``: an undo history whose saved
+    states do not fit the review fails here, on open, instead of at the operator's undo; the review must
+    come back to the state it started from."""
+    if not commands:
+        return
+    before = {name: array.copy() for name, array in review.state_arrays().items()}
+    stack = UndoStack(review)
+    stack.restore_history(commands, index, None)
+    while stack.can_undo():
+        stack.undo()
+    while stack.can_redo():
+        stack.redo()
+    while stack.index > index:
+        stack.undo()
+    after = review.state_arrays()
+    if after.keys() != before.keys() or not all(
+            after[name].shape == array.shape and np.array_equal(after[name], array, equal_nan=array.dtype.kind == "f")
+            for name, array in before.items()):
+        raise ValueError("its undo history does not lead back to its state")
 
 
 def _int(value: Any, what: str, low: int = 0, high: int = 2**53) -> int:
@@ -283,24 +323,26 @@ def load_snapshot(data: bytes, take: Take, name: str = SNAPSHOT_NAME) -> tuple[R
         review = ReviewTake(take=take, label_names=list(_typed(meta["label_names"], list, "label_names")),
                             hands=hands, rigid_bodies=_typed(meta.get("rigid_bodies", {}), dict, "rigid_bodies"),
                             health=copy_health(meta.get("health", [])), noise_mm=meta.get("noise_mm"),
-                            settings=ReviewSettings(**_typed(meta.get("settings", {}), dict, "settings")),
+                            settings=_settings(meta.get("settings", {})),
                             **{key: arrays[key] for key in FRAME_ARRAYS})
         blobs = DictBlobs(arrays, "blob")
         history = _typed(meta.get("history", {}), dict, "history")
         steps = _typed(history.get("steps", []), list, "history steps")
-        _int(history.get("index", len(steps)), "history index", 0, len(steps) + 1)
+        index = _int(history.get("index", len(steps)), "history index", 0, len(steps) + 1)
         clean = history.get("clean_index")
         if clean is not None:
             _int(clean, "history clean index", 0, len(steps) + 1)
-        commands = [_restore_step(_typed(step, dict, "history step"), f"s{number}", arrays, blobs)
+        commands = [_restore_step(_typed(step, dict, "history step"), f"s{number}", arrays, blobs, take.n_frames)
                     for number, step in enumerate(steps)]
+        _check_history(review, commands, index)
     except InputError as error:
         if isinstance(error, SnapshotMismatch) or str(error).startswith(name):
             raise
         raise InputError(f"{name}: damaged review snapshot ({str(error)[:200]})") from None
     except MALFORMED as error:
         text = str(error).splitlines()[0][:200] if str(error) else type(error).__name__
-        raise InputError(f"{name}: damaged review snapshot ({text})") from None
+        raise InputError(f"{name}: damaged review snapshot ({'no ' if isinstance(error, KeyError) else ''}{text})"
+                         ) from None
     return review, meta, commands
 
 
