@@ -1,0 +1,141 @@
+"""Symbolic links planted in a session folder are never followed: opening, editing, saving and cleaning up
+refuse with one clear line, and nothing outside the session folder is written or deleted."""
+
+import os
+import shutil
+import time
+
+import pytest
+
+from core.errors import InputError
+from core.io import save_take
+from core.review import ApplyLabelling, Unlabel
+from core.review.synthetic import synthetic_labelling
+from core.session import Session
+
+TAKE = "t0001"
+
+
+@pytest.fixture
+def session_folder(tmp_path):
+    """A saved session with one reviewed take (blobs, journal, snapshot, lock) and an outside folder."""
+    take, result, _ = synthetic_labelling(frames=200, labels=5, ghosts=1, seed=2)
+    save_take(take, tmp_path / "raw.c3d")
+    session = Session.create(tmp_path / "session")
+    session.add_take(tmp_path / "raw.c3d")
+    opened = session.open_take(TAKE)
+    opened.push(ApplyLabelling(result))
+    opened.save()
+    opened.push(ApplyLabelling(result))  # blobs and a journal line after the snapshot
+    opened.close(save=False)
+    assert list((tmp_path / "session" / "takes" / TAKE / "blobs").iterdir())
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    for name in ("precious.txt", "1-0.npy", ".old.tmp", "journal.jsonl"):
+        (outside / name).write_bytes(b"keep me " + name.encode())
+        os.utime(outside / name, (time.time() - 3600, time.time() - 3600))
+    return tmp_path / "session", outside, result
+
+
+def _contents(folder):
+    return {path.name: path.read_bytes() for path in folder.iterdir()}
+
+
+def _replace_by_link(path, target):
+    if path.is_dir():
+        shutil.rmtree(path)
+    elif path.exists():
+        path.unlink()
+    path.symlink_to(target)
+
+
+def _one_line_link_error(raised):
+    text = str(raised.value)
+    assert "symbolic link" in text and "\n" not in text, text
+
+
+@pytest.mark.parametrize("entry, target", [
+    ("takes/t0001/blobs", "outside"),
+    ("takes/t0001/journal.jsonl", "outside/journal.jsonl"),
+    ("takes/t0001/review.npz", "outside/precious.txt"),
+    ("takes/t0001/lock", "outside/precious.txt"),
+    ("takes/t0001/.planted.tmp", "outside/.old.tmp"),
+    ("takes/t0001", "outside"),
+])
+def test_a_link_in_a_take_folder_is_refused_on_open(session_folder, entry, target):
+    folder, outside, _ = session_folder
+    before = _contents(outside)
+    _replace_by_link(folder / entry, folder.parent / target)
+    session = Session.open(folder)
+    with pytest.raises(InputError) as raised:
+        session.open_take(TAKE)
+    _one_line_link_error(raised)
+    with pytest.raises(InputError):
+        Session.open(folder, read_only=True).open_take(TAKE)  # not even read through it
+    assert _contents(outside) == before
+
+
+@pytest.mark.parametrize("entry, target", [
+    ("session.json", "outside/precious.txt"),
+    ("session.json.bak", "outside/precious.txt"),
+    ("session.lock", "outside/precious.txt"),
+    ("takes", "outside"),
+    ("models", "outside"),
+    ("layouts", "outside"),
+])
+def test_a_link_where_the_session_keeps_its_files_is_refused_on_open(session_folder, entry, target):
+    folder, outside, _ = session_folder
+    before = _contents(outside)
+    if (folder / entry).exists():
+        (folder / entry).rename(folder / f"{entry}.moved")
+    (folder / entry).symlink_to(folder.parent / target)
+    with pytest.raises(InputError) as raised:
+        Session.open(folder)
+    _one_line_link_error(raised)
+    assert _contents(outside) == before
+
+
+def test_links_planted_while_a_take_is_open_are_not_followed(session_folder):
+    folder, outside, result = session_folder
+    before = _contents(outside)
+    opened = Session.open(folder).open_take(TAKE)
+    blobs = opened.folder / "blobs"
+    _replace_by_link(blobs, outside)
+    with pytest.raises(InputError) as raised:
+        opened.push(ApplyLabelling(result))  # its arrays would go to blobs/
+    assert "symbolic link" in str(raised.value) and "not applied" in str(raised.value)
+    opened.push(Unlabel(label="M0", scope="take"))  # a small edit needs no blob
+    with pytest.raises(InputError) as raised:
+        opened.save()  # the save would clean blobs/ up
+    _one_line_link_error(raised)
+    assert _contents(outside) == before
+    blobs.unlink()
+    opened.save()  # with the link gone, the edits are saved
+    opened.close()
+    assert (Session.open(folder).open_take(TAKE).review.assignment[:, 0] == -1).all()
+    assert _contents(outside) == before
+
+
+def test_stale_temporaries_are_removed_but_never_through_a_link(session_folder):
+    folder, outside, _ = session_folder
+    before = _contents(outside)
+    stale = folder / ".session.json.abcd1234.tmp"
+    stale.write_bytes(b"left by a crash")
+    os.utime(stale, (time.time() - 3600, time.time() - 3600))
+    (folder / ".planted.tmp").symlink_to(outside / ".old.tmp")
+    Session.open(folder)
+    assert not stale.exists() and (folder / ".planted.tmp").is_symlink()
+    assert _contents(outside) == before
+
+
+def test_a_models_folder_made_a_link_after_opening_is_refused_on_save(session_folder):
+    from core.model import load_template
+
+    folder, outside, _ = session_folder
+    before = _contents(outside)
+    session = Session.open(folder)
+    (folder / "models").symlink_to(outside)
+    with pytest.raises(InputError) as raised:
+        session.save_subject_model("S01", load_template())
+    _one_line_link_error(raised)
+    assert _contents(outside) == before
