@@ -250,6 +250,10 @@ class SessionController(QObject):
             self.auto_label_requested.emit(AutoLabelSettings(layout=entry.layout or "dense",
                                                              hands="both" if len(entry.hands) > 1
                                                              else entry.hands[0]), document)
+        if opened.warnings:
+            self.status_message.emit(f"{entry.name}: {opened.warnings[0]}"
+                                     + (f" (and {len(opened.warnings) - 1} more)" if len(opened.warnings) > 1 else ""),
+                                     0)
         if opened.replayed or opened.warnings:
             lines = [f"recovered {opened.replayed} edits from the journal"] if opened.replayed else []
             self.error_raised.emit("Take recovered", "\n".join(lines + opened.warnings))

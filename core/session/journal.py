@@ -200,7 +200,8 @@ class Journal:
         warnings: list[str] = []
         found: dict[int, dict[str, Any]] = {}
         damaged_count = 0
-        for path in self.files(after_seq):
+        files = self.files(after_seq)
+        for path in files:
             try:
                 raw = read_bytes(self.root, path)
             except OSError as error:
@@ -230,7 +231,7 @@ class Journal:
                 else:
                     warnings.append(f"{path.name} ends in an incomplete line; it was skipped")
                     damaged_count += 1
-        ends = [end for path in self.files(after_seq) if (end := _segment_end(path)) is not None]
+        ends = [end for path in files if (end := _segment_end(path)) is not None]
         self._highest = max([self._highest, *ends])
         return [found[seq] for seq in sorted(found)], warnings, damaged_count
 
@@ -249,8 +250,8 @@ class Journal:
     def replay(self, stack: UndoStack, after_seq: int = 0, repair: bool = True) -> tuple[int, list[str]]:
         """Apply the entries after ``after_seq`` to ``stack`` (whose recorder must not be this journal
         yet). Returns the number applied and warnings (one line each). An entry that cannot be applied
-        is skipped with what hangs on it (module docstring); ``repair``: module docstring of
-        :meth:`entries`."""
+        is skipped with what hangs on it (module docstring); ``repair``: as for :meth:`entries` (False
+        when another process holds the take: nothing is written)."""
         entries, warnings, damaged = self.entries(after_seq, repair)
         blobs_folder = self.folder / BLOB_FOLDER
         applied = [True] * len(stack.commands)  # per undo step: whether it is in the stack (not skipped)
