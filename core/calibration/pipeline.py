@@ -33,6 +33,7 @@ from core.calibration.align import Alignment, align_template, anatomical_landmar
 from core.calibration.cleaning import clean_scan
 from core.calibration.landmarks import MIN_LANDMARKS, load_landmarks, validate_landmarks
 from core.calibration.mean_value import mean_value_coordinates
+from core.calibration.nearest import nearest_neighbours
 from core.calibration.nonrigid import FitSchedule, estimate_normals, fit_nonrigid
 from core.calibration.report import (
     LARGE_RESIDUAL_MM,
@@ -158,7 +159,7 @@ def check_landmarks(template: HandModel, landmarks: dict[str, np.ndarray | None]
     names, vertices, targets = landmark_pairs(template, landmarks)
     if scan_points is not None:
         tree = tree if tree is not None else cKDTree(scan_points)
-        off = float(np.median(tree.query(targets, workers=-1)[0]))
+        off = float(np.median(nearest_neighbours(tree, targets)[0]))
         if off > LANDMARK_OFF_SCAN_MM:
             raise InputError(f"the landmarks lie {off:.0f} mm from the scan (median): were they picked on another "
                              "scan, or in other units?")
@@ -260,7 +261,7 @@ def build_report(template: HandModel, model: HandModel, fitted: np.ndarray, scan
     sample = scan.points if len(scan) <= REPORT_SAMPLE else scan.points[rng.choice(len(scan), REPORT_SAMPLE,
                                                                                    replace=False)]
     scan_distances = point_to_mesh_distances(sample, fitted, template.faces)
-    vertex_distance, _ = tree.query(fitted, workers=-1)
+    vertex_distance, _ = nearest_neighbours(tree, fitted)
     share, areas = unsupported_areas(fitted, template.faces, vertex_distance, template.skin_joints,
                                      template.skin_weights)
     warnings = list(warnings)
@@ -273,7 +274,7 @@ def build_report(template: HandModel, model: HandModel, fitted: np.ndarray, scan
             warnings.append(f"landmark {name} is {residual:.1f} mm from the fitted surface point: check the pick")
     if scan.normals is not None and normals_oriented:
         fitted_normals = mesh_vertex_normals(fitted, template.faces)[landmark_vertices]
-        _, nearest = tree.query(targets, workers=-1)
+        _, nearest = nearest_neighbours(tree, targets)
         agreement = np.einsum("na,na->n", fitted_normals, scan.normals[nearest])
         for name, cosine in zip(names, agreement, strict=True):
             if cosine < PALM_SIDE_COSINE:
@@ -310,7 +311,7 @@ class CalibrationInput:
 
     def landmark_points(self, vertices: np.ndarray) -> np.ndarray:
         """The template landmark points (L,3) on a deformed copy ``vertices (V,3)`` of the template."""
-        if self.landmark_corners is None:
+        if self.landmark_corners is None or self.landmark_barycentric is None:
             return vertices[self.landmark_vertices]
         return np.einsum("lk,lka->la", self.landmark_barycentric, vertices[self.landmark_corners])
 
@@ -329,7 +330,7 @@ def prepare_calibration(scan: Scan | str | Path, landmarks: dict[str, np.ndarray
     prepared, notes = prepare_scan(scan, clean=clean, strictness=strictness, max_points=max_points)
     landmarks = _landmarks_in_mm(landmarks, prepared, notes)
     normals_oriented = prepared.normals is not None
-    normals = prepared.normals if normals_oriented else estimate_normals(prepared.points)
+    normals = prepared.normals if prepared.normals is not None else estimate_normals(prepared.points)
     if not normals_oriented:
         notes.append("the scan has no normals; estimated from the point neighbourhoods (unoriented)")
     tree = cKDTree(prepared.points)
@@ -349,7 +350,7 @@ def _normals_point_inwards(template: HandModel, landmark_vertices: np.ndarray, t
     scale, rotation, translation = similarity_transform(template.vertices[landmark_vertices], targets)
     sample = np.arange(0, len(template.vertices), max(1, len(template.vertices) // 2000))
     moved = scale * template.vertices[sample] @ rotation.T + translation
-    distances, nearest = tree.query(moved, distance_upper_bound=10.0, workers=-1)
+    distances, nearest = nearest_neighbours(tree, moved, upper_bound_mm=10.0)
     close = np.isfinite(distances)
     if close.sum() < 20:
         return False

@@ -256,6 +256,7 @@ def resolve_track(review: ReviewTake, frame: int | None, column: int | None, lab
             columns[:frame] = -1
             columns[fragment_end:] = -1
     else:
+        assert column is not None, "owner < 0 only for a selected unlabelled point"
         chain = review.follow_point(frame, column, first, end)
         if scope == "fragment":
             chain[:frame] = -1
@@ -668,12 +669,13 @@ class ApplyLabelling(Command):
         try:
             hands = [HandTrack(str(h["name"]), str(h["side"]), h.get("layout"), np.asarray(h["labels"], np.int64),
                                decode_array(h["joint_angles"], blobs)) for h in params["hands"]]
+            marker_names = [str(name) for name in params["marker_names"]]
+            assignment, confidence, residuals, ghosts = (decode_array(params[name], blobs) for name in (
+                "assignment", "confidence", "residuals_mm", "ghost_points"))
+            filled, provenance = (None if params.get(name) is None else decode_array(params[name], blobs)
+                                  for name in ("filled_positions", "provenance"))
             arrays = LabellingArrays(
-                [str(name) for name in params["marker_names"]],
-                *(decode_array(params[name], blobs) for name in ("assignment", "confidence", "residuals_mm",
-                                                                 "ghost_points")),
-                hands, *(None if params.get(name) is None else decode_array(params[name], blobs)
-                         for name in ("filled_positions", "provenance")),
+                marker_names, assignment, confidence, residuals, ghosts, hands, filled, provenance,
                 copy_rigid_bodies(params.get("rigid_bodies", {})), copy_health(params.get("health", [])),
                 None if params.get("noise_mm") is None else float(params["noise_mm"]))
         except (KeyError, TypeError, ValueError) as error:
