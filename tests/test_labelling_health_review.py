@@ -66,7 +66,8 @@ def test_health_survives_journal_replay_snapshot_and_undo(tmp_path, labelled):
     entry = session.add_take(path)
     opened = session.open_take(entry.id)
     opened.push(ApplyLabelling(arrays))
-    replayed = Session.open(tmp_path / "session").open_take(entry.id)      # the process "died" unsaved
+    opened.close(save=False)  # the process "dies" unsaved (the kernel releases its take lock)
+    replayed = Session.open(tmp_path / "session").open_take(entry.id)
     assert replayed.replayed == 1 and replayed.review.health == WARNINGS
     assert replayed.review.noise_mm == pytest.approx(0.42)
     replayed.save()
