@@ -1,0 +1,181 @@
+"""Synchronisation of a camera with the mocap take: the time offset (and rate ratio) of the camera clock
+(:class:`core.camera.model.CameraClock`) estimated from the data.
+
+Markers: for every candidate offset within a search window (one mocap frame apart), the labelled markers
+at each camera frame's mocap time are projected and every detected blob pays its distance to the
+nearest projection, truncated at :data:`TRUNCATION_PX` (the robust nearest-neighbour term of Zhao et al.
+2012, eq. 4, in the image). The minimum is refined to a fraction of a frame by a parabola. Local
+offsets of :data:`SEGMENTS` consecutive stretches of the video, fitted by a line against time, give the
+rate ratio. RGB-D (Zhao et al. §5.3): the hand model posed at the candidate mocap frame is rendered and
+compared with the observed depth frames by the silhouette and depth terms (eqs. 5, 6).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from core.camera.extrinsics import Blobs
+from core.camera.model import Camera, CameraClock
+from core.camera.render import render_mesh
+from core.errors import InputError
+
+#: a blob further than this (px) from every projected marker costs this much
+TRUNCATION_PX = 10.0
+#: stretches of the video with their own offset estimate, for the rate ratio
+SEGMENTS = 4
+#: search half-width (mocap frames) for a stretch's offset around the global one
+SEGMENT_SEARCH_FRAMES = 10
+#: weights of the silhouette and depth terms (Zhao et al. 2012, eq. 3: λ_s = 22, λ_d = 0.8, depth in mm)
+SILHOUETTE_WEIGHT = 22.0
+DEPTH_WEIGHT = 0.8
+#: observed depth within this distance (mm) of the rendered hand's depth range is hand
+HAND_DEPTH_BAND = 60.0
+
+
+@dataclass
+class SyncResult:
+    """``clock`` estimated; ``offset_s`` and ``offset_frames`` (mocap frames) of camera time 0;
+    ``rate_ratio``; ``quality`` 0..1: how much deeper the cost minimum is than the window's median
+    (0 = flat, no evidence); ``offsets_s (C,)`` the candidates and ``costs (C,)`` their costs."""
+
+    clock: CameraClock
+    offset_frames: float
+    quality: float
+    offsets_s: np.ndarray
+    costs: np.ndarray
+
+    @property
+    def offset_s(self) -> float:
+        return self.clock.offset_s
+
+    @property
+    def rate_ratio(self) -> float:
+        return self.clock.rate_ratio
+
+    def report(self) -> dict:
+        return {"offset_s": round(self.offset_s, 6), "offset_frames": round(self.offset_frames, 3),
+                "rate_ratio": round(self.rate_ratio, 6), "quality": round(self.quality, 4)}
+
+
+def sync_markers(camera: Camera, blobs: list[Blobs], camera_times: np.ndarray, markers: np.ndarray,
+                 mocap_rate: float, window_s: float = 1.0, centre_s: float | None = None,
+                 estimate_rate: bool = True) -> SyncResult:
+    """Offset (and rate ratio) of a registered ``camera`` from the ``blobs`` of its frames at
+    ``camera_times (K,)`` s against the take's ``markers (F,M,3)`` mm at ``mocap_rate`` Hz, searched within
+    ±``window_s`` of ``centre_s`` (default: the camera's current clock offset)."""
+    camera_times = np.asarray(camera_times, dtype=float)
+    if len(blobs) != len(camera_times) or not sum(len(b.centres) for b in blobs):
+        raise InputError("synchronisation needs camera frames with marker blobs")
+    projected = camera.project(markers.reshape(-1, 3)).reshape(markers.shape[0], markers.shape[1], 2)
+    centre = camera.clock.offset_s if centre_s is None else centre_s
+    candidates = np.round(centre * mocap_rate) + np.arange(-round(window_s * mocap_rate),
+                                                            round(window_s * mocap_rate) + 1)
+    frames = np.arange(len(blobs))
+    costs = np.array([_marker_cost(projected, blobs, camera_times, frames, shift, mocap_rate) for shift in candidates])
+    offset_frames, quality = _minimum(candidates, costs)
+    clock = CameraClock(offset_frames / mocap_rate, 1.0)
+    if estimate_rate and len(blobs) >= 2 * SEGMENTS:
+        clock = _rate_fit(projected, blobs, camera_times, mocap_rate, offset_frames) or clock
+    return SyncResult(clock, clock.offset_s * mocap_rate, quality, candidates / mocap_rate, costs)
+
+
+def _marker_cost(projected: np.ndarray, blobs: list[Blobs], camera_times: np.ndarray, frames: np.ndarray,
+                 shift: float, mocap_rate: float) -> float:
+    """Mean truncated blob-to-projection distance (px) of camera ``frames`` when camera time 0 is mocap
+    frame ``shift``; frames outside the take cost the truncation."""
+    total, count = 0.0, 0
+    last = projected.shape[0] - 1
+    for index in frames:
+        centres = blobs[index].centres
+        if not len(centres):
+            continue
+        position = camera_times[index] * mocap_rate + shift
+        count += len(centres)
+        if not 0 <= position <= last:
+            total += TRUNCATION_PX * len(centres)
+            continue
+        low = int(np.floor(position))
+        high, weight = min(low + 1, last), position - low
+        pixels = (1 - weight) * projected[low] + weight * projected[high]
+        pixels = pixels[np.isfinite(pixels).all(axis=1)]
+        if not len(pixels):
+            total += TRUNCATION_PX * len(centres)
+            continue
+        distance = np.linalg.norm(centres[:, None, :] - pixels[None, :, :], axis=2).min(axis=1)
+        total += float(np.minimum(distance, TRUNCATION_PX).sum())
+    return total / max(count, 1)
+
+
+def _minimum(candidates: np.ndarray, costs: np.ndarray) -> tuple[float, float]:
+    """Sub-frame position of the cost minimum (parabola through its neighbours) and the quality."""
+    best = int(np.argmin(costs))
+    position = float(candidates[best])
+    if 0 < best < len(costs) - 1:
+        left, middle, right = costs[best - 1], costs[best], costs[best + 1]
+        curvature = left - 2 * middle + right
+        if curvature > 0:
+            position += float(np.clip(0.5 * (left - right) / curvature, -0.5, 0.5))
+    median = float(np.median(costs))
+    quality = 0.0 if median <= 0 else float(np.clip(1.0 - costs[best] / median, 0.0, 1.0))
+    return position, quality
+
+
+def _rate_fit(projected: np.ndarray, blobs: list[Blobs], camera_times: np.ndarray, mocap_rate: float,
+              offset_frames: float) -> CameraClock | None:
+    """Clock from a line through the local offsets of :data:`SEGMENTS` stretches (None when a stretch has
+    no blobs)."""
+    times, offsets = [], []
+    base = np.round(offset_frames)
+    for frames in np.array_split(np.arange(len(blobs)), SEGMENTS):
+        if not sum(len(blobs[i].centres) for i in frames):
+            return None
+        candidates = base + np.arange(-SEGMENT_SEARCH_FRAMES, SEGMENT_SEARCH_FRAMES + 1)
+        costs = np.array([_marker_cost(projected, blobs, camera_times, frames, s, mocap_rate) for s in candidates])
+        local, _ = _minimum(candidates, costs)
+        times.append(camera_times[frames].mean())
+        offsets.append(local / mocap_rate)
+    slope, intercept = np.polyfit(times, offsets, 1)
+    ratio = 1.0 + slope
+    return CameraClock(float(intercept), float(ratio)) if 0.9 < ratio < 1.1 else None
+
+
+def sync_depth(camera: Camera, depth_frames: list[np.ndarray], camera_times: np.ndarray,
+               vertices_at, n_mocap_frames: int, faces: np.ndarray, mocap_rate: float,
+               window_s: float = 1.0, centre_s: float = 0.0) -> SyncResult:
+    """Offset of a registered RGB-D ``camera`` from its ``depth_frames`` (``(H,W)`` mm, 0 = none) at
+    ``camera_times`` s against the hand model: ``vertices_at(f)`` gives the posed mesh vertices ``(V,3)``
+    mocap mm at mocap frame ``f`` (of ``n_mocap_frames``), ``faces (T,3)``. Cost per candidate offset: the
+    silhouette and depth terms of Zhao et al. (eqs. 5, 6) summed over the frames (the paper matches the
+    first pose against the first several camera frames; the rate ratio is taken as 1)."""
+    camera_times = np.asarray(camera_times, dtype=float)
+    candidates = np.round(centre_s * mocap_rate) + np.arange(-round(window_s * mocap_rate),
+                                                              round(window_s * mocap_rate) + 1)
+    renders: dict[int, np.ndarray] = {}
+    costs = np.zeros(len(candidates))
+    for index, shift in enumerate(candidates):
+        for observed, time in zip(depth_frames, camera_times, strict=True):
+            frame = int(round(time * mocap_rate + shift))
+            if not 0 <= frame < n_mocap_frames:
+                costs[index] += SILHOUETTE_WEIGHT * 2.0
+                continue
+            if frame not in renders:
+                renders[frame] = render_mesh(camera, vertices_at(frame), faces)[0]
+            costs[index] += _depth_cost(observed, renders[frame])
+    offset_frames, quality = _minimum(candidates, costs)
+    return SyncResult(CameraClock(offset_frames / mocap_rate, 1.0), offset_frames, quality,
+                      candidates / mocap_rate, costs)
+
+
+def _depth_cost(observed: np.ndarray, rendered: np.ndarray) -> float:
+    """λ_s E_s + λ_d E_d of an observed depth image against a rendered one (inf = no hand)."""
+    hand = np.isfinite(rendered)
+    if not hand.any():
+        return SILHOUETTE_WEIGHT * 2.0
+    near, far = float(rendered[hand].min()), float(rendered[hand].max())
+    seen = (observed > near - HAND_DEPTH_BAND) & (observed < far + HAND_DEPTH_BAND)
+    overlap = seen & hand
+    silhouette = (seen & ~hand).sum() / max(seen.sum(), 1) + (hand & ~seen).sum() / hand.sum()
+    depth = float(np.abs(observed[overlap] - rendered[overlap]).mean()) if overlap.any() else HAND_DEPTH_BAND
+    return SILHOUETTE_WEIGHT * silhouette + DEPTH_WEIGHT * depth
