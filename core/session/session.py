@@ -861,15 +861,18 @@ def _read_manifest(folder: Path) -> dict[str, Any]:
     return manifest
 
 
+TEMPORARY = re.compile(r"\..*\.[0-9a-f]{8,32}\.tmp(\.[^.]{1,20})?")  # core.io.durable's, old and new
+
+
 def _remove_temporaries(root: Path, *folders: Path) -> None:
-    """Delete the temporary files (``.<name>.<hex>.tmp``) an interrupted atomic write left behind in
-    ``folders`` inside the session folder ``root`` (regular files older than a minute, so that a write in
-    progress in another process is left alone; never through a link)."""
+    """Delete the temporary files (``.<name>.<hex>.tmp[.<suffix>]``) an interrupted atomic write left
+    behind in ``folders`` inside the session folder ``root`` (regular files older than a minute, so that a
+    write in progress in another process is left alone; never through a link)."""
     now = time.time()
     for folder in folders:
-        for path in regular_files(root, folder, ".*.tmp"):
+        for path in regular_files(root, folder, ".*.tmp*"):
             try:
-                if now - os.lstat(path).st_mtime > 60.0:
+                if TEMPORARY.fullmatch(path.name) and now - os.lstat(path).st_mtime > 60.0:
                     remove_file(root, path)
             except OSError:
                 pass

@@ -119,12 +119,16 @@ def test_links_planted_while_a_take_is_open_are_not_followed(session_folder):
 def test_stale_temporaries_are_removed_but_never_through_a_link(session_folder):
     folder, outside, _ = session_folder
     before = _contents(outside)
-    stale = folder / ".session.json.abcd1234.tmp"
-    stale.write_bytes(b"left by a crash")
-    os.utime(stale, (time.time() - 3600, time.time() - 3600))
-    (folder / ".planted.tmp").symlink_to(outside / ".old.tmp")
+    stale = [folder / ".session.json.abcd1234.tmp", folder / ".session.0123456789abcdef.tmp.json"]
+    for path in stale:
+        path.write_bytes(b"left by a crash")
+        os.utime(path, (time.time() - 3600, time.time() - 3600))
+    fresh = folder / ".session.fedcba9876543210.tmp.json"  # another process may be writing it right now
+    fresh.write_bytes(b"being written")
+    (folder / ".planted.0123456789abcdef.tmp").symlink_to(outside / ".old.tmp")
     Session.open(folder)
-    assert not stale.exists() and (folder / ".planted.tmp").is_symlink()
+    assert not any(path.exists() for path in stale) and fresh.exists()
+    assert (folder / ".planted.0123456789abcdef.tmp").is_symlink()
     assert _contents(outside) == before
 
 
