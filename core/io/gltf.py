@@ -153,13 +153,13 @@ class _Document:
             descriptor = os.open(target, os.O_RDONLY | os.O_NONBLOCK)
         except OSError:
             raise self.error(f"external buffer '{uri[:80]}' not found") from None
+        status = os.fstat(descriptor)
+        if not stat.S_ISREG(status.st_mode) or status.st_size < length:
+            os.close(descriptor)
+            problem = "is not a regular file" if not stat.S_ISREG(status.st_mode) else (
+                f"holds {status.st_size} bytes, fewer than its byteLength {length}")
+            raise self.error(f"external buffer '{uri[:80]}' {problem}")
         with os.fdopen(descriptor, "rb") as stream:
-            status = os.fstat(descriptor)
-            if not stat.S_ISREG(status.st_mode):
-                raise self.error(f"external buffer '{uri[:80]}' is not a regular file")
-            if status.st_size < length:
-                raise self.error(f"external buffer '{uri[:80]}' holds {status.st_size} bytes, "
-                                 f"fewer than its byteLength {length}")
             return stream.read(length)
 
     def accessor(self, index: object, kinds: tuple[str, ...]) -> np.ndarray:
@@ -170,11 +170,12 @@ class _Document:
         """
         accessor = self.item("accessors", index)
         where = f"accessor {index}"
-        if accessor.get("componentType") not in _COMPONENTS or accessor.get("type") not in kinds:
-            raise self.error(f"{where} has type {str(accessor.get('type'))[:20]} of component "
-                             f"{str(accessor.get('componentType'))[:20]} (expected {' or '.join(kinds)})")
-        dtype = np.dtype(_COMPONENTS[accessor["componentType"]]).newbyteorder("<")
-        width = _WIDTHS[accessor["type"]]
+        component, kind = accessor.get("componentType"), accessor.get("type")
+        if not (_is_int(component) and component in _COMPONENTS and isinstance(kind, str) and kind in kinds):
+            raise self.error(f"{where} has type {str(kind)[:20]} of component {str(component)[:20]} "
+                             f"(expected {' or '.join(kinds)})")
+        dtype = np.dtype(_COMPONENTS[component]).newbyteorder("<")
+        width = _WIDTHS[kind]
         count = self.integer(accessor, "count", where, least=1)
         view = self.item("bufferViews", accessor.get("bufferView"))
         buffer_index = view.get("buffer")

@@ -69,7 +69,8 @@ def _check_member(archive: zipfile.ZipFile, member: zipfile.ZipInfo) -> None:
         raise ValueError(f"{member.filename}: negative dimension in shape {shape}")
     count = math.prod(shape)
     claimed = count * dtype.itemsize
-    if count > member.file_size or claimed > member.file_size - header_bytes:  # an element takes >= 1 byte
+    too_many = count > member.file_size or dtype.itemsize > member.file_size  # an element takes >= 1 byte
+    if too_many or claimed > member.file_size - header_bytes:
         raise ValueError(f"{member.filename}: its header claims {claimed} bytes, the member holds "
                          f"{member.file_size - header_bytes}")
 

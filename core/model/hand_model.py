@@ -87,8 +87,10 @@ class HandModel:
             skeleton = Skeleton(data["rest_positions"], data["rest_rotations"], data["tip_positions"],
                                 str(data["side"]))
             model = cls(
-                skeleton=skeleton, vertices=data["vertices"], faces=data["faces"],
-                skin_joints=data["skin_joints"], skin_weights=data["skin_weights"],
+                skeleton=skeleton, vertices=np.asarray(data["vertices"], dtype=np.float64),
+                faces=np.asarray(data["faces"], dtype=np.int64),
+                skin_joints=np.asarray(data["skin_joints"], dtype=np.int64),
+                skin_weights=np.asarray(data["skin_weights"], dtype=np.float64),
                 landmarks={str(n): int(v) for n, v in zip(data["landmark_names"],
                                                           data["landmark_vertices"], strict=True)},
                 back_direction=data["back_direction"], hand_length=float(data["hand_length"]),
@@ -101,7 +103,7 @@ class HandModel:
 
     def validate(self) -> None:
         """Raise :class:`InputError` when the arrays are inconsistent."""
-        count = len(self.vertices)
+        count = len(self.vertices) if self.vertices.ndim else 0
         problems = []
         if self.vertices.shape != (count, 3) or count == 0:
             problems.append("vertices must be (V,3)")
