@@ -20,6 +20,7 @@ from core.io.durable import write_atomic
 
 NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
 CLOEXEC = getattr(os, "O_CLOEXEC", 0)
+NONBLOCK = getattr(os, "O_NONBLOCK", 0)  # a planted FIFO must not block the open (no effect on regular files)
 
 
 def _link_error(root: Path, path: Path) -> InputError:
@@ -53,7 +54,7 @@ def _open(root: Path, path: Path, flags: int, mode: int = 0o644) -> int:
     """``os.open`` of a regular file inside ``root`` without following links (InputError otherwise)."""
     refuse_links(root, path)
     try:
-        descriptor = os.open(path, flags | NOFOLLOW | CLOEXEC, mode)
+        descriptor = os.open(path, flags | NOFOLLOW | CLOEXEC | NONBLOCK, mode)
     except OSError:
         if os.path.islink(path):
             raise _link_error(root, path) from None

@@ -143,3 +143,12 @@ def test_a_models_folder_made_a_link_after_opening_is_refused_on_save(session_fo
         session.save_subject_model("S01", load_template())
     _one_line_link_error(raised)
     assert _contents(outside) == before
+
+
+def test_a_fifo_in_place_of_the_journal_is_refused_without_blocking(session_folder):
+    folder, _, _ = session_folder
+    journal = folder / "takes" / TAKE / "journal.jsonl"
+    journal.unlink()
+    os.mkfifo(journal)
+    with pytest.raises(InputError, match="not a regular file"):
+        Session.open(folder).open_take(TAKE)
