@@ -177,8 +177,9 @@ class Application:
         self._announce(CurrentDocumentChanged(document, previous))
 
     def close_document(self, document: TakeDocument) -> str | None:
-        """Close an open take: listeners stop its work, a session take is saved, the next open take is
-        shown (none when it was the last). Returns why the save failed (None when it did not)."""
+        """Close an open take: listeners stop its work, a take kept in a session (the open one's, or a file's
+        automatic one) is saved, the next open take is shown (none when it was the last). Returns why the
+        save failed (None when it did not)."""
         self._announce(DocumentClosing(document))
         problem, saved = None, False
         if document.open_take is not None and not document.open_take.closed:
@@ -192,13 +193,19 @@ class Application:
         self._announce(DocumentClosed(document, index))
         if self.document is document:
             self.show(self.documents[min(index, len(self.documents) - 1)] if self.documents else None)
-        if saved and self.session is not None:
+        if saved and self.session is not None and document.session_take_id is not None:
             self._announce(SessionFolderChanged(SessionPart.TAKE_STATE, document.session_take_id))
         return problem
 
     def document_of_session_take(self, take_id: str) -> TakeDocument | None:
         """The open take that is session take ``take_id``, if it is open."""
         return next((document for document in self.documents if document.session_take_id == take_id), None)
+
+    def document_of_file(self, path: str | Path) -> TakeDocument | None:
+        """The open take of the file ``path`` opened outside a session, if it is open."""
+        source = Path(path).expanduser().absolute()
+        return next((document for document in self.documents
+                     if document.loose is not None and document.loose.source == source), None)
 
     # ---------------------------------------------------------------------------------- frame
     def set_frame(self, frame: int) -> None:
@@ -275,12 +282,15 @@ class Application:
         self._announce(SessionFolderChanged(SessionPart.TAKE_STATE, take_id))
 
     def save_document(self, document: TakeDocument) -> None:
-        """Write the snapshot of a session take now (a raw take with labels becomes "labelled")."""
+        """Write the snapshot of a take kept in a session (its own, for a file opened outside one) now (a raw
+        take with labels becomes "labelled")."""
         document.open_take.save()
-        self._announce(SessionFolderChanged(SessionPart.TAKE_STATE, document.session_take_id))
+        if document.session_take_id is not None:
+            self._announce(SessionFolderChanged(SessionPart.TAKE_STATE, document.session_take_id))
 
     def autosave(self, interval_s: float) -> list[str]:
-        """Snapshot the open session takes with edits older than ``interval_s`` seconds; one line per failure."""
+        """Snapshot the open takes kept in sessions (the open one's and files' automatic ones) with edits older
+        than ``interval_s`` seconds; one line per failure."""
         problems = []
         for document in self.documents:
             if document.open_take is None or document.open_take.closed:
@@ -290,7 +300,7 @@ class Application:
             except HandMocapError as error:
                 problems.append(str(error))
                 continue
-            if saved:
+            if saved and document.session_take_id is not None:
                 self._announce(SessionFolderChanged(SessionPart.TAKE_STATE, document.session_take_id))
         return problems
 

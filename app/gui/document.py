@@ -5,6 +5,7 @@ from __future__ import annotations
 from contextlib import suppress
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -16,6 +17,9 @@ from core.model import HandModel, MarkerSet, best_layout_for, load_layout, load_
 from core.review import Command, CompoundCommand, DefineHand, FrameSpan, ReviewTake, SetSolve, UndoStack
 from core.session import OpenTake
 from core.workflows.resolve import subject_markers
+
+if TYPE_CHECKING:
+    from app.gui.loose_takes import LooseTake
 
 
 @dataclass(eq=False)
@@ -29,6 +33,9 @@ class TakeDocument:
     ``hand_models`` / ``marker_sets``: the subject's hand per side and its calibrated markers (from
     auto-label), used by drawing, solves and re-solves instead of the template; ``subjects``: those
     calibrations relative to the template, written into exported labelled C3D files.
+    ``open_take``: the take in the session its review lives in (None: in memory only); ``session_take_id``:
+    its id in the open session; ``loose``: a file opened outside a session, reviewed in an automatic
+    session of its own (:mod:`app.gui.loose_takes`; then ``session_take_id`` is None).
     """
 
     take: Take
@@ -43,6 +50,7 @@ class TakeDocument:
     stack: UndoStack | None = None
     open_take: OpenTake | None = None
     session_take_id: str | None = None
+    loose: LooseTake | None = None
     hand_models: dict[str, HandModel] = field(default_factory=dict)
     marker_sets: dict[str, MarkerSet] = field(default_factory=dict)
     subjects: dict[str, SubjectCalibration] = field(default_factory=dict)

@@ -47,6 +47,7 @@ from app.gui.application import (
 )
 from app.gui.document import TakeDocument
 from app.gui.load_queue import LoadQueue
+from app.gui.loose_takes import loose_document
 from app.gui.review_controller import ReviewController
 from app.gui.session_controller import SessionController
 from app.gui.workers import TaskRunner, one_line
@@ -87,10 +88,13 @@ def _open_files_task(paths: list[Path], solve: bool) -> Callable:
         opened = OpenedTakes()
         for index, path in enumerate(paths):
             if cancelled():
+                for document in opened.documents:     # release the takes opened in their automatic sessions
+                    if document.open_take is not None:
+                        document.open_take.close()
                 raise CancelledError("opening cancelled")
             try:
                 take = load_take(path)
-                opened.documents.append(TakeDocument(take, path.name, auto_solve=solve))
+                opened.documents.append(loose_document(path, take, auto_solve=solve))
             except HandMocapError as error:
                 opened.errors.append(one_line(str(error)))
             except Exception as error:  # noqa: BLE001 - a file must never crash the application
@@ -329,8 +333,17 @@ class MainWindow(QMainWindow):
 
     def open_files(self, paths: list[str | Path], solve: bool = False) -> None:
         """Open take files on the loader thread; each good one becomes a take in the take list (solved
-        at once when ``solve``), each bad one a one-line message; what is open stays open."""
-        files = [Path(path) for path in paths]
+        at once when ``solve``), reviewed in an automatic session of its own (:mod:`app.gui.loose_takes`),
+        each bad one a one-line message; what is open stays open (a file open already is shown)."""
+        files = []
+        for path in map(Path, paths):
+            document = self.app.document_of_file(path)
+            if document is None:
+                files.append(path)
+            else:
+                self.app.show(document)
+        if not files:
+            return
         title = files[0].name if len(files) == 1 else f"{len(files)} takes"
         self.loader.queue(f"Opening {title}…", _open_files_task(files, solve), self._apply_opened)
 

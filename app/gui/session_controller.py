@@ -1,6 +1,10 @@
 """Sessions: create/open a session folder, the session browser, adding takes, opening a take for review
 (its journal replayed), take states, autosave, and closing cleanly.
 
+A take file opened outside a session is reviewed the same way in an automatic session of its own
+(:mod:`app.gui.loose_takes`); this controller tells the operator whether its review was restored, and
+why its edits are not kept when the data folder cannot be written.
+
 A take opened from the session is a document whose review lives in the session (:class:`OpenTake`):
 every edit is journalled at once, the snapshot is written every ``AUTOSAVE_MS`` when there are edits
 and when the take or the window closes. A take another instance is editing opens read-only: its title
@@ -24,6 +28,7 @@ from app.gui.actions import make_action
 from app.gui.application import (
     Application,
     CurrentDocumentChanged,
+    DocumentOpened,
     SessionChanged,
     SessionFolderChanged,
     SessionPart,
@@ -97,11 +102,16 @@ class SessionController(QObject):
                 self.browser.update_take(TakeRow.from_entry(self.session.take(event.take_id)))
             elif event.what & (SessionPart.TAKES | SessionPart.TAKE_STATE | SessionPart.SUBJECTS):
                 self._show_takes()
+        elif isinstance(event, DocumentOpened) and event.document.loose is not None:
+            self._loose_take_opened(event.document)
         elif isinstance(event, CurrentDocumentChanged):
             document = event.document
             self.browser.set_current((document.session_take_id or "") if document is not None else "")
             if document is not None and document.open_take is not None and document.open_take.read_only:
                 self.status_message.emit(f"{document.open_take.read_only_reason()}; edits are not possible", 0)
+            elif document is not None and document.loose is not None and document.loose.notice:
+                self.status_message.emit(document.loose.notice, 0 if document.loose.restored else 10000)
+                document.loose.notice = ""     # said once, when the take is first shown
 
     def _show_takes(self) -> None:
         """Show the open session's takes and states in the browser (none when no session is open)."""
@@ -156,7 +166,7 @@ class SessionController(QObject):
         session = self.session
         if session is None:
             return
-        for document in [d for d in self.app.documents if d.open_take is not None]:
+        for document in [d for d in self.app.documents if d.session_take_id is not None]:
             problem = self.app.close_document(document)
             if problem:
                 self.error_raised.emit("Cannot save", problem)
@@ -230,20 +240,7 @@ class SessionController(QObject):
                 model = None
             if model is not None:
                 document.hand_models[model.side] = model
-        for side in ("right", "left"):
-            path = opened.folder / TAKE_MODEL_NAME.format(side=side)
-            markers = opened.folder / TAKE_MARKERS_NAME.format(side=side)
-            subject = opened.folder / TAKE_SUBJECT_NAME.format(side=side)
-            if path.exists():
-                try:
-                    document.hand_models[side] = HandModel.load(path)
-                    if markers.exists():
-                        document.marker_sets[side] = read_marker_set(markers)
-                    if subject.exists():
-                        document.subjects[side] = SubjectCalibration.from_dict(json.loads(subject.read_text()))
-                except (HandMocapError, OSError, ValueError, KeyError):
-                    self.status_message.emit(f"{path.name} is damaged; the template is used", 10000)
-                    document.hand_models.pop(side, None)
+        self._load_take_models(document)
         self.app.open_document(document)
         self.app.show(document)
         if automatic and not entry.labelled_source and not opened.review.n_labels:
@@ -258,6 +255,36 @@ class SessionController(QObject):
             lines = [f"recovered {opened.replayed} edits from the journal"] if opened.replayed else []
             self.error_raised.emit("Take recovered", "\n".join(lines + opened.warnings))
 
+    def _load_take_models(self, document: TakeDocument) -> None:
+        """The hand models, markers and subject calibrations auto-label kept in the take's folder."""
+        folder = document.open_take.folder
+        for side in ("right", "left"):
+            path = folder / TAKE_MODEL_NAME.format(side=side)
+            markers = folder / TAKE_MARKERS_NAME.format(side=side)
+            subject = folder / TAKE_SUBJECT_NAME.format(side=side)
+            if path.exists():
+                try:
+                    document.hand_models[side] = HandModel.load(path)
+                    if markers.exists():
+                        document.marker_sets[side] = read_marker_set(markers)
+                    if subject.exists():
+                        document.subjects[side] = SubjectCalibration.from_dict(json.loads(subject.read_text()))
+                except (HandMocapError, OSError, ValueError, KeyError):
+                    self.status_message.emit(f"{path.name} is damaged; the template is used", 10000)
+                    document.hand_models.pop(side, None)
+
+    def _loose_take_opened(self, document: TakeDocument) -> None:
+        """A file opened outside a session: the models kept with its review, what recovery found, or why its
+        edits will not be kept (what became of its review is told when it is first shown)."""
+        loose = document.loose
+        if loose.opened is None:
+            self.status_message.emit(f"{loose.source.name}: {loose.warning}", 0)
+            self.error_raised.emit("Edits will not be kept", f"{loose.source.name}: {loose.warning}")
+            return
+        self._load_take_models(document)
+        if loose.opened.warnings:
+            self.error_raised.emit("Take recovered", "\n".join(loose.opened.warnings))
+
     def keep_labelling(self, document: TakeDocument, models: dict[str, HandModel],
                        marker_sets: dict[str, MarkerSet]) -> None:
         """Auto-label was applied to ``document``: keep the hand models and markers it calibrated, and save a
@@ -270,7 +297,7 @@ class SessionController(QObject):
         """Keep the hand models the labelling calibrated to this take's subject, and their calibrated
         markers, in the take's folder, so that drawing, solves and re-solves use them when the take is
         opened again."""
-        if document.open_take is None or document.open_take.read_only or self.session is None:
+        if document.open_take is None or document.open_take.read_only:
             return
         folder = document.open_take.folder
         try:
@@ -306,8 +333,8 @@ class SessionController(QObject):
 
     # ---------------------------------------------------------------------------------- saving
     def save_document(self, document: TakeDocument) -> None:
-        """Write the snapshot of a session take now (after auto-label, before export)."""
-        if document.open_take is None or document.open_take.read_only or self.session is None:
+        """Write the snapshot of a take kept in a session now (after auto-label, before export)."""
+        if document.open_take is None or document.open_take.read_only:
             return
         try:
             self.app.save_document(document)

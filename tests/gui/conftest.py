@@ -13,6 +13,15 @@ if os.environ.get("QT_QPA_PLATFORM") == "offscreen":
     pyvista.OFF_SCREEN = True
 
 
+@pytest.fixture(autouse=True)
+def data_folder(tmp_path, monkeypatch):
+    """Each test's own user data folder: files opened outside a session keep their reviews there, not in
+    the user's home (and no test sees another's edits)."""
+    folder = tmp_path / "handmocap-data"
+    monkeypatch.setenv("HANDMOCAP_DATA", str(folder))
+    return folder
+
+
 @pytest.fixture
 def window(qtbot, monkeypatch):
     """A main window with message boxes captured instead of shown."""
