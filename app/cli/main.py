@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 from app.cli import calibrate as calibrate_commands
+from app.cli import camera as camera_commands
 from app.cli import layout as layout_commands
 from app.cli import review as review_commands
 from app.cli.common import (
@@ -26,7 +27,7 @@ from app.cli.common import (
 from core.errors import HandMocapError, InputError
 
 #: modules that add their own subcommands (``register(commands, bench_commands, evaluate_commands)``)
-SUBCOMMAND_MODULES = (layout_commands, review_commands, calibrate_commands)
+SUBCOMMAND_MODULES = (layout_commands, review_commands, calibrate_commands, camera_commands)
 
 EXIT_ERROR = 2
 

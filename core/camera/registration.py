@@ -51,16 +51,15 @@ def register_take(camera: Camera, blobs: list[Blobs], camera_times: np.ndarray, 
     the calibration object) starts from its pose instead of the search of step 1."""
     camera_times = np.asarray(camera_times, dtype=float)
     if camera.registered:
-        frames = [_paired(camera.clock, blobs[k], camera_times[k], positions, mocap_rate) for k in range(len(blobs))]
-        registration = register_from_markers(camera, frames, use_depth, initial=camera)
+        registration = None
     else:
         registration = _initial_registration(camera, blobs, camera_times, positions, mocap_rate, window_s,
                                              use_depth)
-    sync = sync_markers(registration.camera.with_clock(camera.clock), blobs, camera_times, positions, mocap_rate,
-                        window_s)
+    posed = camera if registration is None else registration.camera.with_clock(camera.clock)
+    sync = sync_markers(posed, blobs, camera_times, positions, mocap_rate, window_s)
     chosen = np.unique(np.linspace(0, len(blobs) - 1, min(REFINE_FRAMES, len(blobs))).astype(int))
     frames = [_paired(sync.clock, blobs[k], camera_times[k], positions, mocap_rate) for k in chosen]
-    registration = register_from_markers(camera, frames, use_depth, initial=registration.camera)
+    registration = register_from_markers(camera, frames, use_depth, initial=posed)
     sync = sync_markers(registration.camera.with_clock(sync.clock), blobs, camera_times, positions, mocap_rate,
                         window_s=3.0 / mocap_rate)
     return TakeRegistration(registration, sync)

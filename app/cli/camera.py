@@ -1,0 +1,216 @@
+"""``handmocap camera calibrate|register|overlay|simulate`` and ``handmocap evaluate camera``: a calibrated
+camera beside the markers (issue 14)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from app.cli.common import add_json_flag, add_outputs, check_outputs, print_figures
+from core.errors import InputError
+
+
+def _squares(text: str) -> tuple[int, int]:
+    try:
+        columns, rows = (int(part) for part in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"squares must look like 7x5, not '{text}'") from None
+    return columns, rows
+
+
+def command_calibrate(args: argparse.Namespace) -> int:
+    import cv2
+    import numpy as np
+
+    from core.camera.files import save_camera
+    from core.camera.frames import image_file_size
+    from core.camera.intrinsics import BoardSpec, calibrate_intrinsics, detect_board
+
+    check_outputs(args)
+    spec = BoardSpec(args.board, args.squares, args.square_mm, args.marker_mm, args.dictionary)
+    detections, size = [], None
+    for name in args.images:
+        path = Path(name)
+        image_size = image_file_size(path)
+        if size is not None and image_size != size:
+            raise InputError(f"{path.name} is {image_size[0]}×{image_size[1]} px but the first image is "
+                             f"{size[0]}×{size[1]}")
+        size = image_size
+        image = cv2.imdecode(np.fromfile(path, dtype=np.uint8), cv2.IMREAD_COLOR)
+        if image is None:
+            raise InputError(f"{path.name}: OpenCV cannot decode this image")
+        detections.append(detect_board(image, spec))
+    result = calibrate_intrinsics(detections, size, name=Path(args.out).stem)
+    save_camera(result.camera, args.out, {"intrinsics": result.report()})
+    camera = result.camera
+    print(f"calibrated from {int(result.used.sum())} of {len(detections)} images: f = {camera.focal[0]:.2f}, "
+          f"{camera.focal[1]:.2f} px, principal point {camera.principal_point[0]:.2f}, "
+          f"{camera.principal_point[1]:.2f} px, reprojection {result.reprojection_px:.3f} px -> {args.out}")
+    print(f"hint: {result.report()['coverage_hint']}")
+    return 0
+
+
+def _blobs(args: argparse.Namespace, camera):
+    from core.camera.extrinsics import detect_blobs
+    from core.camera.frames import open_frames
+
+    with open_frames(args.video) as video:
+        if video.size != camera.size:
+            raise InputError(f"{args.video} is {video.size[0]}×{video.size[1]} px but the camera is "
+                             f"{camera.size[0]}×{camera.size[1]}")
+        depth = open_frames(args.depth, depth_unit_mm=args.depth_unit, frame_rate=video.frame_rate) \
+            if args.depth else None
+        blobs = [detect_blobs(camera, video.frame(k), depth.frame(k) if depth and k < depth.count else None,
+                              args.marker_radius) for k in range(video.count)]
+        return blobs, video.timestamps.copy()
+
+
+def command_register(args: argparse.Namespace) -> int:
+    from core.camera.files import load_camera, save_camera
+    from core.camera.model import CameraClock
+    from core.camera.registration import register_take
+    from core.io import load_take
+
+    check_outputs(args)
+    camera = load_camera(args.camera)
+    if args.offset is not None:
+        camera = camera.with_clock(CameraClock(args.offset, camera.clock.rate_ratio))
+    take = load_take(args.take)
+    blobs, times = _blobs(args, camera)
+    result = register_take(camera, blobs, times, take.marker_positions, take.frame_rate, args.window)
+    save_camera(result.camera, args.out, {"registration": result.report()})
+    report = result.report()
+    print(f"registered {args.camera} to {Path(args.take).name}: reprojection {report['reprojection_px']:.3f} px "
+          f"over {report['matches']} matches ({100 * report['matched_share']:.0f} % of the blobs), offset "
+          f"{report['offset_s']:.4f} s = {report['offset_frames']:.2f} mocap frames, rate ratio "
+          f"{report['rate_ratio']:.5f}, sync quality {report['quality']:.2f} -> {args.out}")
+    if report["residual_mm"] is not None:
+        print(f"3D residual {report['residual_mm']:.2f} mm")
+    if report["quality"] < 0.5 or report["matched_share"] < 0.5:
+        print("warning: weak registration (few blobs explained or a flat sync cost); register from the calibration "
+              "object or a marked board first, or give --offset closer to the truth")
+    return 0
+
+
+def command_overlay(args: argparse.Namespace) -> int:
+    from core.camera.files import load_camera
+    from core.camera.frames import open_frames
+    from core.camera.overlay import draw_overlay, project_take
+    from core.camera.writers import write_video
+    from core.io import is_marker_label, load_take
+
+    check_outputs(args)
+    camera = load_camera(args.camera)
+    if not camera.registered:
+        raise InputError(f"{args.camera} has no extrinsics; run 'handmocap camera register' first")
+    take = load_take(args.take)
+    labelled = [is_marker_label(name) for name in take.marker_names]
+    import numpy as np
+
+    labelled = np.array(labelled, dtype=bool)
+    with open_frames(args.video) as video:
+        frames = (draw_overlay(video.frame(k), project_take(camera, take.marker_positions, take.frame_rate,
+                                                            video.time(k)), labelled)
+                  for k in range(video.count))
+        count = write_video(args.out, frames, video.frame_rate, video.size)
+    print(f"wrote {count} overlay frames -> {args.out}")
+    return 0
+
+
+def command_simulate(args: argparse.Namespace) -> int:
+    from core.camera.files import save_camera
+    from core.camera.intrinsics import BoardSpec
+    from core.camera.writers import write_depth_frames, write_video
+    from core.io import save_take
+    from core.io.durable import write_atomic
+    from core.simulate.camera import board_views, simulate_camera_take
+
+    folder = Path(args.out)
+    if folder.exists() and not folder.is_dir():
+        raise InputError(f"{folder} exists and is not a folder")
+    if folder.exists() and any(folder.iterdir()) and not args.overwrite:
+        raise InputError(f"{folder} is not empty; use --overwrite to replace its files")
+    folder.mkdir(parents=True, exist_ok=True)
+    simulated = simulate_camera_take(args.seed, args.frames, args.mocap_rate, offset_s=args.offset)
+    camera = simulated.camera
+    save_take(simulated.simulated.take, folder / "take.c3d")
+    rendered = [simulated.render(k, with_depth=args.depth) for k in range(len(simulated.camera_times))]
+    write_video(folder / "video.avi", (colour for colour, _ in rendered), simulated.frame_rate, camera.size)
+    if args.depth:
+        (folder / "depth").mkdir(exist_ok=True)
+        write_depth_frames(folder / "depth", (depth for _, depth in rendered), 1.0)
+    save_camera(camera, folder / "camera_truth.json")
+    (folder / "board").mkdir(exist_ok=True)
+    import cv2
+
+    for index, image in enumerate(board_views(camera, BoardSpec(), args.boards, args.seed).images):
+        write_atomic(folder / "board" / f"board_{index:02d}.png", cv2.imencode(".png", image)[1].tobytes())
+    print(f"wrote {folder}: take.c3d ({simulated.simulated.take.n_frames} frames at {args.mocap_rate:g} Hz), "
+          f"video.avi ({len(rendered)} frames at {simulated.frame_rate:g} Hz, clock offset "
+          f"{camera.clock.offset_s:.4f} s){', depth/ (1 mm units)' if args.depth else ''}, {args.boards} ChArUco "
+          f"7x5 board images in board/, truth camera_truth.json")
+    return 0
+
+
+def command_evaluate_camera(args: argparse.Namespace) -> int:
+    from core.evaluation.camera import HELD_OUT_SEEDS, evaluate_camera
+
+    seeds = tuple(args.seeds) if args.seeds else HELD_OUT_SEEDS
+    print_figures(evaluate_camera(seeds), args.json)
+    return 0
+
+
+def register(commands, bench_commands, evaluate_commands) -> None:
+    """Add the camera subcommands to the ``handmocap`` parser."""
+    camera = commands.add_parser("camera", help="calibrate a camera, register it to the mocap space, overlay")
+    actions = camera.add_subparsers(dest="camera_command", metavar="ACTION", required=True)
+
+    calibrate = actions.add_parser("calibrate", help="intrinsics from images of a ChArUco board or a chessboard")
+    calibrate.add_argument("images", nargs="+", help="board images (PNG/JPG)")
+    calibrate.add_argument("--board", choices=["charuco", "chessboard"], default="charuco")
+    calibrate.add_argument("--squares", type=_squares, default=(7, 5), metavar="CxR",
+                           help="squares across x down (default 7x5)")
+    calibrate.add_argument("--square-mm", type=float, default=30.0, help="square side in mm (default 30)")
+    calibrate.add_argument("--marker-mm", type=float, default=22.0, help="ArUco marker side in mm (default 22)")
+    calibrate.add_argument("--dictionary", default="DICT_4X4_50", help="ArUco dictionary (default DICT_4X4_50)")
+    calibrate.add_argument("--out", required=True, metavar="CAMERA.json")
+    add_outputs(calibrate, "out")
+    calibrate.set_defaults(handler=command_calibrate)
+
+    registration = actions.add_parser("register", help="extrinsics and time offset from the take's markers")
+    registration.add_argument("take", help="labelled take (C3D, TSV, TRC, CSV)")
+    registration.add_argument("video", help="the camera's video (MP4/AVI) or folder of frames")
+    registration.add_argument("--camera", required=True, metavar="CAMERA.json", help="intrinsics (JSON/YAML/XML)")
+    registration.add_argument("--depth", metavar="FOLDER", help="registered 16-bit depth frames (RGB-D)")
+    registration.add_argument("--depth-unit", type=float, default=1.0, metavar="MM", help="depth unit (default 1)")
+    registration.add_argument("--offset", type=float, metavar="S", help="guess of the clock offset (s)")
+    registration.add_argument("--window", type=float, default=0.5, metavar="S",
+                              help="offset search half-width around the guess (s, default 0.5)")
+    registration.add_argument("--marker-radius", type=float, default=3.0, metavar="MM")
+    registration.add_argument("--out", required=True, metavar="CAMERA.json")
+    add_outputs(registration, "out")
+    registration.set_defaults(handler=command_register)
+
+    overlay = actions.add_parser("overlay", help="write the video with the take's markers drawn on it")
+    overlay.add_argument("take")
+    overlay.add_argument("video")
+    overlay.add_argument("--camera", required=True, metavar="CAMERA.json")
+    overlay.add_argument("--out", required=True, metavar="OVERLAY.mp4|.avi")
+    add_outputs(overlay, "out")
+    overlay.set_defaults(handler=command_overlay)
+
+    simulate = actions.add_parser("simulate", help="write a synthetic camera take to try the workflow")
+    simulate.add_argument("--out", required=True, metavar="FOLDER")
+    simulate.add_argument("--seed", type=int, default=0)
+    simulate.add_argument("--frames", type=int, default=400, help="mocap frames (default 400)")
+    simulate.add_argument("--mocap-rate", type=float, default=100.0, metavar="HZ")
+    simulate.add_argument("--offset", type=float, metavar="S", help="camera clock offset (default random)")
+    simulate.add_argument("--depth", action="store_true", help="also write depth frames")
+    simulate.add_argument("--boards", type=int, default=15, help="board images for calibration (default 15)")
+    simulate.add_argument("--overwrite", action="store_true", help="replace files in a non-empty folder")
+    simulate.set_defaults(handler=command_simulate)
+
+    evaluate = evaluate_commands.add_parser("camera", help="camera calibration accuracy on synthetic cameras")
+    evaluate.add_argument("--seeds", type=int, nargs="+", help="seeds (default: the held-out 101 102 103)")
+    add_json_flag(evaluate)
+    evaluate.set_defaults(handler=command_evaluate_camera)
