@@ -61,7 +61,8 @@ def evaluate_seed(seed: int, take_frames: int = 400) -> dict:
 
     board = board_views(truth, CHARUCO, 6, seed + 2000)
     width, height = CHARUCO.squares[0] * CHARUCO.square_mm, CHARUCO.squares[1] * CHARUCO.square_mm
-    on_board = np.array([[-15, -15, 7.0], [width + 15, -15, 7.0], [-15, height + 15, 7.0], [width / 2, height + 15, 7.0]])
+    on_board = np.array([[-15, -15, 7.0], [width + 15, -15, 7.0], [-15, height + 15, 7.0],
+                         [width / 2, height + 15, 7.0]])
     mocap = np.array([truth.to_mocap(on_board @ r.T + t) for r, t in zip(board.rotations, board.translations,
                                                                           strict=True)])
     mocap += rng.normal(0, MOCAP_NOISE_MM, mocap.shape)
