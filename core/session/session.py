@@ -23,7 +23,7 @@ Manifest (``format`` "handmocap-session", ``version`` 1)::
      "takes": [{"id", "name", "source", "source_relative", "subject", "layout", "hands": ["right"],
                 "labelled_source": bool, "state": "raw|labelled|reviewed|exported",
                 "frames", "points", "frame_rate", "added", "results": {"review": "takes/<id>/review.npz"},
-                "exports": {"c3d": path, ...}}]}
+                "exports": {"c3d": path, ...}, "cameras": [camera entry (core.session.cameras)]}]}
 
 A corrupt manifest is never overwritten: :meth:`Session.open` raises an InputError naming it and the
 ``.bak`` copy; :meth:`Session.restore_backup` puts the backup back (keeping the damaged file aside).
@@ -138,6 +138,7 @@ class TakeEntry:
     added: str = ""
     results: dict[str, str] = field(default_factory=dict)
     exports: dict[str, str] = field(default_factory=dict)
+    cameras: list[dict[str, Any]] = field(default_factory=list)
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> TakeEntry:
@@ -155,6 +156,9 @@ class TakeEntry:
         for mapping in (entry.results, entry.exports):
             if not all(isinstance(key, str) and isinstance(value, str) for key, value in mapping.items()):
                 raise TypeError("take results and exports must map names to paths")
+        if not all(isinstance(item, dict) and all(isinstance(item.get(key), str) for key in ("name", "camera", "media"))
+                   for item in entry.cameras):
+            raise TypeError("take cameras must each have a name, a camera file and a media path")
         if entry.state not in TAKE_STATES:
             raise ValueError(f"take '{entry.name}' has unknown state '{entry.state}'")
         return entry
@@ -163,7 +167,8 @@ class TakeEntry:
 _TAKE_FIELD_TYPES: dict[str, Any] = {
     "id": str, "name": str, "source": str, "source_relative": (str, type(None)), "subject": (str, type(None)),
     "layout": (str, type(None)), "hands": list, "labelled_source": bool, "state": str, "frames": int,
-    "points": int, "frame_rate": (int, float), "added": str, "results": dict, "exports": dict}
+    "points": int, "frame_rate": (int, float), "added": str, "results": dict, "exports": dict,
+    "cameras": list}
 
 
 class Session:
