@@ -47,6 +47,11 @@ AMBIGUOUS_RATIO = 1.5
 """A re-acquisition is refused when another correspondence of as many markers fits within this factor."""
 
 
+Fit = tuple[float, np.ndarray, int, float, np.ndarray]
+"""A model fitted to points: (eq. 2 score, state, matched marker count, mean residual mm, point index per
+marker (K,), -1 unmatched)."""
+
+
 @dataclass
 class Candidate:
     """A model fitted to a cluster: eq. 2 score, state, matched marker count, mean residual (mm)."""
@@ -201,7 +206,8 @@ def _alignments(source: np.ndarray, target: np.ndarray, iterations: int
     return results
 
 
-def _assign_and_solve(track: Track, cluster: np.ndarray, state, settings: SceneSettings, rounds: int = 3):
+def _assign_and_solve(track: Track, cluster: np.ndarray, state: np.ndarray, settings: SceneSettings, rounds: int = 3
+                      ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
     """Alternate the gated Hungarian assignment of ``cluster (N,3)`` to the track's markers and the
     track's solve, from ``state``; returns (state, effectors (K,3) or None when fewer than 3 markers
     ever matched, point index per marker (K,), -1 unmatched)."""
@@ -246,7 +252,7 @@ def _posture_starts(track: HandTracker) -> list[np.ndarray]:
 
 
 def fit_hand(track: HandTracker, cluster: np.ndarray, settings: SceneSettings, strays: np.ndarray | None = None
-             ) -> list[tuple[float, np.ndarray, int, float, np.ndarray]]:
+             ) -> list[Fit]:
     """Eq. 2 fits of a hand to ``cluster (N,3)``, best first: (score, θ, matched, residual, point index
     (K,)), at most :data:`HAND_HYPOTHESES` with different labellings (the runners-up are hypotheses the
     labeller tracks over a window before it decides: a finger shift or a flipped hand fits a single
@@ -259,7 +265,7 @@ def fit_hand(track: HandTracker, cluster: np.ndarray, settings: SceneSettings, s
     source = model_points(track)
     alignments = _alignments(source, cluster, settings.icp_iterations)
     extended = cluster if strays is None or not len(strays) else np.concatenate([cluster, strays])
-    fits: list[tuple[float, np.ndarray, int, float, np.ndarray]] = []
+    fits: list[Fit] = []
     for postures in ([track.mean_theta], _posture_starts(track)):
         if fits and min(fits, key=lambda fit: fit[0])[3] <= RETRY_RESIDUAL_MM:
             break
@@ -267,7 +273,7 @@ def fit_hand(track: HandTracker, cluster: np.ndarray, settings: SceneSettings, s
             fit = _fit_from(track, cluster, extended, settings, posture, rotation, translation)
             if fit is not None and np.isfinite(fit[0]):
                 fits.append(fit)
-    distinct: list[tuple[float, np.ndarray, int, float, np.ndarray]] = []
+    distinct: list[Fit] = []
     for fit in sorted(fits, key=lambda fit: fit[0]):
         if not any(np.array_equal(fit[4], kept[4]) for kept in distinct):
             distinct.append(fit)
@@ -275,7 +281,7 @@ def fit_hand(track: HandTracker, cluster: np.ndarray, settings: SceneSettings, s
 
 
 def _fit_from(track: HandTracker, cluster: np.ndarray, extended: np.ndarray, settings: SceneSettings,
-              posture: np.ndarray, rotation: np.ndarray, translation: np.ndarray):
+              posture: np.ndarray, rotation: np.ndarray, translation: np.ndarray) -> Fit | None:
     """Fit of the hand starting from ``posture (26,)`` moved by the alignment ``rotation``,
     ``translation``: alternate Hungarian assignment and IK, then complete; the tuple of
     :func:`fit_hand`, or None when fewer than 3 markers match."""
@@ -292,7 +298,8 @@ def _fit_from(track: HandTracker, cluster: np.ndarray, extended: np.ndarray, set
 
 
 def _complete(track: HandTracker, cluster: np.ndarray, cluster_size: int, theta: np.ndarray, effectors: np.ndarray,
-              point_index: np.ndarray, scored: tuple[float, float, int], settings: SceneSettings):
+              point_index: np.ndarray, scored: tuple[float, float, int], settings: SceneSettings
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float, int]:
     """Offer the cluster points no marker took to the unmatched markers within
     ``init_completion_gate_mm`` (a digit posed far from the prior's mean, e.g. an abducted thumb),
     solve the IK with them, and keep the result when eq. 2 improves."""
@@ -321,7 +328,7 @@ def _complete(track: HandTracker, cluster: np.ndarray, cluster_size: int, theta:
 
 
 def fit_object(track: RigidTrack, cluster: np.ndarray, settings: SceneSettings
-               ) -> tuple[float, np.ndarray, int, float, np.ndarray]:
+               ) -> Fit:
     """Best eq. 2 fit of a rigid object to ``cluster (N,3)``: (score, pose (4,4), matched, residual,
     point index (K,)). The OBB scale must be plausible (the primitive's size), the fit is rigid."""
     best = (np.inf, np.eye(4), 0, np.inf, np.full(track.count, -1))

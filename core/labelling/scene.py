@@ -810,7 +810,7 @@ def _hand_sides(hands: str) -> list[str]:
     return ["right", "left"] if hands == "both" else [hands]
 
 
-def _objects(objects) -> list[ObjectSpec]:
+def _objects(objects: Sequence[ObjectSpec] | str | Path | None) -> list[ObjectSpec]:
     if objects is None:
         return []
     if isinstance(objects, (str, Path)):
