@@ -12,6 +12,7 @@ from pathlib import Path
 
 from app.cli import calibrate as calibrate_commands
 from app.cli import camera as camera_commands
+from app.cli import export as export_commands
 from app.cli import layout as layout_commands
 from app.cli import review as review_commands
 from app.cli.common import (
@@ -27,7 +28,7 @@ from app.cli.common import (
 from core.errors import HandMocapError, InputError
 
 #: modules that add their own subcommands (``register(commands, bench_commands, evaluate_commands)``)
-SUBCOMMAND_MODULES = (layout_commands, review_commands, calibrate_commands, camera_commands)
+SUBCOMMAND_MODULES = (layout_commands, review_commands, calibrate_commands, camera_commands, export_commands)
 
 EXIT_ERROR = 2
 

@@ -12,8 +12,14 @@ joint is the change from its rest orientation relative to its parent: with ``W_j
 (world rotation of joint j posed, times the transpose of its rest frame), the local rotation is
 ``W_parentᵀ W_j``, written as Z-X-Y Euler angles in degrees (``R = Rz·Rx·Ry``), unwrapped over time.
 The root's position channels are the wrist position. Lengths are in ``units`` (mm by default; "cm"
-for tools that assume centimetres). Frames whose joint angles are NaN (not solved) repeat the
-nearest solved frame (the rest pose when none is).
+for tools that assume centimetres, "m" for Blender). Frames whose joint angles are NaN (not solved)
+repeat the nearest solved frame (the rest pose when none is).
+
+Up axis (``up``): "z" keeps the lab frame; "y" writes the same motion in a Y-up frame (the frame Blender's
+BVH importer and MotionBuilder assume): with ``A`` the rotation of :mod:`core.io.axes`, positions and
+offsets become ``A p`` and every rotation ``A R Aᵀ`` before the Euler angles are taken, so the rest
+orientations stay the world axes and the channels keep their Z-X-Y order. Blender: ``--units m --up y``
+(imported with its defaults, scale 1, forward -Z, up Y); MotionBuilder: ``--units cm --up y``.
 """
 
 from __future__ import annotations
@@ -26,11 +32,11 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
+from core.io.axes import axes_rotation, check_units
 from core.io.durable import write_text_atomic
 from core.model.kinematics import KinematicChain
 from core.model.skeleton import JOINT_NAMES, JOINT_PARENTS, N_JOINTS, N_PARAMS, Skeleton
 
-_UNITS = {"mm": 1.0, "cm": 0.1, "m": 0.001}
 ROOT_CHANNELS = ["Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation"]
 JOINT_CHANNELS = ["Zrotation", "Xrotation", "Yrotation"]
 
@@ -86,26 +92,27 @@ def local_rotations(skeleton: Skeleton, joint_angles: np.ndarray) -> tuple[np.nd
 
 
 def write_bvh(path: str | PathLike[str], skeleton: Skeleton, joint_angles: np.ndarray, frame_rate: float,
-              prefix: str = "", units: str = "mm") -> None:
+              prefix: str = "", units: str = "mm", up: str = "z") -> None:
     """Write ``joint_angles (F, 26)`` (rad, mm) of a hand with rest ``skeleton`` as BVH at ``frame_rate``
-    Hz (scheme in the module docstring), atomically. InputError on bad input."""
+    Hz in ``units`` ("mm", "cm", "m") with ``up`` ("z" lab frame, "y") (scheme in the module docstring),
+    atomically. InputError on bad input."""
     joint_angles = np.asarray(joint_angles, dtype=np.float64)
     if joint_angles.ndim != 2 or joint_angles.shape[1] != N_PARAMS or not len(joint_angles):
         raise InputError(f"BVH export needs joint angles (F, 26) with F > 0, got {joint_angles.shape}")
-    if units not in _UNITS:
-        raise InputError(f"BVH units must be mm, cm or m, not '{units}'")
+    scale = check_units(units)
+    axes = axes_rotation(up)
     if not (math.isfinite(frame_rate) and frame_rate > 0):
         raise InputError(f"frame rate must be positive, got {frame_rate}")
-    scale = _UNITS[units]
     local, wrist = local_rotations(skeleton, _held(joint_angles))
+    local = axes @ local @ axes.T
     euler = np.degrees(np.unwrap(euler_zxy(local), axis=0))  # (F, 16, 3) z, x, y
-    motion = np.concatenate([wrist * scale, euler.reshape(len(euler), -1)], axis=1)
+    motion = np.concatenate([wrist @ axes.T * scale, euler.reshape(len(euler), -1)], axis=1)
 
     lines = ["HIERARCHY"]
     rest = skeleton.rest_positions
 
     def offset(vector: np.ndarray) -> str:
-        return "OFFSET " + " ".join(f"{value * scale:.6f}" for value in vector)
+        return "OFFSET " + " ".join(f"{value * scale:.6f}" for value in axes @ vector)
 
     lines += [f"ROOT {prefix}{JOINT_NAMES[0]}", "{", "  OFFSET 0.000000 0.000000 0.000000",
               "  CHANNELS 6 " + " ".join(ROOT_CHANNELS)]

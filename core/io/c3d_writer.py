@@ -1,9 +1,17 @@
 """C3D writing with numpy, streamed: the header, the parameter section, then the frames a chunk at a time.
 
-The file is an Intel float C3D (POINT:SCALE -1) in mm: 512-byte header block, parameter blocks from
-block 2, then per frame and point x, y, z and the residual word as float32 (-1 for a missing sample,
-its coordinates 0; 0 for a written sample). Memory beyond the caller's arrays is one chunk of frames
-(about :data:`CHUNK_BYTES`), so a 100 000-frame export costs no more than the take itself.
+The file is an Intel float C3D in mm: 512-byte header block, parameter blocks from block 2, then per
+frame and point x, y, z and the fourth word as float32. Memory beyond the caller's arrays is one chunk
+of frames (about :data:`CHUNK_BYTES`), so a 100 000-frame export costs no more than the take itself.
+
+The fourth word follows the C3D standard (c3d.org, "3D Data - Floating-point Format" and the residual
+glossary): a float holding a signed integer whose high byte is the camera mask (0: we keep none) and
+whose low byte is the point's average residual in units of ``|POINT:SCALE|`` mm. -1 marks a missing
+sample (its coordinates written 0); 0 a valid point that is not the measured value (interpolated,
+filled, modelled); 1..255 a measured point and its residual, rounded to a scale unit and clipped to
+that range (a measured point whose residual is not known gets 1, the smallest measured value).
+``POINT:SCALE`` is negative (float data) with the magnitude the standard asks for: the largest
+coordinate over 32000 (at 1 m, 0.03 mm per unit; residuals up to 255 units, 8 mm, are stored).
 
 Writes labels (past 255 in LABELS2...), rate, first frame (header and TRIAL:ACTUAL_START_FIELD /
 ACTUAL_END_FIELD, which also carry frame numbers past 65535), MANUFACTURER:COMPANY "handmocap" and the
@@ -38,6 +46,10 @@ _LABELS_PER_PARAMETER = 255
 _C3D_NAME = re.compile(r"[A-Z0-9_]{1,127}")
 _MAX_LABEL_BYTES = 125  # 255 labels x 125 bytes still fit one parameter (<= 32767 bytes)
 _MAX_GAP = 10  # header word 6: largest gap a reader may interpolate (ezc3d and Vicon write 10)
+_SCALE_RANGE = 32000.0  # C3D: POINT:SCALE = largest coordinate / 32000
+_DEFAULT_SCALE = 0.1  # mm per unit when the take holds no coordinate at all
+RESIDUAL_MEASURED = np.nan  # residual value meaning "measured, residual not known"
+RESIDUAL_PROCESSED = 0.0  # residual value meaning "valid but not measured" (a fill)
 
 
 def write_c3d(take: Take, path: str | PathLike[str]) -> None:
@@ -49,19 +61,28 @@ def write_c3d(take: Take, path: str | PathLike[str]) -> None:
 
 
 def write_c3d_points(path: str | PathLike[str], names: list[str], blocks: Sequence[np.ndarray], frame_rate: float,
-                     first_frame: int, parameters: dict[str, dict[str, ParameterValue]]) -> None:
+                     first_frame: int, parameters: dict[str, dict[str, ParameterValue]],
+                     residuals: Sequence[np.ndarray | None] | None = None) -> None:
     """Write the points ``blocks`` (each ``(F, m_i, 3)`` mm, NaN missing; their columns side by side are the
-    points named ``names``) as a C3D, without joining the blocks in memory. ``parameters``: groups to store."""
+    points named ``names``) as a C3D, without joining the blocks in memory. ``parameters``: groups to store.
+    ``residuals``: per block ``(F, m_i)`` mm or None (module docstring: > 0 a measured point's residual,
+    :data:`RESIDUAL_PROCESSED` 0 a fill, NaN :data:`RESIDUAL_MEASURED` a measured point of unknown
+    residual, the default); missing samples are always -1."""
     frames = blocks[0].shape[0] if blocks else 0
     if any(block.ndim != 3 or block.shape[0] != frames or block.shape[2] != 3 for block in blocks):
         raise TakeFormatError.at(path, "point blocks must be (frames, points, 3) with the same frames")
     if sum(block.shape[1] for block in blocks) != len(names):
         raise TakeFormatError.at(path, f"{len(names)} names for {sum(block.shape[1] for block in blocks)} points")
+    residuals = list(residuals) if residuals is not None else [None] * len(blocks)
+    if len(residuals) != len(blocks) or any(values is not None and values.shape != block.shape[:2]
+                                            for block, values in zip(blocks, residuals, strict=True)):
+        raise TakeFormatError.at(path, "residuals must be (frames, points) per point block")
     if Path(path).suffix.lower() != ".c3d":
         raise TakeFormatError.at(path, "a C3D file name must end in '.c3d'")
-    section = _parameter_section(path, names, frames, frame_rate, first_frame, parameters)
+    scale = point_scale(blocks)
+    section = _parameter_section(path, names, frames, frame_rate, first_frame, parameters, scale)
     data_block = 2 + len(section) // _BLOCK
-    header = _header(len(names), frames, first_frame, frame_rate, data_block)
+    header = _header(len(names), frames, first_frame, frame_rate, data_block, scale)
     frame_bytes = 16 * len(names)
     expected = _BLOCK + len(section) + frames * frame_bytes
 
@@ -75,12 +96,40 @@ def write_c3d_points(path: str | PathLike[str], names: list[str], blocks: Sequen
     with durable_stream(path, verify=verify) as stream:
         stream.write(header)
         stream.write(section)
-        _write_frames(stream, blocks, frame_bytes)
+        _write_frames(stream, blocks, residuals, frame_bytes, scale)
         stream.write(bytes(-stream.tell() % _BLOCK))
 
 
-def _write_frames(stream: BinaryIO, blocks: Sequence[np.ndarray], frame_bytes: int) -> None:
-    """The frames as float32 ``x, y, z, residual`` per point, ``CHUNK_BYTES`` at a time."""
+def point_scale(blocks: Sequence[np.ndarray]) -> float:
+    """``|POINT:SCALE|`` in mm per unit for the points ``blocks``: the largest finite coordinate magnitude
+    over 32000 (C3D standard), of the float32 values written, a block of frames at a time;
+    :data:`_DEFAULT_SCALE` for no data."""
+    largest = 0.0
+    for block in blocks:
+        step = max(1, CHUNK_BYTES // max(24 * block.shape[1], 1))
+        for start in range(0, block.shape[0], step):
+            values = np.abs(block[start:start + step].astype(np.float32))
+            finite = values[np.isfinite(values)]
+            if finite.size:
+                largest = max(largest, float(finite.max()))
+    return float(np.float32(largest / _SCALE_RANGE)) if largest > 0 else _DEFAULT_SCALE
+
+
+def residual_words(present: np.ndarray, residuals: np.ndarray | None, scale: float) -> np.ndarray:
+    """The fourth word of each sample (module docstring): ``present (F, m)`` bool, ``residuals (F, m)`` mm
+    or None (measured, unknown), ``scale`` mm per unit; float32 ``(F, m)``."""
+    if residuals is None:
+        units = np.ones(present.shape, dtype=np.float32)
+    else:
+        values = np.asarray(residuals, dtype=np.float64)
+        units = np.where(np.isnan(values), 1.0, np.clip(np.rint(values / scale), 1.0, 255.0))
+        units = np.where(values == RESIDUAL_PROCESSED, 0.0, units).astype(np.float32)
+    return np.where(present, units, np.float32(-1.0))
+
+
+def _write_frames(stream: BinaryIO, blocks: Sequence[np.ndarray], residuals: Sequence[np.ndarray | None],
+                  frame_bytes: int, scale: float) -> None:
+    """The frames as float32 ``x, y, z, residual word`` per point, ``CHUNK_BYTES`` at a time."""
     frames = blocks[0].shape[0] if blocks else 0
     points = frame_bytes // 16
     step = max(1, CHUNK_BYTES // max(frame_bytes, 1))
@@ -89,27 +138,29 @@ def _write_frames(stream: BinaryIO, blocks: Sequence[np.ndarray], frame_bytes: i
         stop = min(start + step, frames)
         chunk = buffer[:stop - start]
         column = 0
-        for block in blocks:
-            chunk[:, column:column + block.shape[1], :3] = block[start:stop]
-            column += block.shape[1]
-        missing = ~np.isfinite(chunk[..., :3]).all(axis=2)
-        chunk[..., 3] = np.where(missing, -1.0, 0.0)
-        chunk[missing, :3] = 0.0
+        for block, values in zip(blocks, residuals, strict=True):
+            width = block.shape[1]
+            chunk[:, column:column + width, :3] = block[start:stop]
+            present = np.isfinite(chunk[:, column:column + width, :3]).all(axis=2)
+            chunk[:, column:column + width, 3] = residual_words(present, None if values is None
+                                                                else values[start:stop], scale)
+            column += width
+        chunk[chunk[..., 3] < 0, :3] = 0.0
         stream.write(chunk.data)
 
 
-def _header(points: int, frames: int, first_frame: int, frame_rate: float, data_block: int) -> bytes:
+def _header(points: int, frames: int, first_frame: int, frame_rate: float, data_block: int, scale: float) -> bytes:
     """The 512-byte header block: 16-bit frame numbers saturate at 65535 (TRIAL fields carry the rest)."""
     first = min(max(first_frame, 0), 0xFFFF)
     last = min(max(first_frame + frames - 1, 0), 0xFFFF)
     header = bytearray(_BLOCK)
-    struct.pack_into("<BBHHHHHfHHf", header, 0, 2, 0x50, points, 0, first, last, _MAX_GAP, -1.0,
+    struct.pack_into("<BBHHHHHfHHf", header, 0, 2, 0x50, points, 0, first, last, _MAX_GAP, -scale,
                      data_block, 0, frame_rate)
     return bytes(header)
 
 
 def _parameter_section(path: str | PathLike[str], names: list[str], frames: int, frame_rate: float,
-                       first_frame: int, parameters: dict[str, dict[str, ParameterValue]]) -> bytes:
+                       first_frame: int, parameters: dict[str, dict[str, ParameterValue]], scale: float) -> bytes:
     """The parameter blocks (first byte of the section at block 2), padded to whole blocks."""
     clashing = sorted({group.upper() for group in parameters} & (_DATA_GROUPS | _LIBRARY_GROUPS))
     if clashing:
@@ -125,7 +176,7 @@ def _parameter_section(path: str | PathLike[str], names: list[str], frames: int,
         for name in [group, *values]:
             if not _C3D_NAME.fullmatch(name):
                 raise TakeFormatError.at(path, f"parameter name '{name}' is not a C3D name (A-Z, 0-9, _)")
-    point: dict[str, ParameterValue] = {"USED": len(names), "SCALE": -1.0, "RATE": float(frame_rate),
+    point: dict[str, ParameterValue] = {"USED": len(names), "SCALE": -scale, "RATE": float(frame_rate),
                                         "DATA_START": 0, "UNITS": "mm",
                                         "FRAMES": np.array(min(frames, 0xFFFF)).astype(np.uint16).astype(np.int16)}
     for index, first in enumerate(range(0, max(len(names), 1), _LABELS_PER_PARAMETER)):

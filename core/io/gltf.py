@@ -20,8 +20,11 @@ Import (:func:`load_gltf_hand`):
   distal point of each fingertip, the back of the wrist).
 
 Export (:func:`save_gltf_hand`): mesh + normals, a 21-node joint hierarchy (16 joints + 5 tips) in
-metres with the rest frames as node rotations, inverse bind matrices, 4 weights per vertex, and the
-model's landmarks, side and name in ``extras.handmocap`` so that re-importing is exact.
+metres with the rest frames as node rotations, inverse bind matrices, 4 weights per vertex (normalised,
+zero-weight slots on joint 0), and the model's landmarks, side and name in ``extras.handmocap`` so that
+re-importing is exact. With a :class:`HandAnimation` it also holds the take's motion as one animation
+(wrist translation, one rotation sampler per joint, times in seconds), metres and Y up as the glTF
+specification requires; the file passes the Khronos glTF validator without errors or warnings.
 """
 
 from __future__ import annotations
@@ -32,12 +35,14 @@ import os
 import re
 import stat
 import struct
+from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from urllib.parse import unquote
 
 import numpy as np
 
 from core.errors import InputError
+from core.io.axes import Y_UP
 from core.io.durable import durable_stream, write_text_atomic
 from core.model.hand_model import MAX_INFLUENCES, HandModel
 from core.model.skeleton import DIGITS, JOINT_NAMES, JOINT_PARENTS, N_JOINTS, Skeleton
@@ -561,37 +566,133 @@ def _from_own_export(document: _Document, vertices: np.ndarray, faces: np.ndarra
 # --------------------------------------------------------------------------- export
 
 
+@dataclass(frozen=True)
+class HandAnimation:
+    """The motion of an exported hand: ``joint_angles (F, 26)`` rad / mm in the lab frame (Z up; NaN
+    frames hold the nearest solved one) at ``frame_rate`` Hz."""
+
+    joint_angles: np.ndarray
+    frame_rate: float
+
+
+def _quaternions(rotations: np.ndarray) -> np.ndarray:
+    """Unit quaternions ``(..., 4)`` ``[x, y, z, w]`` of rotation matrices ``(..., 3, 3)`` (w >= 0 where
+    the largest component allows; signs are made continuous over time by the caller)."""
+    m = np.asarray(rotations, dtype=np.float64)
+    trace = m[..., 0, 0] + m[..., 1, 1] + m[..., 2, 2]
+    candidates = np.stack([
+        np.stack([m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1],
+                  1.0 + trace], axis=-1),
+        np.stack([1.0 + 2 * m[..., 0, 0] - trace, m[..., 0, 1] + m[..., 1, 0], m[..., 0, 2] + m[..., 2, 0],
+                  m[..., 2, 1] - m[..., 1, 2]], axis=-1),
+        np.stack([m[..., 0, 1] + m[..., 1, 0], 1.0 + 2 * m[..., 1, 1] - trace, m[..., 1, 2] + m[..., 2, 1],
+                  m[..., 0, 2] - m[..., 2, 0]], axis=-1),
+        np.stack([m[..., 0, 2] + m[..., 2, 0], m[..., 1, 2] + m[..., 2, 1], 1.0 + 2 * m[..., 2, 2] - trace,
+                  m[..., 1, 0] - m[..., 0, 1]], axis=-1),
+    ])  # (4, ..., 4): the four textbook forms, each stable where its diagonal term is largest
+    choice = np.argmax(np.stack([trace, m[..., 0, 0], m[..., 1, 1], m[..., 2, 2]]), axis=0)
+    q = np.take_along_axis(candidates, choice[None, ..., None], axis=0)[0]
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
 def _quaternion(rotation: np.ndarray) -> list[float]:
     """Unit quaternion ``[x, y, z, w]`` of a rotation matrix."""
-    m = rotation
-    trace = np.trace(m)
-    if trace > 0:
-        s = 2.0 * np.sqrt(trace + 1.0)
-        q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s]
-    else:
-        i = int(np.argmax(np.diag(m)))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * np.sqrt(max(1.0 + m[i, i] - m[j, j] - m[k, k], 1e-12))
-        q = [0.0, 0.0, 0.0, (m[k, j] - m[j, k]) / s]
-        q[i] = 0.25 * s
-        q[j] = (m[j, i] + m[i, j]) / s
-        q[k] = (m[k, i] + m[i, k]) / s
-    q = np.array(q)
-    return [float(v) for v in q / np.linalg.norm(q)]
+    return [float(v) for v in _quaternions(rotation)]
 
 
-def save_gltf_hand(model: HandModel, path: str | Path) -> None:
-    """Write ``model`` as glTF 2.0 (``.glb`` binary or ``.gltf`` with an embedded buffer), metres, atomically."""
-    path = Path(path)
-    if path.suffix.lower() not in (".glb", ".gltf"):
-        raise InputError(f"{path.name}: glTF export needs a .glb or .gltf file name")
-    skeleton = model.skeleton
+def _continuous(quaternions: np.ndarray) -> np.ndarray:
+    """``quaternions (F, 4)`` with signs flipped so consecutive ones have a non-negative dot product (the
+    same rotations, interpolated the short way)."""
+    result = quaternions.copy()
+    for frame in range(1, len(result)):
+        if np.dot(result[frame], result[frame - 1]) < 0:
+            result[frame] = -result[frame]
+    return result
+
+
+def _rest_world(skeleton: Skeleton) -> np.ndarray:
+    """Rest world matrices ``(21, 4, 4)`` in metres of the 16 joints and 5 tips (model frame)."""
     world = np.tile(np.eye(4), (N_JOINTS + 5, 1, 1))
     world[:N_JOINTS, :3, :3] = skeleton.rest_rotations
     world[:N_JOINTS, :3, 3] = skeleton.rest_positions / 1000.0
     for digit in range(5):
         world[N_JOINTS + digit, :3, :3] = skeleton.rest_rotations[3 + 3 * digit]
         world[N_JOINTS + digit, :3, 3] = skeleton.tip_positions[digit] / 1000.0
+    return world
+
+
+def _animation_locals(model: HandModel, animation: HandAnimation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per frame the wrist node's translation ``(F, 3)`` m and every joint node's local rotation
+    ``(F, 16, 4)`` quaternions in the glTF frame (Y up: the lab's Z-up frame turned by
+    :data:`core.io.axes.Y_UP`), and the times ``(F,)`` s from the first frame."""
+    from core.io.bvh import _held
+    from core.model.kinematics import KinematicChain
+
+    angles = _held(animation.joint_angles)
+    chain = KinematicChain.from_skeleton(model.skeleton)
+    frames = len(angles)
+    world = np.tile(np.eye(4), (frames, N_JOINTS, 1, 1))
+    for frame in range(frames):
+        rotations, positions = chain.joint_transforms(angles[frame])
+        world[frame, :, :3, :3] = rotations
+        world[frame, :, :3, 3] = positions / 1000.0
+    turn = np.eye(4)
+    turn[:3, :3] = Y_UP
+    world = turn @ world
+    local = world.copy()
+    local[:, 1:] = np.linalg.inv(world[:, JOINT_PARENTS[1:]]) @ world[:, 1:]
+    quaternions = np.stack([_continuous(_quaternions(local[:, joint, :3, :3])) for joint in range(N_JOINTS)], axis=1)
+    times = np.arange(frames) / float(animation.frame_rate)
+    return local[:, 0, :3, 3], quaternions, times
+
+
+class _Binary:
+    """The buffer of a glTF being written: bufferViews and accessors appended with 4-byte alignment."""
+
+    def __init__(self) -> None:
+        self.data = bytearray()
+        self.views: list[dict] = []
+        self.accessors: list[dict] = []
+
+    def add(self, array: np.ndarray, component: int, kind: str, target: int | None = None,
+            bounds: bool = False) -> int:
+        """Append ``array`` as one bufferView and accessor (with min/max when ``bounds``); its index."""
+        data = np.ascontiguousarray(array).tobytes()
+        self.data += b"\0" * ((-len(self.data)) % 4)
+        view: dict = {"buffer": 0, "byteOffset": len(self.data), "byteLength": len(data)}
+        if target:
+            view["target"] = target
+        self.views.append(view)
+        self.data += data
+        width = _WIDTHS[kind]
+        accessor: dict = {"bufferView": len(self.views) - 1, "componentType": component,
+                          "count": int(array.size // width), "type": kind}
+        if bounds:
+            rows = np.asarray(array, dtype=np.float64).reshape(-1, width)
+            accessor["min"] = [float(v) for v in rows.min(axis=0)]
+            accessor["max"] = [float(v) for v in rows.max(axis=0)]
+        self.accessors.append(accessor)
+        return len(self.accessors) - 1
+
+
+def save_gltf_hand(model: HandModel, path: str | Path, animation: HandAnimation | None = None) -> None:
+    """Write ``model`` as glTF 2.0 (``.glb`` binary or ``.gltf`` with an embedded buffer), metres, atomically.
+
+    With ``animation``, one glTF animation "motion": the wrist node's translation and a rotation
+    sampler per joint node (16; the tips follow their distal joint), linear, keyed at every frame in
+    seconds; the motion is in metres and Y up (the lab frame turned by :data:`core.io.axes.Y_UP`).
+    Skin slots of zero weight point at joint 0 (the validator's ACCESSOR_JOINTS_USED_ZERO_WEIGHT)."""
+    path = Path(path)
+    if path.suffix.lower() not in (".glb", ".gltf"):
+        raise InputError(f"{path.name}: glTF export needs a .glb or .gltf file name")
+    if animation is not None:
+        angles = np.asarray(animation.joint_angles)
+        if angles.ndim != 2 or angles.shape[1] != 26 or not len(angles):
+            raise InputError(f"glTF animation needs joint angles (F, 26) with F > 0, got {angles.shape}")
+        if not (np.isfinite(animation.frame_rate) and animation.frame_rate > 0):
+            raise InputError(f"frame rate must be positive, got {animation.frame_rate}")
+    skeleton = model.skeleton
+    world = _rest_world(skeleton)
     parents = list(JOINT_PARENTS) + [3 + 3 * d for d in range(5)]
     names = list(JOINT_NAMES) + [f"{d}_tip" for d in DIGITS]
     nodes = []
@@ -607,53 +708,52 @@ def save_gltf_hand(model: HandModel, path: str | Path) -> None:
     mesh_node = len(nodes)
     nodes.append({"name": f"{model.side}_hand_mesh", "mesh": 0, "skin": 0})
 
-    positions = (model.vertices / 1000.0).astype(np.float32)
-    normals = model.vertex_normals.astype(np.float32)
-    joints = model.skin_joints.astype(np.uint16)
     weights = model.skin_weights.astype(np.float32)
-    indices = model.faces.astype(np.uint32).ravel()
-    inverse_bind = np.linalg.inv(world).transpose(0, 2, 1).astype(np.float32)   # column-major
-    blobs = [positions, normals, joints, weights, indices, inverse_bind]
-    specs = [(5126, "VEC3", 34962), (5126, "VEC3", 34962), (5123, "VEC4", 34962), (5126, "VEC4", 34962),
-             (5125, "SCALAR", 34963), (5126, "MAT4", None)]
-    binary = b""
-    views, accessors = [], []
-    for blob, (component, kind, target) in zip(blobs, specs, strict=True):
-        data = np.ascontiguousarray(blob).tobytes()
-        view = {"buffer": 0, "byteOffset": len(binary), "byteLength": len(data)}
-        if target:
-            view["target"] = target
-        views.append(view)
-        count = blob.size // _WIDTHS[kind]
-        accessor = {"bufferView": len(views) - 1, "componentType": component, "count": int(count), "type": kind}
-        if blob is positions:
-            accessor["min"] = [float(v) for v in positions.min(axis=0)]
-            accessor["max"] = [float(v) for v in positions.max(axis=0)]
-        accessors.append(accessor)
-        binary += data + b"\0" * ((-len(data)) % 4)
-    document = {
+    weights /= weights.sum(axis=1, keepdims=True)
+    joints = np.where(weights > 0, model.skin_joints, 0).astype(np.uint16)
+    binary = _Binary()
+    attributes = {"POSITION": binary.add((model.vertices / 1000.0).astype(np.float32), 5126, "VEC3", 34962, True),
+                  "NORMAL": binary.add(model.vertex_normals.astype(np.float32), 5126, "VEC3", 34962),
+                  "JOINTS_0": binary.add(joints, 5123, "VEC4", 34962),
+                  "WEIGHTS_0": binary.add(weights, 5126, "VEC4", 34962)}
+    indices = binary.add(model.faces.astype(np.uint32).ravel(), 5125, "SCALAR", 34963)
+    inverse_bind = binary.add(np.linalg.inv(world).transpose(0, 2, 1).astype(np.float32), 5126, "MAT4")
+    document: dict = {
         "asset": {"version": "2.0", "generator": "Hand Mocap Studio"},
         "scene": 0, "scenes": [{"name": "Scene", "nodes": [0, mesh_node]}],
         "nodes": nodes,
-        "meshes": [{"name": model.name, "primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1, "JOINTS_0": 2,
-                                                                        "WEIGHTS_0": 3}, "indices": 4, "mode": 4}]}],
-        "skins": [{"name": f"{model.side}_hand", "joints": list(range(N_JOINTS + 5)), "inverseBindMatrices": 5,
-                   "skeleton": 0}],
-        "accessors": accessors, "bufferViews": views,
-        "buffers": [{"byteLength": len(binary)}],
+        "meshes": [{"name": model.name, "primitives": [{"attributes": attributes, "indices": indices, "mode": 4}]}],
+        "skins": [{"name": f"{model.side}_hand", "joints": list(range(N_JOINTS + 5)),
+                   "inverseBindMatrices": inverse_bind, "skeleton": 0}],
+    }
+    if animation is not None:
+        translation, rotations, times = _animation_locals(model, animation)
+        time_accessor = binary.add(times.astype(np.float32), 5126, "SCALAR", bounds=True)
+        samplers = [{"input": time_accessor, "output": binary.add(translation.astype(np.float32), 5126, "VEC3"),
+                     "interpolation": "LINEAR"}]
+        channels = [{"sampler": 0, "target": {"node": 0, "path": "translation"}}]
+        for joint in range(N_JOINTS):
+            samplers.append({"input": time_accessor, "output": binary.add(rotations[:, joint].astype(np.float32),
+                                                                          5126, "VEC4"), "interpolation": "LINEAR"})
+            channels.append({"sampler": len(samplers) - 1, "target": {"node": joint, "path": "rotation"}})
+        document["animations"] = [{"name": "motion", "samplers": samplers, "channels": channels}]
+    document.update({
+        "accessors": binary.accessors, "bufferViews": binary.views,
+        "buffers": [{"byteLength": len(binary.data)}],
         "extras": {"handmocap": {"side": model.side, "landmarks": {k: int(v) for k, v in model.landmarks.items()},
                                  "back_direction": [float(v) for v in model.back_direction],
                                  "hand_length": float(model.hand_length), "name": model.name}},
-    }
+    })
+    data = bytes(binary.data) + b"\0" * ((-len(binary.data)) % 4)
+    document["buffers"][0]["byteLength"] = len(data)
     if path.suffix.lower() == ".gltf":
-        document["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(binary).decode()
+        document["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(data).decode()
         write_text_atomic(path, json.dumps(document))
     else:
         text = json.dumps(document).encode("utf-8")
         text += b" " * ((-len(text)) % 4)
-        total = 12 + 8 + len(text) + 8 + len(binary)
+        total = 12 + 8 + len(text) + 8 + len(data)
         with durable_stream(path) as stream:
             stream.write(struct.pack("<III", _GLB_MAGIC, 2, total))
             stream.write(struct.pack("<II", len(text), _JSON_CHUNK) + text)
-            stream.write(struct.pack("<II", len(binary), _BIN_CHUNK) + binary)
-
+            stream.write(struct.pack("<II", len(data), _BIN_CHUNK) + data)

@@ -8,9 +8,11 @@ mm through :func:`core.io.c3d_writer.write_c3d_points` (streamed): a measured sa
 bit when the input came from a float C3D; other inputs are rounded to float32, under 0.1 µm at 1 m).
 Filled samples are written too, as valid points.
 
-Residual word (C3D convention): -1 for a missing sample, 0 for every written sample (the C3D
-standard's "valid, residual not computed"; filled and measured samples are told apart by the
-``PROVENANCE`` group, not by the residual).
+Residual word (C3D standard, see :mod:`core.io.c3d_writer`): -1 for a missing sample; 0 for a filled
+sample (the standard's "valid, not the measured value": interpolated or modelled); for a measured
+sample its residual in units of ``|POINT:SCALE|`` mm, at least 1: the labelling/IK residual (distance
+from the solved hand's marker to the point) where the review has one, else 1 (measured, residual not
+known). The fill method of each filled sample is kept exactly by the ``PROVENANCE`` group.
 
 ``PROVENANCE`` parameter group (C3D parameters are limited to 255 per dimension, so per-sample codes
 are run-length encoded and split over numbered parameters, like ``POINT:LABELS2``):
@@ -18,7 +20,7 @@ are run-length encoded and split over numbered parameters, like ``POINT:LABELS2`
 * ``FORMAT`` (int) 1; ``SOFTWARE`` (text); ``DESCRIPTION`` (text, this scheme in one line);
 * ``LABELLED`` (int): the number of labelled points (the first points; the rest are ``*n``);
 * ``CODES`` (text list): the code legend ``-1 missing, 0 measured, 1 linear, 2 spline, 3 pattern,
-  4 rigid, 5 model``;
+  4 rigid, 5 model, 6 PCA``;
 * ``RUNS``, ``RUNS2``, ``RUNS3``... (float, dims 4 × n ≤ 255): one column per run of a labelled
   point's samples whose code is not 0 (measured): point index (0-based in ``POINT:LABELS``), first
   frame (0-based from the file's first frame), number of frames, code. Samples not covered are
@@ -49,8 +51,8 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
-from core.io.c3d_file import read_c3d
-from core.io.c3d_writer import write_c3d_points
+from core.io.c3d_file import _INTEL, _parse, read_c3d
+from core.io.c3d_writer import RESIDUAL_PROCESSED, write_c3d_points
 from core.io.errors import TakeFormatError
 from core.io.take import Take
 
@@ -60,7 +62,7 @@ GROUP = "PROVENANCE"
 FORMAT_VERSION = 1
 RUN_LIMIT = 255  # C3D: at most 255 per dimension
 CODE_LEGEND = ["-1 missing", "0 measured", "1 linear fill", "2 spline fill", "3 pattern fill", "4 rigid body fill",
-               "5 model fill"]
+               "5 model fill", "6 PCA fill"]
 DESCRIPTION = ("per-sample provenance of the labelled points: RUNS* (point, first frame, frames, code), "
                "samples not in a run are measured; EDITED* and GHOSTS* runs (point, first frame, frames)")
 UNLABELLED_PREFIX = "*"
@@ -73,8 +75,9 @@ class LabelledC3D:
     """A labelled C3D read back: ``take`` holds every point of the file (labels first, then the
     unlabelled ``*n`` points); ``n_labels`` labelled points; ``provenance (F, n_labels)`` int8 codes;
     ``edited (F, n_labels)`` bool; ``ghost (F, P - n_labels)`` bool for the unlabelled points;
-    ``source``: the raw take it came from; ``hands``: ``"name:side:layout"`` strings. A C3D without a
-    PROVENANCE group reads as all-labelled, measured where present."""
+    ``residuals_mm (F, n_labels)``: the residual the file stores for measured samples (NaN none or not
+    known); ``source``: the raw take it came from; ``hands``: ``"name:side:layout"`` strings. A C3D without
+    a PROVENANCE group reads as all-labelled, measured where present."""
 
     take: Take
     n_labels: int
@@ -83,6 +86,7 @@ class LabelledC3D:
     ghost: np.ndarray
     source: str | None = None
     hands: list[str] | None = None
+    residuals_mm: np.ndarray | None = None
 
     @property
     def label_names(self) -> list[str]:
@@ -154,12 +158,12 @@ def write_labelled_c3d(path: str | PathLike[str], label_names: list[str], positi
                        edited: np.ndarray | None = None, unlabelled: np.ndarray | None = None,
                        unlabelled_names: list[str] | None = None, ghost: np.ndarray | None = None,
                        source: str | None = None, hands: list[str] | None = None,
-                       parameters: dict[str, dict] | None = None) -> None:
+                       parameters: dict[str, dict] | None = None, residuals_mm: np.ndarray | None = None) -> None:
     """Write a labelled C3D (scheme in the module docstring), atomically.
 
     ``positions (F, M, 3)`` mm: measured and filled samples of the M labels (NaN missing);
     ``provenance (F, M)`` codes (0 measured, 1..6 fill method as PROVENANCE_NAMES, -1 missing);
-    ``edited (F, M)`` bool;
+    ``edited (F, M)`` bool; ``residuals_mm (F, M)``: the measured samples' residuals (NaN not known);
     ``unlabelled (F, U, 3)`` mm named ``unlabelled_names`` (default ``*0``, ``*1``...), ``ghost (F, U)``
     bool; ``parameters``: other groups to copy (a group the writer cannot store is dropped with a
     warning). The points are streamed to the file, never joined in memory. Raises TakeFormatError (one
@@ -174,6 +178,10 @@ def write_labelled_c3d(path: str | PathLike[str], label_names: list[str], positi
     present = np.isfinite(positions).all(axis=2)
     codes = np.where(present, np.where(provenance == -1, 0, provenance), -1).astype(np.int8)  # codes -1..6
     edited = np.zeros((frames, count), dtype=bool) if edited is None else np.asarray(edited, dtype=bool)
+    residuals = np.full((frames, count), np.nan) if residuals_mm is None else np.asarray(residuals_mm, float)
+    if residuals.shape != (frames, count):
+        raise TakeFormatError.at(path, f"residuals must be {(frames, count)}, got {residuals.shape}")
+    residuals = np.where(codes > 0, RESIDUAL_PROCESSED, np.where(residuals > 0, residuals, np.nan))
     names = list(label_names)
     columns = [positions]
     unlabelled_count = 0
@@ -198,14 +206,15 @@ def write_labelled_c3d(path: str | PathLike[str], label_names: list[str], positi
     if hands:
         group["HANDS"] = list(hands)
     kept = {name: dict(values) for name, values in (parameters or {}).items() if name.upper() != GROUP}
+    block_residuals = [residuals] + [None] * (len(columns) - 1)
     try:
-        write_c3d_points(path, names, columns, frame_rate, first_frame, {**kept, GROUP: group})
+        write_c3d_points(path, names, columns, frame_rate, first_frame, {**kept, GROUP: group}, block_residuals)
     except TakeFormatError:
         if not kept:
             raise
         _log.warning("%s: the source take's parameter groups cannot all be written; writing without them",
                      Path(path).name)
-        write_c3d_points(path, names, columns, frame_rate, first_frame, {GROUP: group})
+        write_c3d_points(path, names, columns, frame_rate, first_frame, {GROUP: group}, block_residuals)
 
 
 def read_labelled_c3d(path: str | PathLike[str]) -> LabelledC3D:
@@ -243,8 +252,35 @@ def read_labelled_c3d(path: str | PathLike[str]) -> LabelledC3D:
     hands = group.get("HANDS")
     hands = [hands] if isinstance(hands, str) else (list(hands) if isinstance(hands, list) else None)
     take.parameters = {name: values for name, values in take.parameters.items() if name != GROUP}
+    residuals = np.where(provenance == 0, read_residuals_mm(path, frames, count), np.nan)
     return LabelledC3D(take, count, provenance, edited, ghost & present[:, count:],
-                       source=source if isinstance(source, str) and source else None, hands=hands)
+                       source=source if isinstance(source, str) and source else None, hands=hands,
+                       residuals_mm=residuals)
+
+
+def read_residuals_mm(path: str | PathLike[str], frames: int, count: int) -> np.ndarray:
+    """The residuals ``(frames, count)`` mm of the first ``count`` points of an Intel float C3D as this
+    package writes them (residual byte x ``|POINT:SCALE|``); NaN where the word is not a measured residual
+    (missing, filled, unknown) and for every sample of other C3D variants."""
+    result = np.full((frames, count), np.nan)
+    with Path(path).open("rb") as stream:
+        head = stream.read(1 << 20)
+    try:
+        parsed = _parse(head, path)
+    except TakeFormatError:
+        return result
+    scale = parsed.scale
+    if parsed.processor != _INTEL or not scale < 0 or parsed.n_points < count or not count:
+        return result
+    width = 4 * parsed.n_points + parsed.analog_words_per_frame
+    offset = (parsed.data_block - 1) * 512
+    if Path(path).stat().st_size < offset + 4 * width * frames:
+        return result
+    data = np.memmap(path, dtype="<f4", mode="r", offset=offset, shape=(frames, width))
+    words = np.array(data[:, 3:4 * count:4], dtype=np.float64)
+    del data
+    units = np.where(np.isfinite(words) & (words > 0), np.fmod(np.rint(words), 256.0), 0.0)
+    return np.where(units > 0, units * abs(scale), np.nan)
 
 
 @dataclass(frozen=True, eq=False)

@@ -8,8 +8,16 @@
     <blank line>
     1       0.000000  x  y  z  x  y  z ...
 
-Units are "mm", "cm" or "m" (converted to mm on reading; written as mm). Missing samples are
-empty cells (also "NaN" or (0, 0, 0) on reading). The first frame number is the first Frame# cell.
+Units are "mm", "cm" or "m" (converted to mm on reading; written in mm unless asked). Missing samples
+are empty cells (also "NaN" or (0, 0, 0) on reading). The first frame number is the first Frame# cell.
+
+Written as OpenSim's TRC reader (``TRCFileAdapter``) expects: exactly the eight header keys above in
+that order with eight values; the marker name row ``Frame#``, ``Time`` then each name followed by three
+tabs; the ``X1 Y1 Z1 ...`` row after two tabs; one blank line; data rows of exactly 2 + 3 x markers
+cells, each row ending in a tab like OpenSim's own writer (its reader drops an empty last cell, so a
+row whose last marker is missing would otherwise be a cell short), empty cells for missing samples
+and no blank line inside the data. OpenSim models are Y up in metres: write with ``units="m"`` and
+``up="y"`` (:mod:`core.io.axes`).
 """
 
 import itertools
@@ -18,6 +26,7 @@ import math
 from os import PathLike
 from pathlib import Path
 
+from core.io.axes import check_units, convert_points
 from core.io.durable import write_text_atomic
 from core.io.errors import TakeFormatError
 from core.io.take import (
@@ -81,32 +90,26 @@ def read_trc(path: str | PathLike[str]) -> Take:
     )
 
 
-def write_trc(take: Take, path: str | PathLike[str]) -> None:
-    """Write `take` as a TRC file in mm (missing samples as empty cells), atomically."""
-    unusable = [name for name in take.marker_names if "\t" in name or "\n" in name or "\r" in name]
+def write_trc(take: Take, path: str | PathLike[str], units: str = "mm", up: str = "z") -> None:
+    """Write `take` as a TRC file in ``units`` ("mm", "cm", "m") with ``up`` ("z" as recorded, or "y"),
+    missing samples as empty cells (module docstring), atomically."""
+    unusable = [name for name in take.marker_names if "\t" in name or "\n" in name or "\r" in name or not name.strip()]
     if unusable:
-        raise TakeFormatError.at(path, f"marker name {unusable[0]!r} contains a tab or line break")
+        raise TakeFormatError.at(path, f"marker name {unusable[0]!r} is empty or contains a tab or line break")
+    check_units(units)
     rate = repr(take.frame_rate)
     header = [
         f"PathFileType\t4\t(X/Y/Z)\t{Path(path).name}",
         "\t".join(_HEADER_KEYS),
-        "\t".join(
-            [
-                rate,
-                rate,
-                str(take.n_frames),
-                str(take.n_markers),
-                "mm",
-                rate,
-                str(take.first_frame),
-                str(take.n_frames),
-            ]
-        ),
+        "\t".join([rate, rate, str(take.n_frames), str(take.n_markers), units, rate, str(take.first_frame),
+                   str(take.n_frames)]),
         "\t".join(["Frame#", "Time"] + [f"{name}\t\t" for name in take.marker_names]),
         "\t".join(["", ""] + [f"X{i}\tY{i}\tZ{i}" for i in range(1, take.n_markers + 1)]),
         "",
     ]
-    body = format_number_rows(take.first_frame, take.frame_rate, take.marker_positions, "\t")
+    positions = convert_points(take.marker_positions, units, up) if (units, up) != ("mm", "z") \
+        else take.marker_positions
+    body = format_number_rows(take.first_frame, take.frame_rate, positions, "\t").replace("\n", "\t\n")
     write_text_atomic(path, "\n".join(header) + "\n" + body)
 
 

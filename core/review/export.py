@@ -1,6 +1,10 @@
 """Exports of a review: labelled C3D (with provenance), joint angles as CSV and BVH; labelled C3D import.
 
 Exports show the file's own frame numbers (``take.first_frame`` onwards) and never change the review.
+A review read from a labelled C3D keeps everything that file's provenance says when it is exported
+again (e.g. by ``handmocap fill``): the codes of measured and filled samples, edit and ghost flags, the
+measured residuals, the raw take it was labelled from (``SOURCE``), its hands (``HANDS``) and the names
+of its unlabelled ``*n`` points.
 """
 
 from __future__ import annotations
@@ -12,8 +16,11 @@ import numpy as np
 from core.errors import InputError
 from core.io import Take
 from core.io.bvh import write_bvh
+from core.io.csv_file import write_csv
+from core.io.gltf import HandAnimation, save_gltf_hand
 from core.io.joint_angles import write_joint_angles_csv
 from core.io.labelled_c3d import (
+    GROUP,
     SUBJECT_GROUP,
     UNLABELLED_PREFIX,
     SubjectCalibration,
@@ -21,11 +28,13 @@ from core.io.labelled_c3d import (
     subject_group,
     write_labelled_c3d,
 )
-from core.model import HandModel
+from core.io.trc import write_trc
+from core.model import HandModel, load_layout, marker_columns
 from core.model.provenance import MEASURED, MISSING
 from core.review.take import HandTrack, ReviewTake
 
 UNLABELLED_CHOICES = ("all", "non-ghost", "none")
+HAND_PREFIXES = {"right": "R_", "left": "L_"}
 
 
 def unlabelled_columns(review: ReviewTake, unlabelled: str = "all") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -47,39 +56,105 @@ def unlabelled_columns(review: ReviewTake, unlabelled: str = "all") -> tuple[np.
     return columns, positions, review.ghost[:, columns] & free[:, columns]
 
 
+#: export formats: name -> (file suffixes, takes units and up axis, needs a solved hand)
+EXPORT_FORMATS: dict[str, tuple[tuple[str, ...], bool, bool]] = {
+    "c3d": ((".c3d",), False, False), "trc": ((".trc",), True, False), "csv": ((".csv",), False, False),
+    "bvh": ((".bvh",), True, True), "gltf": ((".glb", ".gltf"), False, True)}
+
+
+def export_review(review: ReviewTake, path: str | PathLike[str], format_name: str, *, units: str | None = None,
+                  up: str | None = None, hand: str | None = None, fills: bool = True, model: HandModel | None = None,
+                  subjects: list[SubjectCalibration] | None = None) -> None:
+    """Write ``review`` as ``format_name`` (:data:`EXPORT_FORMATS`): "c3d" labelled C3D (mm, Z up, with
+    provenance and ``subjects``), "trc" (``units``, ``up``), "csv" labelled points (mm), "bvh" (``units``,
+    ``up``) and "gltf" (metres, Y up by the glTF specification) of the solved ``hand`` side (default: the
+    first hand) on ``model``. ``fills`` False leaves the fills out of the point formats. InputError (one
+    line) on options the format does not take."""
+    if format_name not in EXPORT_FORMATS:
+        raise InputError(f"unknown export format '{format_name}' (use {', '.join(EXPORT_FORMATS)})")
+    suffixes, axes, angles = EXPORT_FORMATS[format_name]
+    if not str(path).lower().endswith(suffixes):
+        raise InputError(f"a {format_name} file name must end in {' or '.join(suffixes)}: {path}")
+    if not axes and (units not in (None, "mm" if format_name != "gltf" else "m")
+                     or up not in (None, "z" if format_name != "gltf" else "y")):
+        fixed = "metres and Y up (the glTF specification)" if format_name == "gltf" else "mm in the lab frame (Z up)"
+        raise InputError(f"{format_name} files are always in {fixed}; --units and --up apply to trc and bvh")
+    if angles and not fills:
+        raise InputError("--no-fills applies to the marker formats (c3d, trc, csv), not to joint angles")
+    if hand is not None and not angles:
+        raise InputError("--hand applies to the joint-angle formats (bvh, gltf)")
+    units, up = units or "mm", up or "z"
+    if format_name == "c3d":
+        export_labelled_c3d(review, path, subjects=subjects, fills=fills)
+    elif format_name == "trc":
+        export_trc(review, path, units, up, fills)
+    elif format_name == "csv":
+        export_points_csv(review, path, fills)
+    else:
+        track = _hand_of_side(review, hand)
+        if model is None:
+            raise InputError(f"no hand model given for the {track.side} hand")
+        if format_name == "bvh":
+            export_bvh(review, path, model, track.name, units, up)
+        else:
+            export_gltf(review, path, model, track.name)
+
+
+def _hand_of_side(review: ReviewTake, side: str | None) -> HandTrack:
+    """The first hand of ``side`` ("right", "left"; None: the first hand); InputError when there is none."""
+    if not review.hands:
+        raise InputError("this take has no hand (label it with a layout first: handmocap label)")
+    for track in review.hands:
+        if side is None or track.side == side:
+            return track
+    raise InputError(f"this take has no {side} hand (it has: {', '.join(h.side for h in review.hands)})")
+
+
 def export_labelled_c3d(review: ReviewTake, path: str | PathLike[str], unlabelled: str = "all",
-                        subjects: list[SubjectCalibration] | None = None) -> None:
+                        subjects: list[SubjectCalibration] | None = None, fills: bool = True) -> None:
     """Write the review as a labelled C3D (``core.io.labelled_c3d``): the labels with their measured
     points and accepted fills, provenance per sample, edited samples, and the unlabelled raw points as
     ``*<column>`` (``unlabelled``: "all", "non-ghost" or "none"); ``subjects``: the hands' subject
-    calibrations, written as the ``HAND_SUBJECT`` group (else the source's group, if any, is copied).
-    Atomic; InputError on failure."""
+    calibrations, written as the ``HAND_SUBJECT`` group (else the source's group, if any, is copied);
+    ``fills`` False writes the filled samples as missing. Atomic; InputError on failure."""
     columns, positions, ghost = unlabelled_columns(review, unlabelled)
-    hands = [f"{hand.name}:{hand.side}:{hand.layout or ''}" for hand in review.hands]
+    earlier = review.take.parameters.get(GROUP, {})
+    hands = [f"{hand.name}:{hand.side}:{hand.layout or ''}" for hand in review.hands] or earlier.get("HANDS")
     parameters = {name: values for name, values in review.take.parameters.items()
                   if name.upper() not in ("POINT", "ANALOG", "FORCE_PLATFORM", "ROTATION", "EZC3D")}
     if subjects:
         parameters[SUBJECT_GROUP] = subject_group(subjects)
-    write_labelled_c3d(path, review.label_names, review.labelled_positions(), review.provenance,
+    raw_names = review.take.marker_names
+    names = [raw_names[column] if raw_names[column].startswith(UNLABELLED_PREFIX) else f"{UNLABELLED_PREFIX}{column}"
+             for column in columns]
+    labelled = review.labelled_positions() if fills else review.measured_positions()
+    provenance = review.provenance if fills else np.where(review.provenance > 0, MISSING, review.provenance)
+    write_labelled_c3d(path, review.label_names, labelled, provenance,
                        review.take.frame_rate, review.take.first_frame, edited=review.edited,
-                       unlabelled=positions if len(columns) else None,
-                       unlabelled_names=[f"{UNLABELLED_PREFIX}{column}" for column in columns], ghost=ghost,
-                       source=review.take.source_path, hands=hands, parameters=parameters)
+                       unlabelled=positions if len(columns) else None, unlabelled_names=names, ghost=ghost,
+                       source=earlier.get("SOURCE") or review.take.source_path, hands=hands, parameters=parameters,
+                       residuals_mm=review.residuals_mm)
 
 
 def review_from_labelled_c3d(path: str | PathLike[str]) -> ReviewTake:
     """A review from a labelled C3D (ours or any labelled C3D): labels, measured points, accepted fills
     (by the PROVENANCE codes), edit flags, and the ``*n`` points as unlabelled raw points (ghost flags
-    kept). The raw take of the review has the fills removed (they are not measurements)."""
+    kept), the measured residuals the file stores, and its hands (unsolved) when their layout's markers are
+    all labels. The raw take of the review has the fills removed (they are not measurements); its
+    parameters keep the file's ``SOURCE`` and ``HANDS`` for :func:`export_labelled_c3d`."""
     data = read_labelled_c3d(path)
     take, count = data.take, data.n_labels
     fills = np.zeros((take.n_frames, take.n_markers), dtype=bool)
     fills[:, :count] = data.provenance > 0
     raw_positions = np.where(fills[:, :, None], np.nan, take.marker_positions)
+    carried = {key: value for key, value in (("SOURCE", data.source), ("HANDS", data.hands)) if value}
+    parameters = {**take.parameters, GROUP: carried} if carried else take.parameters
     raw = Take(marker_names=list(take.marker_names), marker_positions=raw_positions, frame_rate=take.frame_rate,
                first_frame=take.first_frame, vendor=take.vendor, source_units=take.source_units,
-               source_path=take.source_path, parameters=take.parameters)
-    review = ReviewTake.unlabelled(raw, list(take.marker_names[:count]))
+               source_path=take.source_path, parameters=parameters)
+    review = ReviewTake.unlabelled(raw, list(take.marker_names[:count]), labelled_hands(take.marker_names[:count],
+                                                                                       data.hands or [],
+                                                                                       take.n_frames))
     measured = data.provenance == MEASURED
     review.assignment = np.where(measured, np.arange(count)[None, :], -1).astype(np.int64)
     review.provenance = np.where(measured, MEASURED, np.where(data.provenance > 0, data.provenance, MISSING)
@@ -87,8 +162,29 @@ def review_from_labelled_c3d(path: str | PathLike[str]) -> ReviewTake:
     review.filled_positions = np.where((data.provenance > 0)[:, :, None], take.marker_positions[:, :count], np.nan)
     review.edited = data.edited.copy()
     review.ghost[:, count:] = data.ghost
+    if data.residuals_mm is not None:
+        review.residuals_mm = data.residuals_mm.copy()
     review.__post_init__()
     return review
+
+
+def labelled_hands(label_names: list[str], hands: list[str], frames: int) -> list[HandTrack]:
+    """Unsolved tracks of the ``"name:side:layout"`` ``hands`` of a labelled C3D whose layout's markers
+    (``R_``/``L_`` prefixed with two hands) are all among ``label_names``; the others are left out."""
+    tracks = []
+    for text in hands:
+        name, side, layout_name = (text.split(":") + ["", ""])[:3]
+        if side not in HAND_PREFIXES or not layout_name:
+            continue
+        try:
+            layout = load_layout(layout_name)
+        except InputError:
+            continue
+        prefix = HAND_PREFIXES[side] if len(hands) > 1 else ""
+        columns = marker_columns(label_names, [prefix + marker for marker in layout.names])
+        if len(columns) and (columns >= 0).all():
+            tracks.append(HandTrack(name or side, side, layout_name, columns, np.full((frames, 26), np.nan)))
+    return tracks
 
 
 def _hand(review: ReviewTake, hand: int | str) -> HandTrack:
@@ -119,12 +215,44 @@ def export_joint_angles_csv(review: ReviewTake, path: str | PathLike[str]) -> No
 
 
 def export_bvh(review: ReviewTake, path: str | PathLike[str], model: HandModel, hand: int | str = 0,
-               units: str = "mm") -> None:
+               units: str = "mm", up: str = "z") -> None:
     """One hand's joint angles as BVH (``core.io.bvh``) on ``model``'s rest skeleton (the subject's
-    calibrated model, or the template; it must be of the hand's side). Joint names are prefixed
-    ``R_``/``L_`` when the take has two hands."""
+    calibrated model, or the template; it must be of the hand's side) in ``units`` with ``up`` ("z" or
+    "y"). Joint names are prefixed ``R_``/``L_`` when the take has two hands."""
     track = _hand(review, hand)
     if model.side != track.side:
         raise InputError(f"the {track.name} hand is a {track.side} hand; the model is a {model.side} hand")
     write_bvh(path, model.skeleton, track.joint_angles, review.take.frame_rate, prefix=_prefix(review, track),
-              units=units)
+              units=units, up=up)
+
+
+def export_gltf(review: ReviewTake, path: str | PathLike[str], model: HandModel, hand: int | str = 0) -> None:
+    """One hand as a skinned glTF 2.0 (``.glb``/``.gltf``) on ``model`` with its joint angles as the
+    animation (``core.io.gltf``: metres, Y up, times in seconds from the take's first frame)."""
+    track = _hand(review, hand)
+    if model.side != track.side:
+        raise InputError(f"the {track.name} hand is a {track.side} hand; the model is a {model.side} hand")
+    if not np.isfinite(track.joint_angles).all(axis=1).any():
+        raise InputError(f"the {track.name} hand is not solved in any frame; nothing to animate")
+    save_gltf_hand(model, path, HandAnimation(track.joint_angles, review.take.frame_rate))
+
+
+def export_trc(review: ReviewTake, path: str | PathLike[str], units: str = "mm", up: str = "z",
+               fills: bool = True) -> None:
+    """The labelled points as TRC (``core.io.trc``; OpenSim: ``units="m"``, ``up="y"``); without
+    ``fills`` the filled samples are left empty (only measured points)."""
+    write_trc(labelled_take(review, fills), path, units=units, up=up)
+
+
+def export_points_csv(review: ReviewTake, path: str | PathLike[str], fills: bool = True) -> None:
+    """The labelled points as CSV in mm (``core.io.csv_file``: ``frame, time_s``, then x, y, z per label;
+    missing samples empty); without ``fills`` only the measured points."""
+    write_csv(labelled_take(review, fills), path)
+
+
+def labelled_take(review: ReviewTake, fills: bool = True) -> Take:
+    """A take of the labels: ``(F, M, 3)`` mm, measured points and (with ``fills``) accepted fills."""
+    positions = review.labelled_positions() if fills else review.measured_positions()
+    return Take(marker_names=list(review.label_names), marker_positions=np.array(positions, dtype=np.float64),
+                frame_rate=review.take.frame_rate, first_frame=review.take.first_frame, vendor=review.take.vendor,
+                source_path=review.take.source_path)

@@ -40,7 +40,8 @@ class GapGroup:
 class ReviewGap:
     """A gap of review label ``label`` (``name``): frames ``start .. start + length - 1``; ``group`` index
     and the same gap in the group's take (``gap``); ``filled_method``: the accepted fill covering it
-    (None when open)."""
+    (None when open); ``filled``: per frame of the gap, whether an accepted fill already covers it (an
+    earlier fill is kept: a new fill of the gap covers only the other frames)."""
 
     label: int
     name: str
@@ -49,6 +50,7 @@ class ReviewGap:
     group: int
     gap: Gap
     filled_method: str | None
+    filled: tuple[bool, ...] = ()
 
 
 def _group_take(review: ReviewTake, labels: np.ndarray, names: list[str]) -> Take:
@@ -106,7 +108,8 @@ def find_review_gaps(review: ReviewTake, groups: list[GapGroup]) -> list[ReviewG
             method = None
             if (codes > 0).all():
                 method = PROVENANCE_NAMES[int(np.bincount(codes.astype(np.int64)).argmax())]
-            found.append(ReviewGap(label, review.label_names[label], gap.start, gap.length, number, gap, method))
+            found.append(ReviewGap(label, review.label_names[label], gap.start, gap.length, number, gap, method,
+                                   tuple(bool(code > 0) for code in codes)))
     return sorted(found, key=lambda item: (item.label, item.start))
 
 
@@ -159,11 +162,23 @@ def fill_gaps(groups: list[GapGroup], gaps: list[ReviewGap], method: str = "auto
             except InputError:
                 continue
             if np.isfinite(values).all():
-                fills.append(GapFill(gap.name, gap.start, name, values))
+                fills += _open_parts(gap, name, values)
                 break
         if progress is not None:
             progress((number + 1) / len(gaps))
     return AcceptFills(fills) if fills else None
+
+
+def _open_parts(gap: ReviewGap, method: str, values: np.ndarray) -> list[GapFill]:
+    """The fill ``values (length, 3)`` of ``gap`` cut to the frames no earlier fill covers (one GapFill per
+    run of them), so that the earlier fills and their methods stay as they were."""
+    if not any(gap.filled):
+        return [GapFill(gap.name, gap.start, method, values)]
+    open_frames = ~np.asarray(gap.filled, dtype=bool)
+    edges = np.diff(np.concatenate([[0], open_frames.astype(np.int8), [0]]))
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    return [GapFill(gap.name, gap.start + int(first), method, values[first:last])
+            for first, last in zip(starts, stops, strict=True)]
 
 
 def fill_review_gaps(review: ReviewTake, groups: list[GapGroup], max_gap: int, method: str = "auto",

@@ -1,0 +1,113 @@
+"""``handmocap export``: a labelled take or a session's reviewed take as C3D, TRC, CSV, BVH or glTF.
+
+The take is a labelled file (our labelled C3D, or any labelled C3D/TSV/TRC/CSV), ``SESSION_FOLDER:TAKE``
+or ``SESSION_FOLDER --take TAKE`` (a take id or name of a session; the session is opened read-only and
+nothing in it changes). The joint-angle formats (BVH, glTF) use the take's solved hand; a hand that is
+not solved yet is solved here (layered IK on the subject's calibrated hand when the file or session
+holds one, else the template), in memory only.
+"""
+
+from __future__ import annotations
+
+import argparse
+from contextlib import ExitStack
+from pathlib import Path
+
+import numpy as np
+
+from app.cli.common import add_outputs
+from core.errors import InputError
+
+
+def _session_take(argument: str, take: str | None) -> tuple[Path, str] | None:
+    """``(session folder, take)`` when ``argument`` names a session (``FOLDER:TAKE`` or ``FOLDER`` with
+    ``--take``), None for a take file."""
+    if take is not None:
+        if not Path(argument).is_dir():
+            raise InputError(f"--take needs a session folder, and {argument} is not a folder")
+        return Path(argument), take
+    folder, separator, name = argument.rpartition(":")
+    if separator and folder and Path(folder).is_dir() and not Path(argument).exists():
+        return Path(folder), name
+    if Path(argument).is_dir():
+        raise InputError(f"{argument} is a folder: name a take of the session (FOLDER:TAKE or --take TAKE)")
+    return None
+
+
+def _file_review(path: str):
+    """The review of a labelled take file and the subject's hand models and marker sets it holds."""
+    from app.cli.review import _load_review, _subject_hands
+    from core.io.labelled_c3d import subject_calibrations
+
+    if not Path(path).is_file():
+        raise InputError(f"{path}: no such take file")
+    review = _load_review(path)
+    models, marker_sets = _subject_hands(review.take.parameters, path)
+    return review, models, marker_sets, subject_calibrations(review.take.parameters, path)
+
+
+def _solve_missing_hands(review, models: dict, marker_sets: dict, quiet: bool) -> None:
+    """Solve, in memory, every hand of ``review`` that has no solved frame (layered IK over the take)."""
+    from core.workflows.resolve import resolve_hands
+
+    if all(np.isfinite(hand.joint_angles).all(axis=1).any() for hand in review.hands):
+        return
+    if not quiet:
+        print("solving the hands (layered IK) for the joint-angle export", flush=True)
+    for command in resolve_hands(review, (0, review.n_frames), models, pad=0, marker_sets=marker_sets):
+        if not np.isfinite(review.hands[command.hand].joint_angles).all(axis=1).any():
+            command.do(review)
+
+
+def command_export(args: argparse.Namespace) -> int:
+    from core.model import load_template
+    from core.review.export import EXPORT_FORMATS, export_review
+    from core.session import Session
+
+    angles = EXPORT_FORMATS[args.format][2]
+    with ExitStack() as cleanup:
+        session_take = _session_take(args.take, args.take_name)
+        if session_take is None:
+            review, models, marker_sets, subjects = _file_review(args.take)
+            where = args.take
+        else:
+            folder, take_id = session_take
+            session = Session.open(folder, read_only=True)
+            opened = session.open_take(take_id)
+            cleanup.callback(opened.close, save=False)
+            review, models, marker_sets, subjects = opened.review, {}, {}, None
+            entry = opened.entry
+            if entry.subject and any(s.name == entry.subject and s.model for s in session.subjects):
+                model = session.load_subject_model(entry.subject)
+                models[model.side] = model
+            where = f"take '{entry.name}' of session {folder}"
+        model = None
+        if angles:
+            _solve_missing_hands(review, models, marker_sets, args.quiet)
+            side = args.hand or (review.hands[0].side if review.hands else "right")
+            model = models.get(side) or load_template(side)
+        export_review(review, args.out, args.format, units=args.units, up=args.up, hand=args.hand,
+                      fills=not args.no_fills, model=model, subjects=subjects)
+    print(f"exported {where} ({review.n_frames} frames, {review.n_labels} labels) as {args.format} -> {args.out}")
+    return 0
+
+
+def register(commands, bench_commands, evaluate_commands) -> None:
+    """Add ``export`` to the ``handmocap`` parser."""
+    export = commands.add_parser(
+        "export", help="export a labelled take or a session's take as c3d, trc, csv, bvh or gltf",
+        description="Formats: c3d (labelled C3D with provenance, mm, lab frame), trc (markers; OpenSim: --units m "
+        "--up y), csv (markers, mm), bvh (joint angles; Blender: --units m --up y, MotionBuilder: --units cm "
+        "--up y), gltf (.glb/.gltf skinned hand with its animation; always metres, Y up).")
+    export.add_argument("take", metavar="TAKE", help="labelled take file, or SESSION_FOLDER:TAKE (id or name), or "
+                        "SESSION_FOLDER with --take")
+    export.add_argument("--take", dest="take_name", metavar="NAME", help="the take (id or name) of the session")
+    export.add_argument("--format", required=True, choices=["c3d", "trc", "csv", "bvh", "gltf"])
+    export.add_argument("--out", required=True, metavar="FILE")
+    export.add_argument("--units", choices=["mm", "cm", "m"], help="trc and bvh lengths (default mm)")
+    export.add_argument("--up", choices=["y", "z"], help="trc and bvh up axis (default z, the lab frame)")
+    export.add_argument("--hand", choices=["right", "left"], help="bvh and gltf: which hand (default the first)")
+    export.add_argument("--no-fills", action="store_true", help="c3d, trc, csv: leave filled samples out")
+    export.add_argument("--quiet", action="store_true", help="no progress output")
+    add_outputs(export, "out")
+    export.set_defaults(handler=command_export)
