@@ -261,7 +261,8 @@ def read_labelled_c3d(path: str | PathLike[str]) -> LabelledC3D:
 def read_residuals_mm(path: str | PathLike[str], frames: int, count: int) -> np.ndarray:
     """The residuals ``(frames, count)`` mm of the first ``count`` points of an Intel float C3D as this
     package writes them (residual byte x ``|POINT:SCALE|``); NaN where the word is not a measured residual
-    (missing, filled, unknown) and for every sample of other C3D variants."""
+    (missing, filled, and 1: the value written for "measured, residual not known", so a residual under 1.5
+    scale units, 0.05 mm at 1 m, also reads as not known) and for every sample of other C3D variants."""
     result = np.full((frames, count), np.nan)
     with Path(path).open("rb") as stream:
         head = stream.read(1 << 20)
@@ -280,7 +281,7 @@ def read_residuals_mm(path: str | PathLike[str], frames: int, count: int) -> np.
     words = np.array(data[:, 3:4 * count:4], dtype=np.float64)
     del data
     units = np.where(np.isfinite(words) & (words > 0), np.fmod(np.rint(words), 256.0), 0.0)
-    return np.where(units > 0, units * abs(scale), np.nan)
+    return np.where(units > 1, units * abs(scale), np.nan)
 
 
 @dataclass(frozen=True, eq=False)
