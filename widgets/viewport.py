@@ -558,6 +558,21 @@ class HandViewport(QWidget):
         """Number of rigid-body lines drawn."""
         return self._rigid_lines.GetNumberOfCells()
 
+    def set_camera_frustum(self, segments: np.ndarray | None) -> None:
+        """Draw a video camera as its viewing pyramid: ``segments (S,2,3)`` mm (start and end of each line,
+        e.g. from the camera's pose and intrinsics); None hides it. Its one actor is made at the first call."""
+        segments = np.zeros((0, 2, 3)) if segments is None else np.asarray(segments, dtype=float).reshape(-1, 2, 3)
+        if getattr(self, "_frustum_lines", None) is None:
+            if not len(segments):
+                return
+            self._frustum_lines = _segments(segments[:, 0], segments[:, 1])
+            self._frustum_actor = self._plotter.add_mesh(
+                self._frustum_lines, color=(1.0, 0.85, 0.35), line_width=1.0, opacity=0.7, lighting=False,
+                pickable=False, name="camera-frustum", reset_camera=False)
+        self._frustum_lines.ShallowCopy(_segments(segments[:, 0], segments[:, 1]))
+        self._frustum_lines.Modified()
+        self._frustum_actor.visibility = bool(len(segments))
+
     def set_effectors_visible(self, visible: bool) -> None:
         """Show or hide effectors and residual lines."""
         self._effectors_visible = bool(visible)

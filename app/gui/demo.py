@@ -1,6 +1,8 @@
 """The demo session: a session folder with a raw (unlabelled) simulated take to auto-label and review, a
-labelled simulated take, and, when the shared data folder is present, the real DFKI glove recording
-(``../shared/data/real``; or ``$HANDMOCAP_SHARED/data/real``).
+labelled simulated take, a labelled simulated take filmed by a calibrated 30 Hz colour camera (a 4 s
+640×480 video whose clock runs :data:`CAMERA_OFFSET_S` behind the mocap's), and, when the shared data
+folder is present, the real DFKI glove recording (``../shared/data/real``; or
+``$HANDMOCAP_SHARED/data/real``).
 
 The folder is ``$HANDMOCAP_DEMO_SESSION`` or ``~/.cache/handmocap/demo-session``; it is made once and
 reopened afterwards (with the operator's edits), and remade when it is damaged.
@@ -13,14 +15,24 @@ import shutil
 import time
 from pathlib import Path
 
+from core.camera.files import load_camera, save_camera
+from core.camera.writers import write_video
 from core.errors import HandMocapError
 from core.io import save_take
 from core.session import Session
+from core.session.cameras import add_camera
 from core.simulate import simulate_take
+from core.simulate.camera import random_camera, simulate_camera_take
 
 REAL_RECORDING = "dfki_glove_right_hand_frames_0001_3000.tsv"
 RAW_TAKE = "simulated raw take (dense, unlabelled).c3d"
 LABELLED_TAKE = "simulated grasps (dense, labelled).trc"
+CAMERA_TAKE = "simulated take with a camera (dense, labelled).c3d"
+CAMERA_VIDEO = "camera video (30 Hz).avi"
+CAMERA_FILE = "camera.json"
+CAMERA_FRAMES = 400        # mocap frames at 100 Hz: a 4 s take, about 117 camera frames
+CAMERA_OFFSET_S = 0.12     # the camera clock's known offset (s)
+CAMERA_DISTANCE_MM = 450.0  # from the workspace centre: the hand fills a good part of the image
 
 
 def shared_folder() -> Path | None:
@@ -64,5 +76,22 @@ def prepare_demo_session(folder: Path | None = None) -> Path:
                         unlabelled=True).take
     save_take(raw, files / RAW_TAKE)
     session.add_take(files / RAW_TAKE, subject="simulated subject", layout="dense", take=raw)
+    _add_camera_take(session, files)
     session.close()
     return folder
+
+
+def _add_camera_take(session: Session, files: Path) -> None:
+    """A labelled simulated take, its camera's video and the camera file (the simulation's truth: intrinsics,
+    pose and clock), added to ``session`` with its camera."""
+    filmed = simulate_camera_take(seed=7, n_frames=CAMERA_FRAMES, mocap_rate=100.0, offset_s=CAMERA_OFFSET_S,
+                                  camera=random_camera(7, distance=CAMERA_DISTANCE_MM))
+    take = filmed.simulated.take
+    save_take(take, files / CAMERA_TAKE)
+    entry = session.add_take(files / CAMERA_TAKE, subject="simulated subject", layout="dense", take=take,
+                             name="simulated take with a camera")
+    camera = filmed.camera
+    write_video(files / CAMERA_VIDEO, (filmed.render(index, with_depth=False)[0]
+                                       for index in range(len(filmed.camera_times))), filmed.frame_rate, camera.size)
+    save_camera(camera, files / CAMERA_FILE)
+    add_camera(session, entry.id, load_camera(files / CAMERA_FILE), files / CAMERA_VIDEO)

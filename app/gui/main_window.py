@@ -45,6 +45,7 @@ from app.gui.application import (
     SessionFolderChanged,
     SessionPart,
 )
+from app.gui.camera_controller import CameraController
 from app.gui.document import TakeDocument
 from app.gui.load_queue import LoadQueue
 from app.gui.loose_takes import loose_document
@@ -143,8 +144,10 @@ class MainWindow(QMainWindow):
         self.loader.started.connect(self.opening_label.setText)
         self.review = ReviewController(self.app, self, self.viewport, self.timeline)
         self.sessions = SessionController(self.app, self, self.loader)
+        self.cameras = CameraController(self.app, self, self.viewport)
         self._place_review()
         self._place_sessions()
+        self._place_cameras()
         self._connect_controllers()
         self.app.add_listener(self._draw_views)           # after the controllers' listeners
         self.resizeDocks([self.timeline_dock, self.tracks_dock], [140, 190], Qt.Orientation.Vertical)
@@ -309,6 +312,27 @@ class MainWindow(QMainWindow):
             self.file_menu.insertAction(first, action)
         self.file_menu.insertSeparator(first)
         self.view_menu.addAction(self.session_dock.toggleViewAction())
+
+    def _place_cameras(self) -> None:
+        """The camera dock under the marker tabs (shown when the shown take has a camera), File ▸ Add camera…,
+        Tools ▸ Camera calibration… and the sync nudge shortcuts."""
+        cameras = self.cameras
+        self.camera_dock = self._add_dock("Camera", cameras.view, Qt.DockWidgetArea.RightDockWidgetArea)
+        self.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, self.camera_dock, Qt.Orientation.Vertical)
+        self.camera_dock.hide()
+
+        def show_dock(count: int) -> None:
+            if count and not self.camera_dock.isVisible():
+                self.camera_dock.show()
+                self.resizeDocks([self.markers_dock, self.camera_dock], [300, 520], Qt.Orientation.Vertical)
+
+        cameras.cameras_loaded.connect(show_dock)
+        self.file_menu.insertAction(self.sessions.close_action, cameras.add_action)
+        self.tools_menu.addAction(cameras.wizard_action)
+        self.addActions(cameras.nudge_actions)
+        self.view_menu.addAction(self.camera_dock.toggleViewAction())
+        cameras.status_message.connect(self.statusBar().showMessage)
+        cameras.error_raised.connect(self.show_error)
 
     def _connect_controllers(self) -> None:
         """Show what the controllers tell, and pass on what one asks of the other."""

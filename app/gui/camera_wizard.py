@@ -1,0 +1,421 @@
+"""The camera calibration wizard: intrinsics from board images, extrinsics from the take's markers, the
+clock offset (sync); each step on a :class:`~app.gui.workers.TaskRunner` with progress and Cancel.
+
+Steps are tabs: 1 Intrinsics (ChArUco or chessboard images: every view's corners and RMS error, which views
+were rejected, the coverage hint), 2 Extrinsics (the shown camera's video registered against the shown take's
+markers: pose and clock, :func:`core.camera.registration.register_take`), 3 Offset (the clock offset of a
+registered camera searched around the current one, :func:`core.camera.sync.sync_markers`). The worker
+reads its own copies (images, its own video reader); a step's result replaces the wizard's camera only on
+the GUI thread. Save writes the camera: into the session with the take (the shown camera), else to a
+camera file chosen by the operator; both are durable writes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import cv2
+import numpy as np
+from PySide6.QtWidgets import (
+    QComboBox,
+    QDialog,
+    QDoubleSpinBox,
+    QFileDialog,
+    QFormLayout,
+    QHBoxLayout,
+    QLabel,
+    QLineEdit,
+    QProgressBar,
+    QPushButton,
+    QSpinBox,
+    QTableWidget,
+    QTableWidgetItem,
+    QTabWidget,
+    QVBoxLayout,
+    QWidget,
+)
+
+from app.gui.workers import TaskRunner
+from core.camera.extrinsics import Blobs, detect_blobs
+from core.camera.files import save_camera
+from core.camera.frames import image_file_size, open_frames
+from core.camera.intrinsics import BOARD_KINDS, BoardSpec, IntrinsicCalibration, calibrate_intrinsics, detect_board
+from core.camera.model import Camera
+from core.camera.registration import TakeRegistration, register_take
+from core.camera.sync import SyncResult, sync_markers
+from core.errors import CancelledError, HandMocapError, InputError
+
+if TYPE_CHECKING:
+    from app.gui.camera_controller import CameraController
+
+IMAGE_FILTER = "Board images (*.png *.jpg *.jpeg)"
+
+
+def intrinsics_task(paths: list[Path], spec: BoardSpec, name: str) -> Callable:
+    """Worker task: detect the board in every image, then calibrate (:class:`IntrinsicCalibration`)."""
+
+    def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> IntrinsicCalibration:
+        detections, size = [], None
+        for index, path in enumerate(paths):
+            if cancelled():
+                raise CancelledError("intrinsic calibration cancelled")
+            image_size = image_file_size(path)
+            if size is not None and image_size != size:
+                raise InputError(f"{path.name} is {image_size[0]}×{image_size[1]} px but the first image is "
+                                 f"{size[0]}×{size[1]}")
+            size = image_size
+            image = cv2.imdecode(np.fromfile(path, dtype=np.uint8), cv2.IMREAD_COLOR)
+            if image is None:
+                raise InputError(f"{path.name}: OpenCV cannot decode this image")
+            detections.append(detect_board(image, spec))
+            progress(0.9 * (index + 1) / len(paths))
+        result = calibrate_intrinsics(detections, size, name=name)
+        progress(1.0)
+        return result
+
+    return task
+
+
+@dataclass
+class VideoBlobs:
+    """The marker blobs of every frame of a video and the frames' times (s)."""
+
+    blobs: list[Blobs]
+    times: np.ndarray
+
+
+def _video_blobs(camera: Camera, media: Path, progress: Callable[[float], None], cancelled: Callable[[], bool],
+                 share: float) -> VideoBlobs:
+    """Blobs of every frame of ``media`` (its own reader: the dock's is the GUI thread's); progress to ``share``."""
+    blobs = []
+    with open_frames(media) as video:
+        if video.size != camera.size:
+            raise InputError(f"{media.name} is {video.size[0]}×{video.size[1]} px but the camera is "
+                             f"{camera.width}×{camera.height}")
+        for index in range(video.count):
+            if cancelled():
+                raise CancelledError("cancelled")
+            blobs.append(detect_blobs(camera, video.frame(index)))
+            progress(share * (index + 1) / video.count)
+        return VideoBlobs(blobs, video.timestamps.copy())
+
+
+def registration_task(camera: Camera, media: Path, positions: np.ndarray, mocap_rate: float,
+                      window_s: float) -> Callable:
+    """Worker task: pose and clock of ``camera`` from its video ``media`` against the take's ``positions
+    (F,M,3)`` mm (:class:`TakeRegistration`)."""
+
+    def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> TakeRegistration:
+        found = _video_blobs(camera, media, progress, cancelled, 0.7)
+        result = register_take(camera, found.blobs, found.times, positions, mocap_rate, window_s)
+        progress(1.0)
+        return result
+
+    return task
+
+
+def offset_task(camera: Camera, media: Path, positions: np.ndarray, mocap_rate: float, window_s: float) -> Callable:
+    """Worker task: the clock of the registered ``camera`` searched within ±``window_s`` (:class:`SyncResult`)."""
+
+    def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> SyncResult:
+        found = _video_blobs(camera, media, progress, cancelled, 0.9)
+        result = sync_markers(camera, found.blobs, found.times, positions, mocap_rate, window_s)
+        progress(1.0)
+        return result
+
+    return task
+
+
+class CameraWizard(QDialog):
+    """The wizard (module docstring); ``controller`` gives the shown take and camera and keeps the result."""
+
+    def __init__(self, parent: QWidget, controller: CameraController) -> None:
+        super().__init__(parent)
+        self.controller = controller
+        taken = controller.camera
+        self.camera: Camera | None = None if taken is None else taken.camera
+        self.media = None if taken is None else taken.media
+        self.image_paths: list[Path] = []
+        self.setWindowTitle("Camera calibration" + ("" if taken is None else f" — {taken.name}"))
+        self.resize(760, 620)
+        self.runner = TaskRunner(self)
+        self.runner.progressed.connect(lambda _request, fraction: self.progress_bar.setValue(round(100 * fraction)))
+        self.runner.succeeded.connect(self._succeeded)
+        self.runner.failed.connect(self._failed)
+        self.runner.cancelled.connect(lambda _request: self._ended("cancelled: nothing changed"))
+        self.runner.busy_changed.connect(self._busy_changed)
+        self._step = ""
+
+        self.tabs = QTabWidget(self)
+        self.tabs.addTab(self._intrinsics_page(), "1 Intrinsics")
+        self.tabs.addTab(self._extrinsics_page(), "2 Extrinsics")
+        self.tabs.addTab(self._offset_page(), "3 Offset")
+        self.camera_label = QLabel(self)
+        self.camera_label.setWordWrap(True)
+        self.status_label = QLabel("", self)
+        self.status_label.setWordWrap(True)
+        self.progress_bar = QProgressBar(self)
+        self.progress_bar.setRange(0, 100)
+        self.cancel_button = QPushButton("Cancel", self)
+        self.cancel_button.clicked.connect(self.runner.cancel)
+        self.save_button = QPushButton("Save camera", self)
+        self.save_button.clicked.connect(self.save)
+        close_button = QPushButton("Close", self)
+        close_button.clicked.connect(self.close)
+        bottom = QHBoxLayout()
+        bottom.addWidget(self.progress_bar, 1)
+        bottom.addWidget(self.cancel_button)
+        bottom.addStretch(0)
+        bottom.addWidget(self.save_button)
+        bottom.addWidget(close_button)
+        layout = QVBoxLayout(self)
+        layout.addWidget(self.tabs, 1)
+        layout.addWidget(self.camera_label)
+        layout.addWidget(self.status_label)
+        layout.addLayout(bottom)
+        self._busy_changed(False)
+        self._show_camera()
+
+    # ------------------------------------------------------------------------------------ pages
+    def _intrinsics_page(self) -> QWidget:
+        page = QWidget(self)
+        form = QFormLayout()
+        self.board_box = QComboBox(page)
+        self.board_box.addItems(list(BOARD_KINDS))
+        self.columns_box, self.rows_box = QSpinBox(page), QSpinBox(page)
+        for box, value in ((self.columns_box, 7), (self.rows_box, 5)):
+            box.setRange(3, 40)
+            box.setValue(value)
+        squares = QHBoxLayout()
+        squares.addWidget(self.columns_box)
+        squares.addWidget(QLabel("×"))
+        squares.addWidget(self.rows_box)
+        squares.addStretch(1)
+        self.square_box, self.marker_box = QDoubleSpinBox(page), QDoubleSpinBox(page)
+        for box, value in ((self.square_box, 30.0), (self.marker_box, 22.0)):
+            box.setRange(0.1, 1000.0)
+            box.setValue(value)
+            box.setSuffix(" mm")
+        self.dictionary_edit = QLineEdit("DICT_4X4_50", page)
+        self.images_button = QPushButton("Choose board images…", page)
+        self.images_button.clicked.connect(self.choose_images)
+        self.images_label = QLabel("no images chosen", page)
+        form.addRow("Board", self.board_box)
+        form.addRow("Squares", squares)
+        form.addRow("Square side", self.square_box)
+        form.addRow("ArUco marker side", self.marker_box)
+        form.addRow("ArUco dictionary", self.dictionary_edit)
+        images = QHBoxLayout()
+        images.addWidget(self.images_button)
+        images.addWidget(self.images_label, 1)
+        form.addRow("Images", images)
+        self.calibrate_button = QPushButton("Calibrate intrinsics", page)
+        self.calibrate_button.clicked.connect(self.start_intrinsics)
+        form.addRow(self.calibrate_button)
+        self.views_table = QTableWidget(0, 4, page)
+        self.views_table.setHorizontalHeaderLabels(["Image", "Corners", "Error (px)", "Used"])
+        self.views_table.horizontalHeader().setStretchLastSection(True)
+        self.views_table.setColumnWidth(0, 260)
+        self.coverage_label = QLabel("", page)
+        self.coverage_label.setWordWrap(True)
+        layout = QVBoxLayout(page)
+        layout.addLayout(form)
+        layout.addWidget(self.views_table, 1)
+        layout.addWidget(self.coverage_label)
+        return page
+
+    def _extrinsics_page(self) -> QWidget:
+        page = QWidget(self)
+        layout = QVBoxLayout(page)
+        text = QLabel("Registers the camera to the mocap space from the shown take's markers: the bright marker "
+                      "blobs of every video frame are matched to the projected markers (PnP over RANSAC-like "
+                      "hypotheses), and the clock offset is found with the pose.", page)
+        text.setWordWrap(True)
+        layout.addWidget(text)
+        form = QFormLayout()
+        self.register_window_box = self._window_box(page, 1.0)
+        form.addRow("Offset search (± s)", self.register_window_box)
+        layout.addLayout(form)
+        self.register_button = QPushButton("Register from the take's markers", page)
+        self.register_button.clicked.connect(self.start_registration)
+        layout.addWidget(self.register_button)
+        self.register_label = QLabel("", page)
+        self.register_label.setWordWrap(True)
+        layout.addWidget(self.register_label)
+        layout.addStretch(1)
+        return page
+
+    def _offset_page(self) -> QWidget:
+        page = QWidget(self)
+        layout = QVBoxLayout(page)
+        text = QLabel("Searches the clock offset of a registered camera around the current one: the projected "
+                      "markers against the detected blobs of every video frame. The dock's nudge buttons move it by "
+                      "hand.", page)
+        text.setWordWrap(True)
+        layout.addWidget(text)
+        form = QFormLayout()
+        self.offset_window_box = self._window_box(page, 0.5)
+        form.addRow("Search (± s)", self.offset_window_box)
+        layout.addLayout(form)
+        self.offset_button = QPushButton("Estimate the offset", page)
+        self.offset_button.clicked.connect(self.start_offset)
+        layout.addWidget(self.offset_button)
+        self.offset_label = QLabel("", page)
+        self.offset_label.setWordWrap(True)
+        layout.addWidget(self.offset_label)
+        layout.addStretch(1)
+        return page
+
+    @staticmethod
+    def _window_box(parent: QWidget, value: float) -> QDoubleSpinBox:
+        box = QDoubleSpinBox(parent)
+        box.setRange(0.05, 10.0)
+        box.setSingleStep(0.1)
+        box.setValue(value)
+        box.setSuffix(" s")
+        return box
+
+    # ------------------------------------------------------------------------------------ steps
+    def choose_images(self) -> None:
+        paths, _ = QFileDialog.getOpenFileNames(self, "Board images", "", IMAGE_FILTER)
+        if paths:
+            self.set_images(paths)
+
+    def set_images(self, paths: list[str | Path]) -> None:
+        self.image_paths = [Path(path) for path in paths]
+        self.images_label.setText(f"{len(paths)} images" + (f" ({self.image_paths[0].parent})" if paths else ""))
+
+    def board_spec(self) -> BoardSpec:
+        return BoardSpec(self.board_box.currentText(), (self.columns_box.value(), self.rows_box.value()),
+                         self.square_box.value(), self.marker_box.value(), self.dictionary_edit.text().strip())
+
+    def start_intrinsics(self) -> None:
+        try:
+            if not self.image_paths:
+                raise InputError("choose the board images first")
+            spec = self.board_spec()
+        except InputError as error:
+            self.status_label.setText(str(error))
+            return
+        name = self.camera.name if self.camera is not None else "camera"
+        self._start("intrinsics", intrinsics_task(list(self.image_paths), spec, name), "Calibrating intrinsics")
+
+    def _take_inputs(self) -> tuple[np.ndarray, float] | None:
+        document = self.controller.document
+        if document is None or self.camera is None or self.media is None:
+            self.status_label.setText("the shown take needs a camera with a video (File ▸ Add camera…)")
+            return None
+        return document.take.marker_positions.copy(), document.take.frame_rate
+
+    def start_registration(self) -> None:
+        inputs = self._take_inputs()
+        if inputs is not None:
+            unregistered = replace(self.camera, registered=False, rotation=np.eye(3), translation=np.zeros(3))
+            self._start("extrinsics", registration_task(unregistered, self.media, *inputs,
+                                                        self.register_window_box.value()), "Registering")
+
+    def start_offset(self) -> None:
+        inputs = self._take_inputs()
+        if inputs is None:
+            return
+        if not self.camera.registered:
+            self.status_label.setText("register the camera first (step 2)")
+            return
+        self._start("offset", offset_task(self.camera, self.media, *inputs, self.offset_window_box.value()),
+                    "Estimating the offset")
+
+    def _start(self, step: str, task: Callable, text: str) -> None:
+        self._step = step
+        self.status_label.setText(f"{text}…")
+        self.progress_bar.setValue(0)
+        self.runner.start(task)
+
+    def _succeeded(self, _request: int, result: object) -> None:
+        if isinstance(result, IntrinsicCalibration):
+            self._show_intrinsics(result)
+            previous = self.camera
+            camera = result.camera
+            if previous is not None:
+                camera = replace(camera, name=previous.name, clock=previous.clock)
+            self.camera = camera
+            self._ended(f"intrinsics from {int(result.used.sum())} of {len(result.used)} images: RMS "
+                        f"{result.reprojection_px:.3f} px (the camera is not registered until step 2)")
+        elif isinstance(result, TakeRegistration):
+            report = result.report()
+            self.camera = result.camera
+            self.register_label.setText(
+                f"reprojection {report['reprojection_px']:.3f} px over {report['matches']} matches "
+                f"({100 * report['matched_share']:.0f} % of the blobs); offset {report['offset_s']:+.4f} s, "
+                f"rate ratio {report['rate_ratio']:.5f}, sync quality {report['quality']:.2f}")
+            self._ended("registered: Save camera keeps it")
+        elif isinstance(result, SyncResult):
+            self.camera = self.camera.with_clock(result.clock)
+            self.offset_label.setText(f"offset {result.offset_s:+.4f} s = {result.offset_frames:+.2f} mocap frames, "
+                                      f"rate ratio {result.rate_ratio:.5f}, quality {result.quality:.2f}")
+            self._ended("offset estimated: Save camera keeps it")
+        self._show_camera()
+
+    def _show_intrinsics(self, result: IntrinsicCalibration) -> None:
+        table = self.views_table
+        table.setRowCount(len(self.image_paths))
+        for row, path in enumerate(self.image_paths):
+            error = result.view_errors[row]
+            found = np.isfinite(error)
+            cells = (path.name, "—" if not found else "found", "board not found" if not found else f"{error:.3f}",
+                     "yes" if result.used[row] else ("rejected" if found else "—"))
+            for column, text in enumerate(cells):
+                table.setItem(row, column, QTableWidgetItem(text))
+        self.coverage_label.setText(f"Coverage: {result.report()['coverage_hint']} · rejection threshold "
+                                    f"{result.threshold_px:.3f} px")
+
+    def _failed(self, _request: int, message: str) -> None:
+        self._ended(f"failed: {message}")
+
+    def _ended(self, text: str) -> None:
+        self.status_label.setText(text)
+        self.progress_bar.setValue(0)
+
+    def _busy_changed(self, busy: bool) -> None:
+        self.cancel_button.setEnabled(busy)
+        for button in (self.calibrate_button, self.register_button, self.offset_button, self.save_button):
+            button.setEnabled(not busy)
+        self.save_button.setEnabled(not busy and self.camera is not None)
+
+    def _show_camera(self) -> None:
+        camera = self.camera
+        if camera is None:
+            self.camera_label.setText("No camera yet: calibrate the intrinsics (step 1).")
+        else:
+            (fx, fy), (cx, cy) = camera.focal, camera.principal_point
+            pose = f"at {np.array2string(camera.centre, precision=0)} mm" if camera.registered else "not registered"
+            self.camera_label.setText(f"Camera '{camera.name}': {camera.width}×{camera.height} px, f {fx:.1f}, "
+                                      f"{fy:.1f} px, principal point {cx:.1f}, {cy:.1f} px, {pose}, clock offset "
+                                      f"{camera.clock.offset_s:+.4f} s")
+        self.save_button.setEnabled(camera is not None and not self.runner.is_busy())
+
+    def save(self, path: str | Path | None = None) -> bool:
+        """Keep the camera: the shown take's camera in the session, else a camera file (``path`` or asked)."""
+        if self.camera is None:
+            return False
+        try:
+            if self.controller.camera is not None:
+                self.controller.set_camera(self.camera)
+                self.status_label.setText(f"saved camera '{self.controller.camera.name}' with the take")
+                return True
+            if not path:
+                path, _ = QFileDialog.getSaveFileName(self, "Save camera", "camera.json", "Camera (*.json)")
+            if not path:
+                return False
+            save_camera(self.camera, path)
+            self.status_label.setText(f"saved {path}: File ▸ Add camera… adds it to a take with its video")
+        except HandMocapError as error:
+            self.status_label.setText(f"cannot save: {error}")
+            return False
+        return True
+
+    def closeEvent(self, event) -> None:
+        self.runner.stop()
+        super().closeEvent(event)

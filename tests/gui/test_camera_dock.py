@@ -1,0 +1,167 @@
+"""The camera in the review (issue 14 item 5): the dock shows the camera frame at the timeline's time with the
+markers over it, a click on a marker selects it, the sync nudges move the shown frame and are saved with
+the camera, File ▸ Add camera… keeps the camera in the session, and the calibration wizard calibrates on
+a worker and can be cancelled."""
+
+import cv2
+import numpy as np
+import pytest
+from PySide6.QtCore import QPoint, Qt
+
+from core.camera.files import save_camera
+from core.camera.frames import VideoFrames
+from core.camera.intrinsics import BoardSpec
+from core.camera.writers import write_video
+from core.io import save_take
+from core.session import Session
+from core.session.cameras import add_camera, take_cameras
+from core.simulate.camera import board_views, random_camera, simulate_camera_take
+
+pytestmark = pytest.mark.gui
+
+OFFSET_S = 0.1
+
+
+@pytest.fixture(scope="module")
+def filmed(tmp_path_factory):
+    """A labelled simulated take (150 frames at 100 Hz), its camera's 30 Hz video and camera file."""
+    folder = tmp_path_factory.mktemp("filmed")
+    simulated = simulate_camera_take(seed=11, n_frames=150, mocap_rate=100.0, offset_s=OFFSET_S,
+                                     camera=random_camera(11, distance=450.0))
+    save_take(simulated.simulated.take, folder / "take.c3d")
+    write_video(folder / "video.avi", (simulated.render(k, with_depth=False)[0]
+                                       for k in range(len(simulated.camera_times))),
+                simulated.frame_rate, simulated.camera.size)
+    save_camera(simulated.camera, folder / "camera.json")
+    return folder, simulated
+
+
+def open_session_take(window, qtbot, folder):
+    assert window.sessions.open_session(folder)
+    window.sessions.open_take(window.sessions.session.takes[0].id)
+    qtbot.waitUntil(lambda: not window.loader.is_busy() and window.document is not None, timeout=30_000)
+
+
+def session_with_camera(filmed, folder, with_camera=True):
+    files, simulated = filmed
+    session = Session.create(folder)
+    entry = session.add_take(files / "take.c3d", layout="dense")
+    if with_camera:
+        add_camera(session, entry.id, simulated.camera, files / "video.avi")
+    session.close()
+    return folder
+
+
+def test_dock_shows_the_camera_frame_at_the_timeline_time(window, qtbot, filmed, tmp_path):
+    files, simulated = filmed
+    open_session_take(window, qtbot, session_with_camera(filmed, tmp_path / "session"))
+    controller = window.cameras
+    assert window.camera_dock.isVisible() and [c.name for c in controller.cameras] == [simulated.camera.name]
+    window.timeline.set_frame(90)
+    qtbot.waitUntil(lambda: controller._shown_key is not None and controller._shown_key[3] == 90, timeout=5000)
+    expected = int(round((90 / 100.0 - OFFSET_S) * 30.0))
+    assert controller._shown_key[2] == expected
+    with VideoFrames(files / "video.avi") as video:
+        np.testing.assert_array_equal(controller.view.canvas._image.array, video.frame(expected))
+    # the markers drawn are the take's at that camera frame's time, where the video shows them
+    pixels = controller.view.canvas._pixels
+    mocap = simulated.camera.clock.mocap_frame(expected / 30.0, 100.0)
+    truth = simulated.camera.project(simulated.pose_at(mocap / 100.0)[1])
+    assert np.nanmedian(np.linalg.norm(pixels - truth, axis=1)) < 2.0
+    assert controller.view.canvas.paint_count > 0
+    # the camera is drawn as a frustum in the 3D view
+    assert window.viewport._frustum_actor.visibility and window.viewport._frustum_lines.GetNumberOfCells() == 8
+
+
+def test_clicking_a_marker_in_the_video_selects_it(window, qtbot, filmed, tmp_path):
+    open_session_take(window, qtbot, session_with_camera(filmed, tmp_path / "session"))
+    controller, canvas = window.cameras, window.cameras.view.canvas
+    window.camera_dock.resize(700, 560)
+    window.timeline.set_frame(60)
+    qtbot.waitUntil(lambda: controller._shown_key is not None and controller._shown_key[3] == 60, timeout=5000)
+    pixels = canvas._pixels
+    visible = np.flatnonzero(np.isfinite(pixels).all(axis=1))
+    # the point furthest from every other one: a click on it is unambiguous
+    distances = np.linalg.norm(pixels[visible, None] - pixels[None, visible], axis=2) + np.eye(len(visible)) * 1e9
+    column = int(visible[np.argmax(distances.min(axis=1))])
+    where = canvas.widget_point(pixels[column])
+    qtbot.mouseClick(canvas, Qt.MouseButton.LeftButton, pos=QPoint(round(where.x()), round(where.y())))
+    assert window.app.selection.column == column
+    assert window.app.selection.label == window.document.review.label_of_point(60, column) >= 0
+    qtbot.waitUntil(lambda: controller._shown_key[4] == column, timeout=5000)
+    assert canvas._selected == column
+    qtbot.mouseClick(canvas, Qt.MouseButton.LeftButton, pos=QPoint(2, 2))     # far from every marker
+    assert window.app.selection.column == -1
+
+
+def test_nudging_the_offset_moves_the_shown_frame_and_is_saved(window, qtbot, filmed, tmp_path):
+    folder = session_with_camera(filmed, tmp_path / "session")
+    open_session_take(window, qtbot, folder)
+    controller = window.cameras
+    window.timeline.set_frame(100)
+    qtbot.waitUntil(lambda: controller._shown_key is not None and controller._shown_key[3] == 100, timeout=5000)
+    before = controller._shown_key[2]
+    qtbot.mouseClick(controller.view.nudge_buttons[(1, 0)], Qt.MouseButton.LeftButton)    # + one camera frame
+    assert controller._shown_key[2] == before - 1
+    for _ in range(3):
+        qtbot.mouseClick(controller.view.nudge_buttons[(0, -1)], Qt.MouseButton.LeftButton)  # − three mocap frames
+    assert controller._shown_key[2] == before - 1 + 1     # 1/30 − 3/100 s: back to the first frame
+    offset = controller.camera.camera.clock.offset_s
+    assert offset == pytest.approx(OFFSET_S + 1 / 30 - 3 / 100)
+    assert take_cameras(Session.open(folder, read_only=True), "t0001")[0].camera.clock.offset_s == pytest.approx(offset)
+
+
+def test_add_camera_stores_it_in_the_session_and_reopening_restores_it(window, qtbot, filmed, tmp_path):
+    files, simulated = filmed
+    folder = session_with_camera(filmed, tmp_path / "session", with_camera=False)
+    open_session_take(window, qtbot, folder)
+    controller = window.cameras
+    assert controller.cameras == [] and not window.camera_dock.isVisible()
+    assert not controller.add(str(files / "video.avi"), None, None, str(tmp_path / "missing.json"))
+    assert window.messages and "missing.json" in window.messages[-1]
+    assert controller.add(str(files / "video.avi"), None, None, str(files / "camera.json"))
+    assert window.camera_dock.isVisible() and controller.camera is not None
+    stored = take_cameras(Session.open(folder, read_only=True), "t0001")
+    assert [c.name for c in stored] == [simulated.camera.name] and stored[0].media == files / "video.avi"
+    # reopening the session shows it again
+    window.sessions.close_session()
+    open_session_take(window, qtbot, folder)
+    assert [c.name for c in window.cameras.cameras] == [simulated.camera.name]
+    np.testing.assert_allclose(window.cameras.camera.camera.matrix, simulated.camera.matrix)
+
+
+@pytest.fixture(scope="module")
+def board_images(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("boards")
+    camera = random_camera(21)
+    paths = []
+    for index, image in enumerate(board_views(camera, BoardSpec(), 10, seed=21).images):
+        path = folder / f"board_{index:02d}.png"
+        cv2.imwrite(str(path), image)
+        paths.append(path)
+    return camera, paths
+
+
+def test_wizard_calibrates_intrinsics_on_a_worker_and_can_be_cancelled(window, qtbot, board_images, tmp_path):
+    from app.gui.camera_wizard import CameraWizard
+
+    truth, paths = board_images
+    wizard = CameraWizard(window, window.cameras)
+    qtbot.addWidget(wizard)
+    wizard.show()
+    wizard.set_images(paths)
+    wizard.start_intrinsics()
+    assert wizard.runner.is_busy() and wizard.cancel_button.isEnabled()
+    wizard.cancel_button.click()
+    qtbot.waitUntil(lambda: not wizard.runner.is_busy(), timeout=30_000)
+    assert "cancelled" in wizard.status_label.text() and wizard.camera is None
+    wizard.start_intrinsics()
+    qtbot.waitUntil(lambda: not wizard.runner.is_busy(), timeout=120_000)
+    assert "intrinsics from" in wizard.status_label.text(), wizard.status_label.text()
+    assert abs(wizard.camera.focal[0] / truth.focal[0] - 1) < 0.005
+    assert wizard.views_table.rowCount() == len(paths) and "Coverage" in wizard.coverage_label.text()
+    assert wizard.save(tmp_path / "calibrated.json")
+    from core.camera.files import load_camera
+
+    np.testing.assert_allclose(load_camera(tmp_path / "calibrated.json").matrix, wizard.camera.matrix)
+    wizard.close()
