@@ -47,6 +47,7 @@ from app.gui.application import (
 )
 from app.gui.camera_controller import CameraController
 from app.gui.document import TakeDocument
+from app.gui.export_dialog import export_action
 from app.gui.load_queue import LoadQueue
 from app.gui.loose_takes import loose_document
 from app.gui.review_controller import ReviewController
@@ -301,6 +302,8 @@ class MainWindow(QMainWindow):
         self.addToolBar(review.toolbar)
         self.file_menu.insertAction(self.export_action, self.close_take_action)
         self.file_menu.insertMenu(self.export_action, review.export_menu)
+        self.export_dialog_action = export_action(self, review)
+        self.file_menu.insertAction(review.export_menu.menuAction(), self.export_dialog_action)
 
     def _place_sessions(self) -> None:
         """The session browser dock (shown while a session is open) and the session actions."""

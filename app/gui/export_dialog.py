@@ -1,0 +1,180 @@
+"""File ▸ Export…: the review as C3D, TRC, CSV, BVH or glTF with the options of ``handmocap export``.
+
+One small dialog: the format, where the format takes them the units and up axis (TRC, BVH; glTF is always
+metres and Y up, C3D and CSV mm in the lab frame), the hand (BVH, glTF: only solved hands are offered),
+whether fills are included (C3D, TRC, CSV), and the file. The export itself is
+:func:`core.review.export.export_review`, the same as the command line's.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+from PySide6.QtCore import Signal
+from PySide6.QtGui import QAction
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QDialog,
+    QDialogButtonBox,
+    QFileDialog,
+    QFormLayout,
+    QHBoxLayout,
+    QLabel,
+    QLineEdit,
+    QMessageBox,
+    QPushButton,
+    QVBoxLayout,
+    QWidget,
+)
+
+from core.errors import HandMocapError
+from core.io.labelled_c3d import SubjectCalibration
+from core.model import HandModel
+from core.review import ReviewTake
+from core.review.export import EXPORT_FORMATS, export_review
+
+#: format -> (menu text, file dialog filter)
+FORMAT_TEXTS = {
+    "c3d": ("Labelled C3D (markers, provenance)", "C3D (*.c3d)"),
+    "trc": ("TRC markers (OpenSim)", "TRC (*.trc)"),
+    "csv": ("CSV markers", "CSV (*.csv)"),
+    "bvh": ("BVH joint angles (Blender, MotionBuilder)", "BVH (*.bvh)"),
+    "gltf": ("glTF skinned hand with its animation", "glTF binary (*.glb);;glTF (*.gltf)"),
+}
+UNITS_HINT = "OpenSim: m, Y up · Blender: m, Y up · MotionBuilder: cm, Y up · as recorded: mm, Z up"
+
+
+class ExportDialog(QDialog):
+    """Choose a format, its options and a file; :meth:`export` writes it (errors shown, the dialog stays)."""
+
+    exported = Signal(str, str)   # format, path
+
+    def __init__(self, parent: QWidget | None, review: ReviewTake, model_for: Callable[[str], HandModel],
+                 subjects: list[SubjectCalibration] | None = None, stem: str = "take") -> None:
+        super().__init__(parent)
+        self.setWindowTitle("Export")
+        self.review, self.model_for, self.subjects, self.stem = review, model_for, subjects, stem
+        solved = [hand for hand in review.hands if np.isfinite(hand.joint_angles).all(axis=1).any()]
+        self.format_box = QComboBox()
+        for name, (text, _) in FORMAT_TEXTS.items():
+            self.format_box.addItem(text, name)
+            if EXPORT_FORMATS[name][2] and not solved:
+                item = self.format_box.model().item(self.format_box.count() - 1)
+                item.setEnabled(False)
+                item.setToolTip("needs a solved hand (Solve the take first)")
+        self.units_box = QComboBox()
+        self.units_box.addItems(["mm", "cm", "m"])
+        self.up_box = QComboBox()
+        self.up_box.addItem("Z (as recorded)", "z")
+        self.up_box.addItem("Y", "y")
+        self.hand_box = QComboBox()
+        for side in dict.fromkeys(hand.side for hand in solved):
+            self.hand_box.addItem(side, side)
+        self.fills_box = QCheckBox("Include accepted fills")
+        self.fills_box.setChecked(True)
+        self.path_edit = QLineEdit()
+        browse = QPushButton("Browse…")
+        browse.clicked.connect(self.choose_path)
+        row = QHBoxLayout()
+        row.addWidget(self.path_edit, 1)
+        row.addWidget(browse)
+        form = QFormLayout()
+        form.addRow("Format", self.format_box)
+        form.addRow("Units", self.units_box)
+        form.addRow("Up axis", self.up_box)
+        form.addRow("Hand", self.hand_box)
+        form.addRow("", self.fills_box)
+        form.addRow("File", row)
+        self.hint = QLabel(UNITS_HINT)
+        self.hint.setWordWrap(True)
+        buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Save | QDialogButtonBox.StandardButton.Cancel)
+        buttons.accepted.connect(self.export)
+        buttons.rejected.connect(self.reject)
+        layout = QVBoxLayout(self)
+        layout.addLayout(form)
+        layout.addWidget(self.hint)
+        layout.addWidget(buttons)
+        self.format_box.currentIndexChanged.connect(self._format_changed)
+        self._format_changed()
+
+    @property
+    def format_name(self) -> str:
+        return str(self.format_box.currentData())
+
+    def _format_changed(self) -> None:
+        """Enable the options the chosen format takes and give the file the format's suffix."""
+        name = self.format_name
+        suffixes, axes, angles = EXPORT_FORMATS[name]
+        for widget in (self.units_box, self.up_box):
+            widget.setEnabled(axes)
+        if name == "gltf":
+            self.units_box.setCurrentText("m")
+            self.up_box.setCurrentIndex(self.up_box.findData("y"))
+        elif not axes:
+            self.units_box.setCurrentText("mm")
+            self.up_box.setCurrentIndex(self.up_box.findData("z"))
+        self.hand_box.setEnabled(angles and self.hand_box.count() > 1)
+        self.fills_box.setEnabled(not angles)
+        current = self.path_edit.text().strip()
+        base = Path(current).with_suffix("") if current else Path(self.stem)
+        self.path_edit.setText(str(base) + suffixes[0])
+
+    def choose_path(self) -> None:
+        path, _ = QFileDialog.getSaveFileName(self, "Export", self.path_edit.text(), FORMAT_TEXTS[self.format_name][1])
+        if path:
+            self.path_edit.setText(path)
+
+    def options(self) -> dict:
+        """The keyword options of :func:`export_review` the dialog's fields give."""
+        name = self.format_name
+        _, axes, angles = EXPORT_FORMATS[name]
+        return {"units": self.units_box.currentText() if axes else None,
+                "up": self.up_box.currentData() if axes else None,
+                "hand": self.hand_box.currentData() if angles else None,
+                "fills": self.fills_box.isChecked() or angles}
+
+    def export(self) -> bool:
+        """Write the file (asking before replacing one); True when written (the dialog then closes)."""
+        path = self.path_edit.text().strip()
+        if not path:
+            QMessageBox.warning(self, "Cannot export", "Choose a file to export to")
+            return False
+        if Path(path).exists():
+            answer = QMessageBox.question(self, "Replace file?", f"{path} exists. Replace it?")
+            if answer != QMessageBox.StandardButton.Yes:
+                return False
+        name, options = self.format_name, self.options()
+        try:
+            model = None
+            if EXPORT_FORMATS[name][2]:
+                model = self.model_for(options["hand"] or self.review.hands[0].side)
+            export_review(self.review, path, name, model=model, subjects=self.subjects, **options)
+        except (HandMocapError, OSError) as error:
+            QMessageBox.warning(self, "Cannot export", str(error))
+            return False
+        self.exported.emit(name, path)
+        self.accept()
+        return True
+
+
+def export_action(host: QWidget, controller) -> QAction:
+    """The File ▸ Export… action of ``host`` for the take ``controller`` (the review controller) shows;
+    each written file is announced through ``controller.exported`` (the session records it)."""
+    action = QAction("&Export…", host)
+    action.setShortcut("Ctrl+Shift+E")
+    action.setToolTip("Export the take as C3D, TRC, CSV, BVH or glTF")
+
+    def run() -> None:
+        document = controller.document
+        if document is None or document.review is None:
+            return
+        dialog = ExportDialog(host, document.review, document.model_for, list(document.subjects.values()),
+                              document.title.rsplit(".", 1)[0])
+        dialog.exported.connect(lambda name, path: controller.exported.emit(document, name, path))
+        dialog.exec()
+
+    action.triggered.connect(run)
+    return action
