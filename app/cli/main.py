@@ -10,6 +10,7 @@ import signal
 import sys
 from pathlib import Path
 
+from app.cli import batch as batch_commands
 from app.cli import calibrate as calibrate_commands
 from app.cli import camera as camera_commands
 from app.cli import export as export_commands
@@ -28,7 +29,8 @@ from app.cli.common import (
 from core.errors import HandMocapError, InputError
 
 #: modules that add their own subcommands (``register(commands, bench_commands, evaluate_commands)``)
-SUBCOMMAND_MODULES = (layout_commands, review_commands, calibrate_commands, camera_commands, export_commands)
+SUBCOMMAND_MODULES = (layout_commands, review_commands, calibrate_commands, camera_commands, export_commands,
+                      batch_commands)
 
 EXIT_ERROR = 2
 

@@ -1,0 +1,127 @@
+"""``handmocap batch``: run a pipeline on every take of a session (or a folder of takes) on Dask.
+
+Progress is one line (rewritten in place on a terminal, one line per finished take otherwise); no
+progress library is needed for that. Ctrl+C stops cleanly: finished takes are kept, the others are
+untouched, and the same command resumes. Exit status: 0 when every take is done (or up to date), 1 when
+some failed (the reasons are printed and in the report), 2 on an error or when interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+
+from app.cli.common import add_json_flag
+from core.errors import InputError
+
+
+def _duration(seconds: float | None) -> str:
+    if seconds is None:
+        return "?"
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    return f"{seconds / 60:.0f} min" if seconds < 5400 else f"{seconds / 3600:.1f} h"
+
+
+class _ProgressLine:
+    """Prints the batch's progress to stderr: in place on a terminal, else when a take finishes."""
+
+    def __init__(self, plan) -> None:
+        self.frames_total = sum(job.frames for job in plan.jobs)
+        self.terminal = sys.stderr.isatty()
+        self.finished = 0
+        self.dashboard_told = False
+
+    def __call__(self, progress) -> None:
+        if progress.dashboard and not self.dashboard_told:
+            print(f"Dask dashboard: {progress.dashboard}", file=sys.stderr)
+            self.dashboard_told = True
+        done, failed, skipped = (progress.count(state) for state in ("done", "failed", "skipped"))
+        left = progress.seconds_left(self.frames_total - progress.frames)
+        line = (f"takes {done + failed + skipped}/{progress.total}: {done} done, {failed} failed, "
+                f"{skipped} skipped, {progress.count('running')} running; {progress.frames_per_s:.0f} frames/s, "
+                f"{_duration(left)} left")
+        if self.terminal:
+            print(f"\r{line}\033[K", end="", file=sys.stderr, flush=True)
+        elif done + failed + skipped != self.finished:
+            print(line, file=sys.stderr, flush=True)
+        self.finished = done + failed + skipped
+
+    def close(self) -> None:
+        if self.terminal:
+            print(file=sys.stderr)
+
+
+def command_batch(args: argparse.Namespace) -> int:
+    from core.batch.pipeline import load_pipeline
+    from core.batch.report import write_study_report
+    from core.batch.runner import open_study, plan_batch, run_batch
+    from core.batch.state import read_state
+
+    pipeline = load_pipeline(args.pipeline)
+    session = open_study(args.study, pipeline)
+    plan = plan_batch(session, pipeline, args.only, args.redo, args.overwrite)
+    print(f"session {session.folder}: {len(plan.jobs)} takes to process, {len(plan.up_to_date)} up to date"
+          f"{f', {len(plan.failed)} cannot be read' if plan.failed else ''}; exports to {plan.output}")
+    stop = {"asked": False}
+
+    def interrupt(signum, frame) -> None:
+        if stop["asked"]:
+            raise KeyboardInterrupt
+        stop["asked"] = True
+        print("\nstopping: finished takes are kept (Ctrl+C again to quit at once)", file=sys.stderr)
+
+    previous = signal.signal(signal.SIGINT, interrupt)
+    printer = _ProgressLine(plan)
+    try:
+        progress = run_batch(plan, args.workers, args.scheduler, printer, lambda: stop["asked"])
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        printer.close()
+    state = read_state(session.folder)
+    rows = [progress.summaries.get(job.take_id) or {"take": job.take_id, "name": job.name, "status": "queued"}
+            for job in plan.jobs]
+    rows += [{"take": take_id, "name": session.take(take_id).name} | state[take_id].get("summary", {})
+             | {"status": "done"}
+             for take_id in plan.up_to_date]
+    rows += [progress.summaries[take_id] | {"name": session.take(take_id).name} for take_id in plan.failed]
+    report = write_study_report(session.folder, session.name, rows)
+    done, failed = progress.count("done"), progress.count("failed")
+    print(f"{done} takes processed ({progress.frames} frames, {progress.frames_per_s:.0f} frames/s, "
+          f"{_duration(progress.elapsed)}), {failed} failed, {progress.count('skipped')} skipped, "
+          f"{len(plan.up_to_date)} up to date; report {report}")
+    for summary in progress.summaries.values():
+        if summary["status"] in ("failed", "skipped"):
+            print(f"  {summary['status']}: {summary.get('name', summary['take'])}: {summary['reason']}")
+    if args.json:
+        print(json.dumps({"done": done, "failed": failed, "skipped": progress.count("skipped"),
+                          "up_to_date": len(plan.up_to_date), "frames": progress.frames,
+                          "seconds": round(progress.elapsed, 3), "report": str(report),
+                          "takes": [_without_trace(row) for row in rows]}))
+    if progress.interrupted:
+        raise InputError(f"interrupted: {done} finished takes are kept; run the same command to resume")
+    return 1 if failed else 0
+
+
+def _without_trace(row: dict) -> dict:
+    return {key: value for key, value in row.items() if key != "trace"}
+
+
+def register(commands, bench_commands, evaluate_commands) -> None:
+    """Add ``batch`` to the ``handmocap`` parser."""
+    batch = commands.add_parser("batch", help="run a pipeline (label, calibrate, fill, solve, export) on every "
+                                "take of a session on Dask; resumable")
+    batch.add_argument("study", metavar="SESSION_OR_FOLDER",
+                       help="a session folder, or a folder of takes (a session is made in it: handmocap-session)")
+    batch.add_argument("--pipeline", required=True, metavar="P.toml", help="pipeline file (TOML or JSON; see README)")
+    batch.add_argument("--only", metavar="GLOB", help="only the takes whose name or id matches (e.g. 'S01_*')")
+    batch.add_argument("--redo", action="store_true", help="also the takes already done with the same inputs")
+    batch.add_argument("--workers", type=int, default=2, help="local worker processes (default 2)")
+    batch.add_argument("--scheduler", metavar="tcp://HOST:8786",
+                       help="use this Dask scheduler instead of a local cluster (its workers must see the session "
+                            "and the takes at the same paths)")
+    batch.add_argument("--overwrite", action="store_true", help="replace export files no earlier batch wrote")
+    add_json_flag(batch)
+    batch.set_defaults(handler=command_batch)

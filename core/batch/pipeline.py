@@ -1,0 +1,172 @@
+"""The pipeline file of a batch: which steps run on every take and with which settings.
+
+One flat TOML (or JSON) table, written by the GUI and read by ``handmocap batch``::
+
+    steps = ["label", "calibrate", "fill", "solve", "export"]   # any of them, in this order
+    layout = "glove-13"          # marker layout (name or JSON file) the labeller uses
+    hands = "auto"               # auto, right, left or both
+    objects = ""                 # rigid objects spec JSON ("" none)
+    online = false               # causal labelling only
+    relabel = false              # ignore the labels the file already has
+    max_gap = 20                 # longest gap filled (frames)
+    fill_method = "auto"
+    solve_method = "layered"
+    exports = ["c3d", "csv", "bvh"]
+    output = "exports"           # folder of the exports ("" = <session>/exports)
+
+Relative file names (``layout`` when it names a file, ``objects``, ``output``) are relative to the
+pipeline file's folder. Every error is one line naming the file and the setting.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import tomllib
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+from typing import Any
+
+from core.errors import InputError
+from core.gaps import FILL_METHODS
+
+STEPS = ("label", "calibrate", "fill", "solve", "export")
+HANDS = ("auto", "right", "left", "both")
+SOLVE_METHODS = ("layered", "subspace", "full")
+EXPORTS = ("c3d", "csv", "bvh")
+#: changes whenever what a pipeline computes changes, so that a re-run redoes every take
+PIPELINE_VERSION = 1
+
+
+@dataclass(frozen=True)
+class Pipeline:
+    """The settings of a batch (module docstring); paths are absolute once loaded."""
+
+    steps: tuple[str, ...] = STEPS
+    layout: str = "dense"
+    hands: str = "auto"
+    objects: str = ""
+    online: bool = False
+    relabel: bool = False
+    max_gap: int = 20
+    fill_method: str = "auto"
+    solve_method: str = "layered"
+    exports: tuple[str, ...] = ("c3d", "csv")
+    output: str = ""
+
+    def runs(self, step: str) -> bool:
+        return step in self.steps
+
+    def to_dict(self) -> dict[str, Any]:
+        """The settings as plain JSON-ready values (lists for tuples)."""
+        data = asdict(self)
+        return {key: list(value) if isinstance(value, tuple) else value for key, value in data.items()}
+
+    def key(self) -> str:
+        """A hash of everything that decides the results: the settings, the objects spec's content and
+        :data:`PIPELINE_VERSION` (hex sha256)."""
+        data = self.to_dict() | {"version": PIPELINE_VERSION}
+        data.pop("output")
+        data["objects_content"] = hashlib.sha256(Path(self.objects).read_bytes()).hexdigest() if self.objects else ""
+        if self.layout.lower().endswith(".json") and Path(self.layout).is_file():
+            data["layout_content"] = hashlib.sha256(Path(self.layout).read_bytes()).hexdigest()
+        return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()
+
+
+_KINDS: dict[str, type] = {"steps": list, "layout": str, "hands": str, "objects": str, "online": bool,
+                           "relabel": bool, "max_gap": int, "fill_method": str, "solve_method": str,
+                           "exports": list, "output": str}
+
+
+def pipeline_from_dict(data: dict[str, Any], source: str = "pipeline", base: Path | None = None) -> Pipeline:
+    """A checked :class:`Pipeline` from ``data`` (missing settings take their defaults); relative paths
+    are made absolute against ``base``. InputError (one line, naming ``source``) on any bad setting."""
+    if not isinstance(data, dict):
+        raise InputError(f"{source}: a pipeline is a table of settings")
+    unknown = sorted(set(data) - set(_KINDS))
+    if unknown:
+        raise InputError(f"{source}: unknown setting '{unknown[0]}' (known: {', '.join(_KINDS)})")
+    for name, value in data.items():
+        kind = _KINDS[name]
+        if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
+            raise InputError(f"{source}: setting '{name}' must be {_KIND_TEXT[kind]}, not {value!r:.40}")
+    values = {name: data[name] for name in _KINDS if name in data}
+    steps = _choices(values.get("steps", list(STEPS)), STEPS, "steps", source)
+    values["steps"] = tuple(step for step in STEPS if step in steps)
+    values["exports"] = tuple(_choices(values.get("exports", ["c3d", "csv"]), EXPORTS, "exports", source))
+    _one_of(values.get("hands", "auto"), HANDS, "hands", source)
+    _one_of(values.get("fill_method", "auto"), ("auto", *FILL_METHODS), "fill_method", source)
+    _one_of(values.get("solve_method", "layered"), SOLVE_METHODS, "solve_method", source)
+    if values.get("max_gap", 20) < 1:
+        raise InputError(f"{source}: setting 'max_gap' must be at least 1 frame")
+    if "export" in values["steps"] and not values["exports"]:
+        raise InputError(f"{source}: the export step needs at least one of exports = {list(EXPORTS)}")
+    if not values.get("layout", "dense").strip():
+        raise InputError(f"{source}: setting 'layout' is empty")
+    base = base or Path.cwd()
+    for name in ("objects", "output"):
+        if values.get(name):
+            values[name] = str((base / Path(values[name]).expanduser()).absolute())
+    layout = values.get("layout", "dense")
+    if layout.lower().endswith(".json"):
+        values["layout"] = str((base / Path(layout).expanduser()).absolute())
+    if values.get("objects") and not Path(values["objects"]).is_file():
+        raise InputError(f"{source}: the objects spec {values['objects']} does not exist")
+    return Pipeline(**values)
+
+
+_KIND_TEXT = {list: "a list", str: "text", bool: "true or false", int: "a whole number"}
+
+
+def _choices(value: list, allowed: tuple[str, ...], name: str, source: str) -> list[str]:
+    for item in value:
+        _one_of(item, allowed, name, source)
+    return list(dict.fromkeys(value))
+
+
+def _one_of(value: Any, allowed: tuple[str, ...], name: str, source: str) -> None:
+    if value not in allowed:
+        raise InputError(f"{source}: setting '{name}' has '{value}'; use {', '.join(allowed)}")
+
+
+def load_pipeline(path: str | Path) -> Pipeline:
+    """Read a pipeline file (``.toml``, else JSON). InputError (one line) when missing or malformed."""
+    path = Path(path).expanduser().absolute()
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as error:
+        raise InputError(f"cannot read the pipeline {path} ({getattr(error, 'strerror', None) or error})") from None
+    try:
+        data = tomllib.loads(text) if path.suffix.lower() == ".toml" else json.loads(text)
+    except (tomllib.TOMLDecodeError, ValueError) as error:
+        raise InputError(f"{path}: not a valid {'TOML' if path.suffix.lower() == '.toml' else 'JSON'} pipeline "
+                         f"({str(error).splitlines()[0]})") from None
+    return pipeline_from_dict(data, str(path), path.parent)
+
+
+def pipeline_toml(pipeline: Pipeline) -> str:
+    """The pipeline as TOML text (the flat table of the module docstring; paths absolute)."""
+    lines = ["# Hand Mocap Studio batch pipeline (handmocap batch SESSION --pipeline this.toml)"]
+    for item in fields(Pipeline):
+        lines.append(f"{item.name} = {_toml_value(getattr(pipeline, item.name))}")
+    return "\n".join(lines) + "\n"
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, tuple | list):
+        return "[" + ", ".join(_toml_value(item) for item in value) + "]"
+    # a JSON string is a valid TOML basic string once DEL is escaped too (TOML forbids it raw)
+    return json.dumps(str(value), ensure_ascii=False).replace("\x7f", "\\u007f")
+
+
+def save_pipeline(pipeline: Pipeline, path: str | Path) -> None:
+    """Write ``pipeline`` as TOML (``.toml``) or JSON, atomically."""
+    from core.io.durable import write_text_atomic
+
+    path = Path(path)
+    text = pipeline_toml(pipeline) if path.suffix.lower() == ".toml" else json.dumps(pipeline.to_dict(), indent=2)
+    write_text_atomic(path, text)

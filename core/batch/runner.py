@@ -1,0 +1,271 @@
+"""The driver of a batch: which takes to run, their tasks on a Dask cluster, progress and the batch state.
+
+:func:`plan_batch` picks the takes (``only`` glob on name or id; takes done with the same input key are
+skipped unless ``redo``) and checks the outputs; :func:`run_batch` submits one task per take
+(:func:`core.batch.task.process_take`) to a ``LocalCluster`` (``workers`` processes of one thread: the
+numba kernels are single-threaded, and one task per process makes a worker's death that task's) or to
+the scheduler at ``scheduler``, and reports progress as the tasks finish. Tasks return small summaries;
+the driver records failures and skips in the batch state (a finished task records itself).
+
+A worker that dies (killed, out of memory) has its task tried once more on another worker
+(:data:`ALLOWED_FAILURES`: the death may be someone else's, e.g. the OS killing the largest process);
+a task that kills two workers fails its take with that reason. ``stop()`` returning True (Ctrl+C in the
+CLI, Cancel in the GUI) cancels what has not finished: finished takes are kept, the others untouched.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import logging
+import re
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from core.batch.pipeline import Pipeline
+from core.batch.state import input_key, read_state, update_state
+from core.batch.task import process_take
+from core.errors import InputError
+from core.session.session import Session
+
+#: times a task may be on a worker that dies before its take fails (Dask's ``allowed-failures``)
+ALLOWED_FAILURES = 1
+#: seconds between two progress reports while nothing finishes
+POLL_S = 0.5
+TAKE_SUFFIXES = (".c3d", ".tsv", ".trc", ".csv")
+SESSION_SUBFOLDER = "handmocap-session"
+
+
+@dataclass(frozen=True)
+class TakeJob:
+    """One take to process: session ``take_id``, ``name``, ``frames``, input ``key`` and output ``stem``."""
+
+    take_id: str
+    name: str
+    frames: int
+    key: str
+    stem: str
+
+
+@dataclass
+class BatchPlan:
+    """The takes to run (``jobs``), those ``up_to_date`` (done with the same key), those ``failed``
+    before running ({take id: reason}, e.g. a missing raw file) and the ``output`` folder."""
+
+    session: Session
+    pipeline: Pipeline
+    jobs: list[TakeJob]
+    up_to_date: list[str]
+    failed: dict[str, str]
+    output: Path
+
+
+@dataclass
+class BatchProgress:
+    """Where a batch is: per take id its ``states`` ("queued", "running", "done", "failed", "skipped"),
+    the ``summaries`` of the finished ones, ``frames`` processed and seconds ``elapsed``."""
+
+    total: int
+    states: dict[str, str] = field(default_factory=dict)
+    summaries: dict[str, dict[str, Any]] = field(default_factory=dict)
+    frames: int = 0
+    elapsed: float = 0.0
+    dashboard: str = ""
+    interrupted: bool = False
+
+    def count(self, state: str) -> int:
+        return sum(1 for value in self.states.values() if value == state)
+
+    @property
+    def frames_per_s(self) -> float:
+        return self.frames / self.elapsed if self.elapsed > 0 else 0.0
+
+    def seconds_left(self, frames_left: int) -> float | None:
+        """Time left at the rate so far (None before the first take finishes)."""
+        return frames_left / self.frames_per_s if self.frames else None
+
+
+def open_study(path: str | Path, pipeline: Pipeline) -> Session:
+    """The session at ``path``; for a folder of take files that is not a session, the session
+    ``<path>/handmocap-session`` (created when missing) with every take file of the folder added
+    (with the pipeline's layout and hands). InputError when there is neither."""
+    folder = Path(path).expanduser().absolute()
+    if (folder / "session.json").exists():
+        return Session.open(folder)
+    if not folder.is_dir():
+        raise InputError(f"{folder} is neither a session nor a folder of takes")
+    files = sorted(item for item in folder.iterdir() if item.suffix.lower() in TAKE_SUFFIXES and item.is_file())
+    if not files:
+        raise InputError(f"{folder} is neither a session nor a folder of takes (no C3D, TSV, TRC or CSV)")
+    target = folder / SESSION_SUBFOLDER
+    session = Session.open(target) if (target / "session.json").exists() else Session.create(target)
+    known = {Path(entry.source) for entry in session.takes}
+    hands = ["right", "left"] if pipeline.hands == "both" else [pipeline.hands if pipeline.hands != "auto" else "right"]
+    for item in files:
+        if item not in known:
+            session.add_take(item, layout=Path(pipeline.layout).stem, hands=hands)
+    return session
+
+
+def plan_batch(session: Session, pipeline: Pipeline, only: str | None = None, redo: bool = False,
+               overwrite: bool = False) -> BatchPlan:
+    """The takes of ``session`` to run (module docstring). InputError when ``only`` matches no take or
+    an output file exists that no earlier batch of that take wrote (unless ``overwrite``)."""
+    takes = [entry for entry in session.takes
+             if only is None or fnmatch.fnmatchcase(entry.name, only) or fnmatch.fnmatchcase(entry.id, only)]
+    if not takes:
+        raise InputError(f"no take of session {session.name} matches '{only}'" if only else
+                         f"session {session.name} has no take")
+    output = Path(pipeline.output) if pipeline.output else session.folder / "exports"
+    state = read_state(session.folder)
+    pipeline_key = pipeline.key()
+    jobs, up_to_date, failed = [], [], {}
+    for entry in takes:
+        try:
+            key = input_key(session.source_path(entry.id), pipeline_key)
+        except (InputError, OSError) as error:
+            failed[entry.id] = str(error).splitlines()[0] if str(error) else type(error).__name__
+            continue
+        known = state.get(entry.id, {})
+        if known.get("state") == "done" and known.get("key") == key and not redo:
+            up_to_date.append(entry.id)
+            continue
+        jobs.append(TakeJob(entry.id, entry.name, entry.frames, key, _stem(entry.id, entry.name)))
+    if pipeline.runs("export") and not overwrite:
+        _check_outputs(jobs, pipeline, output, state)
+    return BatchPlan(session, pipeline, jobs, up_to_date, failed, output)
+
+
+def _stem(take_id: str, name: str) -> str:
+    """The file name stem of a take's exports: its id (unique) and its name made file-name-safe."""
+    return f"{take_id}_{re.sub(r'[^A-Za-z0-9._-]+', '_', name).strip('._') or 'take'}"
+
+
+def _check_outputs(jobs: list[TakeJob], pipeline: Pipeline, output: Path, state: dict) -> None:
+    """InputError naming the first output that exists and was not written by a batch of its take."""
+    from core.batch.steps import output_paths
+
+    for job in jobs:
+        if job.take_id in state:
+            continue  # an earlier batch of this take (maybe interrupted) wrote its outputs
+        for path in output_paths(pipeline, output, job.stem).values():
+            if path.exists():
+                raise InputError(f"{path} exists; use --overwrite to replace it")
+
+
+def run_batch(plan: BatchPlan, workers: int = 2, scheduler: str | None = None,
+              on_progress: Callable[[BatchProgress], None] | None = None,
+              stop: Callable[[], bool] | None = None) -> BatchProgress:
+    """Run ``plan`` on Dask (module docstring); ``on_progress`` hears the progress after every change
+    and every :data:`POLL_S` seconds. Returns the final progress (``interrupted`` when stopped)."""
+    import dask
+    from distributed import Client, LocalCluster
+
+    if not scheduler and workers < 1:
+        raise InputError(f"--workers must be at least 1, got {workers}")
+    folder = plan.session.folder
+    progress = BatchProgress(len(plan.jobs) + len(plan.failed))
+    if plan.failed:
+        update_state(folder, {take_id: {"state": "failed", "reason": reason}
+                              for take_id, reason in plan.failed.items()})
+        progress.states |= dict.fromkeys(plan.failed, "failed")
+        progress.summaries |= {take_id: {"take": take_id, "status": "failed", "reason": reason}
+                               for take_id, reason in plan.failed.items()}
+    if not plan.jobs:
+        return progress
+    plan.output.mkdir(parents=True, exist_ok=True)
+    update_state(folder, {job.take_id: {"state": "queued", "key": ""} for job in plan.jobs})
+    progress.states |= {job.take_id: "queued" for job in plan.jobs}
+    logging.getLogger("distributed").setLevel(logging.ERROR)
+    started = time.perf_counter()
+    # one task per worker thread at a time: a worker's death is its task's, and "running" means running
+    with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES,
+                          "distributed.scheduler.worker-saturation": 1.0}):
+        cluster = None
+        try:
+            if scheduler:
+                client = Client(scheduler, timeout="20s")
+            else:
+                cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                       dashboard_address=":0", silence_logs=logging.ERROR)
+                client = Client(cluster)
+        except OSError as error:
+            raise InputError(f"cannot reach the Dask scheduler {scheduler or '(local)'} ({error})") from None
+        try:
+            progress.dashboard = client.dashboard_link or ""
+            _drive(client, plan, progress, started, on_progress, stop)
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    return progress
+
+
+def _drive(client: Any, plan: BatchPlan, progress: BatchProgress, started: float,
+           on_progress: Callable[[BatchProgress], None] | None, stop: Callable[[], bool] | None) -> None:
+    """Submit the tasks and follow them until every one finished or ``stop()``."""
+    from distributed import wait
+
+    settings = plan.pipeline.to_dict() | {"output": str(plan.output)}
+    futures = {client.submit(process_take, str(plan.session.folder), job.take_id, settings, job.key,
+                             str(plan.output), job.stem, key=f"take-{job.take_id}-{job.key[:12]}", pure=False): job
+               for job in plan.jobs}
+    by_key = {future.key: job for future, job in futures.items()}
+    pending = set(futures)
+    try:
+        while pending:
+            if stop is not None and stop():
+                raise KeyboardInterrupt
+            try:
+                wait(list(pending), timeout=POLL_S, return_when="FIRST_COMPLETED")
+            except TimeoutError:
+                pass
+            finished = {future for future in pending if future.done()}
+            pending -= finished
+            for future in finished:
+                _finished(plan, progress, futures[future], future)
+            running = {key for keys in client.processing().values() for key in keys}
+            for key in running:
+                if key in by_key and progress.states.get(by_key[key].take_id) == "queued":
+                    progress.states[by_key[key].take_id] = "running"
+            progress.elapsed = time.perf_counter() - started
+            if on_progress is not None:
+                on_progress(progress)
+    except KeyboardInterrupt:
+        progress.interrupted = True
+        client.cancel(list(pending))
+        for future in pending:
+            progress.states[futures[future].take_id] = "queued"
+
+
+def _finished(plan: BatchPlan, progress: BatchProgress, job: TakeJob, future: Any) -> None:
+    """Record one finished task: its summary, or the reason it failed (its worker died, or it could not
+    be run at all)."""
+    from distributed import KilledWorker
+
+    if future.status == "finished":
+        summary = future.result()
+    else:
+        error = future.exception()
+        if isinstance(error, KilledWorker):
+            reason = (f"its worker died {ALLOWED_FAILURES + 1} times while processing it (out of memory, or "
+                      "killed): run it alone to see why")
+        else:
+            reason = f"{type(error).__name__}: {error}".splitlines()[0]
+        summary = {"take": job.take_id, "status": "failed", "reason": reason}
+    summary["name"] = job.name
+    status = summary["status"]
+    progress.states[job.take_id] = status
+    progress.summaries[job.take_id] = summary
+    if status == "done":
+        progress.frames += job.frames
+    else:
+        update_state(plan.session.folder, {job.take_id: {"state": status, "key": "", "reason": summary["reason"],
+                                                         "summary": _json_ready(summary)}})
+
+
+def _json_ready(summary: dict[str, Any]) -> dict[str, Any]:
+    """The summary without the traceback (kept in memory for the report, not in the state file)."""
+    return {key: value for key, value in summary.items() if key != "trace"}

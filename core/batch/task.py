@@ -1,0 +1,119 @@
+"""One take of a batch, as a Dask task (or a plain call): the worker does everything and returns a summary.
+
+The worker applies its result itself, under the take's lock, rather than sending it to the driver:
+the lock is taken when the task opens the take and kept until the new review step is saved, so the
+steps start from the review exactly as the session holds it (earlier edits included), no one can
+open the take for editing meanwhile (the GUI gets it read-only), no array crosses the scheduler (a
+task returns a summary of a few hundred bytes) and the driver is not a queue every result waits in.
+A take already open for editing elsewhere is skipped with that reason.
+
+Order, so that a take is either fully processed or untouched: the steps are done on the review, the
+exports written (each atomically), the steps undone and pushed again as ONE compound review step
+(one journal record: undoable in the GUI as "batch …"), the take saved, then the batch state says
+"done". A worker killed before the push leaves the review as it was (the exports are rewritten on the
+next run); killed after it, the next run finds its step on top of the take's history and only
+records it as done.
+"""
+
+from __future__ import annotations
+
+import time
+import traceback
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from numba.core import event
+
+from core.batch.pipeline import Pipeline, pipeline_from_dict
+from core.batch.state import update_state
+from core.batch.steps import export_take, output_paths, review_figures, run_steps, undo_all
+from core.errors import HandMocapError
+from core.review import CompoundCommand
+from core.session.session import Session
+
+
+def step_description(pipeline: Pipeline, key: str) -> str:
+    """The text of a batch's review step (the Edit menu shows it): its steps and its input key."""
+    return f"batch {key[:12]}: {', '.join(pipeline.steps)}"
+
+
+def process_take(folder: str, take_id: str, settings: dict[str, Any], key: str, output: str, stem: str
+                 ) -> dict[str, Any]:
+    """Run the pipeline ``settings`` on take ``take_id`` of the session in ``folder``, exports to
+    ``output/<stem>.*``; ``key`` is the take's input key. Never raises: returns ``{"take", "status":
+    "done"|"failed"|"skipped", "reason", "seconds", "compilations" (numba compilations in this task),
+    ...figures}``."""
+    started = time.perf_counter()
+    summary: dict[str, Any] = {"take": take_id, "status": "failed", "reason": ""}
+    with event.install_recorder("numba:compile") as recorder:
+        try:
+            summary |= _process(Path(folder), take_id, pipeline_from_dict(settings, "pipeline"), key,
+                                Path(output), stem, lambda: _compilations(recorder))
+        except MemoryError:
+            summary["reason"] = "out of memory"
+        except (HandMocapError, OSError, ValueError) as error:
+            summary["reason"] = (str(error).splitlines() or [type(error).__name__])[0]
+        except Exception as error:  # noqa: BLE001 - a bug fails its take, not the batch; the trace is kept
+            summary["reason"] = f"internal error: {type(error).__name__}: {error}"
+            summary["trace"] = traceback.format_exc(limit=8)
+    summary["seconds"] = round(time.perf_counter() - started, 3)
+    summary["compilations"] = _compilations(recorder)
+    return summary
+
+
+def _compilations(recorder: event.RecordingListener) -> int:
+    """Numba compilations the recorder saw (a kernel loaded from the cache is not one)."""
+    return sum(1 for _, entry in recorder.buffer if entry.is_start)
+
+
+def _process(folder: Path, take_id: str, pipeline: Pipeline, key: str, output: Path, stem: str,
+             compilations: Callable[[], int]) -> dict[str, Any]:
+    started = time.perf_counter()
+    session = Session.open(folder)
+    opened = session.open_take(take_id)
+    try:
+        if opened.read_only:
+            return {"status": "skipped", "reason": opened.read_only_reason()}
+        description = step_description(pipeline, key)
+        review = opened.review
+        outputs: dict[str, Path] = {}
+        fills: dict[str, int] = {}
+        if opened.stack.undo_text() == description:  # done by a run stopped before it said so
+            outputs = {kind: path for kind, path in output_paths(pipeline, output, stem).items()
+                       if pipeline.runs("export") and path.exists()}
+        else:
+            done = run_steps(review, pipeline)
+            try:
+                if pipeline.runs("export"):
+                    outputs = export_take(review, pipeline, done, output_paths(pipeline, output, stem))
+            finally:
+                undo_all(review, done.commands)
+            if done.commands:
+                opened.push(CompoundCommand(done.commands, description))
+            fills = done.fills
+        if opened.is_modified():
+            opened.save()
+        summary = {"take": take_id, "status": "done", "reason": "", "name": opened.entry.name, "fills": fills,
+                   "outputs": {kind: str(path) for kind, path in outputs.items()}} | review_figures(review)
+        _record_exports(session, take_id, outputs)
+        summary["seconds"] = round(time.perf_counter() - started, 3)
+        summary["compilations"] = compilations()
+        update_state(folder, {take_id: {"state": "done", "key": key, "reason": "", "summary": summary}})
+        return summary
+    finally:
+        opened.close(save=False)
+        session.close()
+
+
+def _record_exports(session: Session, take_id: str, outputs: dict[str, Path]) -> None:
+    """The exports in the take's manifest entry (the session browser shows the take as exported)."""
+    if not outputs:
+        return
+
+    def change() -> None:
+        entry = session.take(take_id)
+        entry.exports.update({kind: str(path) for kind, path in outputs.items()})
+        entry.state = "exported"
+
+    session.update(change)
