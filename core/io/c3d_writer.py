@@ -141,7 +141,7 @@ def _write_frames(stream: BinaryIO, blocks: Sequence[np.ndarray], residuals: Seq
         for block, values in zip(blocks, residuals, strict=True):
             width = block.shape[1]
             chunk[:, column:column + width, :3] = block[start:stop]
-            present = np.isfinite(chunk[:, column:column + width, :3]).all(axis=2)
+            present = np.asarray(np.isfinite(chunk[:, column:column + width, :3]).all(axis=2))
             chunk[:, column:column + width, 3] = residual_words(present, None if values is None
                                                                 else values[start:stop], scale)
             column += width

@@ -37,6 +37,7 @@ import stat
 import struct
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
+from typing import Any
 from urllib.parse import unquote
 
 import numpy as np
@@ -675,7 +676,7 @@ class _Binary:
         return len(self.accessors) - 1
 
 
-def save_gltf_hand(model: HandModel, path: str | Path, animation: HandAnimation | None = None) -> None:
+def save_gltf_hand(model: HandModel, path: str | os.PathLike[str], animation: HandAnimation | None = None) -> None:
     """Write ``model`` as glTF 2.0 (``.glb`` binary or ``.gltf`` with an embedded buffer), metres, atomically.
 
     With ``animation``, one glTF animation "motion": the wrist node's translation and a rotation
@@ -695,7 +696,7 @@ def save_gltf_hand(model: HandModel, path: str | Path, animation: HandAnimation 
     world = _rest_world(skeleton)
     parents = list(JOINT_PARENTS) + [3 + 3 * d for d in range(5)]
     names = list(JOINT_NAMES) + [f"{d}_tip" for d in DIGITS]
-    nodes = []
+    nodes: list[dict[str, Any]] = []
     for index in range(N_JOINTS + 5):
         parent = parents[index]
         local = world[index] if parent < 0 else np.linalg.inv(world[parent]) @ world[index]
@@ -718,7 +719,7 @@ def save_gltf_hand(model: HandModel, path: str | Path, animation: HandAnimation 
                   "WEIGHTS_0": binary.add(weights, 5126, "VEC4", 34962)}
     indices = binary.add(model.faces.astype(np.uint32).ravel(), 5125, "SCALAR", 34963)
     inverse_bind = binary.add(np.linalg.inv(world).transpose(0, 2, 1).astype(np.float32), 5126, "MAT4")
-    document: dict = {
+    document: dict[str, Any] = {
         "asset": {"version": "2.0", "generator": "Hand Mocap Studio"},
         "scene": 0, "scenes": [{"name": "Scene", "nodes": [0, mesh_node]}],
         "nodes": nodes,

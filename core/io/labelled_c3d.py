@@ -51,7 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
-from core.io.c3d_file import _INTEL, _parse, read_c3d
+from core.io.c3d_file import _INTEL, ParameterValue, _parse, read_c3d
 from core.io.c3d_writer import RESIDUAL_PROCESSED, write_c3d_points
 from core.io.errors import TakeFormatError
 from core.io.take import Take
@@ -123,7 +123,7 @@ def encode_runs(values: np.ndarray, skip: int = 0) -> np.ndarray:
 def decode_runs(runs: np.ndarray, shape: tuple[int, int], default: int = 0, dtype: type = np.int8) -> np.ndarray:
     """Inverse of :func:`encode_runs` into an array of ``shape (F, N)`` filled with ``default``; runs
     outside the shape are clipped (a damaged file never raises here)."""
-    result = np.full(shape, default, dtype=dtype)
+    result: np.ndarray = np.full(shape, default, dtype=dtype)
     runs = np.asarray(runs, dtype=np.float64).reshape(4, -1) if np.size(runs) else np.zeros((4, 0))
     for point, start, length, value in np.rint(runs.T).astype(np.int64):
         if 0 <= point < shape[1] and length > 0:
@@ -194,7 +194,7 @@ def write_labelled_c3d(path: str | PathLike[str], label_names: list[str], positi
         if ghost is not None:
             ghost_runs = encode_runs(np.asarray(ghost, dtype=np.int8))[:3]
             ghost_runs[0] += count
-    group: dict[str, object] = {
+    group: dict[str, ParameterValue] = {
         "FORMAT": FORMAT_VERSION, "SOFTWARE": "Hand Mocap Studio", "DESCRIPTION": DESCRIPTION,
         "LABELLED": int(count), "CODES": CODE_LEGEND,
     }
