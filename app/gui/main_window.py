@@ -50,6 +50,7 @@ from app.gui.document import TakeDocument
 from app.gui.export_dialog import export_action
 from app.gui.load_queue import LoadQueue
 from app.gui.loose_takes import loose_document
+from app.gui.plots_controller import PlotsController
 from app.gui.review_controller import ReviewController
 from app.gui.session_controller import SessionController
 from app.gui.workers import TaskRunner, one_line
@@ -145,9 +146,11 @@ class MainWindow(QMainWindow):
         self.loader.started.connect(self.opening_label.setText)
         self.review = ReviewController(self.app, self, self.viewport, self.timeline)
         self.sessions = SessionController(self.app, self, self.loader)
+        self.plots = PlotsController(self.app, self)
         self.cameras = CameraController(self.app, self, self.viewport)
         self._place_review()
         self._place_sessions()
+        self._place_plots()
         self._place_cameras()
         self._connect_controllers()
         self.app.add_listener(self._draw_views)           # after the controllers' listeners
@@ -336,6 +339,15 @@ class MainWindow(QMainWindow):
         self.view_menu.addAction(self.camera_dock.toggleViewAction())
         cameras.status_message.connect(self.statusBar().showMessage)
         cameras.error_raised.connect(self.show_error)
+
+    def _place_plots(self) -> None:
+        """The trajectory plots dock (View ▸ Plots), hidden at first, tabbed with the tracks under the timeline."""
+        self.plots_dock = self._add_dock("Plots", self.plots.plots, Qt.DockWidgetArea.BottomDockWidgetArea)
+        self.tabifyDockWidget(self.tracks_dock, self.plots_dock)
+        self.plots_dock.hide()
+        self.plots_dock.toggleViewAction().setShortcut("Ctrl+Shift+P")
+        self.plots_dock.toggleViewAction().setToolTip("Trajectory plots of the selected labels (Ctrl+Shift+P)")
+        self.view_menu.addAction(self.plots_dock.toggleViewAction())
 
     def _connect_controllers(self) -> None:
         """Show what the controllers tell, and pass on what one asks of the other."""
