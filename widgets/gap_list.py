@@ -56,11 +56,11 @@ METHOD_TIPS = {
     "pattern": "Copies the motion of a donor marker observed through the gap, blended to the gap's ends",
     "rigid": "Rigid body: three donor markers on the same segment carry the marker through the gap",
 }
-COLUMNS = ("Marker", "First", "Length", "Recommended", "Error mm", "State")
+COLUMNS = ("Marker", "First", "Frames", "Best fill", "Error (mm)", "State")
 COLUMN_TIPS = (
     "Marker with the gap",
     "First missing frame (the file's frame numbers)",
-    "Missing frames",
+    "Length of the gap (missing frames)",
     f"Method to use: PCA, unless the gap lasts at most {LOCAL_HORIZON_S:g} s and another method fills\n"
     f"every hidden stretch of the fill check {DISPLACE_FACTOR:g}× better, on the mean and the worst frame",
     "Fill-check error of the recommended method: known stretches of the same length near the gap are\n"

@@ -17,7 +17,7 @@ from core.review import MarkerStats, ReviewSettings
 from widgets.marker_lanes import LOW_CONFIDENCE_COLOUR
 from widgets.marker_panel import MISSING_TEXT, SORT_ROLE, ColumnTableModel, filtered_table, swatch
 
-COLUMNS = ("Marker", "Seen %", "Filled %", "Gaps", "Longest", "Resid.", "Conf.")
+COLUMNS = ("Marker", "Seen %", "Filled %", "Gaps", "Longest (fr)", "Resid. (mm)", "Conf. (mm)")
 #: what each number column shows (MarkerStats field) and how many decimals
 FIELDS = (("observed_percent", 1), ("filled_percent", 1), ("gap_count", 0), ("longest_gap", 0),
           ("mean_residual_mm", 2), ("lowest_confidence_mm", 2))
@@ -29,8 +29,8 @@ COLUMN_TIPS = (
     "Number of unfilled gaps (runs of frames without a sample between the marker's first and last sample)",
     "Length of the longest unfilled gap (frames)",
     "Mean IK residual over the take: distance from the model's effector to the marker (mm)",
-    "Lowest labelling confidence over the take: margin between the chosen point and the next-best option (mm);"
-    "\nsmall values mark frames where a swap is possible",
+    "Lowest labelling confidence over the take (mm): the margin by which the chosen point beat the next-best"
+    f"\noption; below {ReviewSettings().low_confidence_mm:g} mm (orange) a swap is possible",
 )
 #: thresholds that colour a cell as a warning
 LOW_OBSERVED_PERCENT = 90.0

@@ -210,6 +210,7 @@ class SessionBrowser(QWidget):
         self.tree.setItemDelegateForColumn(STATE_COLUMN, StateBadgeDelegate(self.tree))
         self.tree.setAcceptDrops(False)            # drops go to the browser itself
         self.tree.viewport().setAcceptDrops(False)
+        self.tree.setTextElideMode(Qt.TextElideMode.ElideMiddle)   # take names differ at their ends
         header = self.tree.header()
         header.setStretchLastSection(False)
         header.setSectionResizeMode(TAKE_COLUMN, QHeaderView.ResizeMode.Stretch)
@@ -365,7 +366,7 @@ class SessionBrowser(QWidget):
         item.setText(TAKE_COLUMN, row.name)
         item.setData(TAKE_COLUMN, ID_ROLE, row.id)
         item.setData(TAKE_COLUMN, SORT_ROLE, row.name.lower())
-        item.setToolTip(TAKE_COLUMN, row.source or row.name)
+        item.setToolTip(TAKE_COLUMN, f"{row.name}\n{row.source}" if row.source else row.name)
         item.setText(STATE_COLUMN, row.state)
         item.setData(STATE_COLUMN, SORT_ROLE, TAKE_STATES.index(row.state))
         item.setToolTip(STATE_COLUMN, STATE_TIPS[row.state])

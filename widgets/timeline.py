@@ -92,7 +92,10 @@ class TimelineWidget(QWidget):
         self.frame_box.valueChanged.connect(lambda value: self.set_frame(value - self._first_frame))
         controls.addWidget(self.frame_box)
         self.time_label = QLabel(self)
-        self.time_label.setMinimumWidth(150)
+        # a fixed size: a label whose text changes every frame would otherwise lay the window out again and
+        # make Qt compose it once more per frame
+        self.time_label.setFixedSize(self.time_label.fontMetrics().horizontalAdvance("0000.000 s  / 0000.00 s") + 12,
+                                     self.time_label.sizeHint().height())
         controls.addWidget(self.time_label)
         controls.addStretch(1)
         controls.addWidget(QLabel("Speed"))

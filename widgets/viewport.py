@@ -3,6 +3,12 @@
 The widget knows nothing about takes or solvers: it draws numpy arrays. Every scene object is built
 once; per-frame updates write into the existing VTK arrays and call ``Modified()``, so scrubbing and
 playback never create actors.
+
+Drawing keeps up with scrubbing: :meth:`HandViewport.request_render` asks for one draw once the events
+waiting now are handled (many requests, one render of the latest data), rendered once by the Qt
+OpenGL widget's paint and without anti-aliasing; when nothing changed for :data:`IDLE_MS` the view is
+drawn again with :data:`MULTI_SAMPLES`× multisampling. Marker names are drawn for the selected marker,
+the one under the mouse, or all of them when asked (:meth:`HandViewport.set_labels_visible`).
 """
 
 from __future__ import annotations
@@ -14,6 +20,7 @@ import numpy as np
 import pyvista as pv
 from PySide6.QtCore import QEvent, QObject, QPointF, Qt, QTimer, Signal
 from PySide6.QtGui import QMouseEvent
+from PySide6.QtOpenGLWidgets import QOpenGLWidget
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 from pyvistaqt import QtInteractor
 from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
@@ -29,7 +36,7 @@ EFFECTOR_COLOUR = (1.00, 0.55, 0.10)
 RIGID_BODY_COLOUR = (0.55, 0.85, 1.00)   # lines between the markers of one rigid object
 BACKGROUND_TOP = (0.24, 0.26, 0.30)
 BACKGROUND_BOTTOM = (0.07, 0.08, 0.09)
-GRID_COLOUR = (0.42, 0.45, 0.50)
+GRID_COLOUR = (0.25, 0.27, 0.30)         # opaque (a translucent actor costs a transparency pass per render)
 LOOSE_POINT_COLOUR = (0.62, 0.62, 0.62)
 
 MARKER_RADIUS_MM = 3.2
@@ -38,6 +45,8 @@ LOOSE_POINT_RADIUS_MM = 2.0
 SELECTED_SCALE = 1.7
 PICK_RADIUS_PX = 12.0      # a click this close to a marker's centre selects it
 CLICK_SLOP_PX = 4.0        # a press and release further apart than this is a camera drag, not a click
+MULTI_SAMPLES = 4          # multisampling of the still view (software OpenGL: a render costs ~3× more with it)
+IDLE_MS = 200              # the view is redrawn anti-aliased when nothing changed for this long
 
 
 class ClickFilter:
@@ -101,6 +110,19 @@ def _segments(starts: np.ndarray, ends: np.ndarray) -> pv.PolyData:
     return pv.PolyData(points, lines=cells.ravel())
 
 
+def _set_segments(data: pv.PolyData, starts: np.ndarray, ends: np.ndarray) -> None:
+    """Make ``data`` the segments from ``starts (S,3)`` to ``ends (S,3)`` mm: the points move in place
+    when ``data`` holds S segments already, else it is rebuilt."""
+    count = len(starts)
+    if count and data.GetNumberOfCells() == count and data.GetNumberOfPoints() == 2 * count:
+        points = vtk_to_numpy(data.GetPoints().GetData())
+        points[0::2], points[1::2] = starts, ends
+        data.GetPoints().Modified()
+    else:
+        data.ShallowCopy(_segments(starts, ends))
+    data.Modified()
+
+
 def _grid_lines(center_xy: np.ndarray, half_extent: float, spacing: float, height: float) -> pv.PolyData:
     """Square grid of lines in the plane ``z = height`` centred (snapped to ``spacing``) on ``center_xy``."""
     center = np.round(np.asarray(center_xy, dtype=float) / spacing) * spacing
@@ -140,16 +162,25 @@ class HandViewport(QWidget):
         super().__init__(parent)
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
-        self._plotter = QtInteractor(self, off_screen=off_screen, auto_update=False, multi_samples=4)
+        self._off_screen = bool(pv.OFF_SCREEN if off_screen is None else off_screen)
+        self._plotter = QtInteractor(self, off_screen=self._off_screen, auto_update=False, multi_samples=0)
         self._plotter.setAcceptDrops(False)       # files dropped on the view go to the window
         self._plotter.installEventFilter(self)
+        self._plotter.setMouseTracking(True)      # hovering a marker shows its name
         self._clicks = ClickFilter()
         layout.addWidget(self._plotter)
         self.setMinimumSize(320, 240)
-        self._render_timer = QTimer(self)
+        self.render_count = 0                     # VTK renders of this view so far (benchmarks and tests)
+        self.draw_count = 0                       # redraws asked for so far
+        self._plotter.GetRenderWindow().AddObserver("EndEvent", self._rendered)
+        self._render_timer = QTimer(self)            # off screen: there is no paint to render in
         self._render_timer.setSingleShot(True)
         self._render_timer.setInterval(0)
-        self._render_timer.timeout.connect(self.render)
+        self._render_timer.timeout.connect(self._plotter.render)
+        self._idle_timer = QTimer(self)
+        self._idle_timer.setSingleShot(True)
+        self._idle_timer.setInterval(IDLE_MS)
+        self._idle_timer.timeout.connect(self._draw_still)
 
         plotter = self._plotter
         plotter.set_background(BACKGROUND_BOTTOM, top=BACKGROUND_TOP)
@@ -163,6 +194,9 @@ class HandViewport(QWidget):
         self._marker_positions = np.zeros((0, 3))
         self._marker_colours = np.zeros((0, 3))
         self._selected: int | None = None
+        self._hovered: int | None = None
+        self._labelled = np.zeros(0, dtype=np.int64)   # markers whose names are drawn now
+        self._label_texts: list[str] = []
         self._labels_visible = False
         self._effectors_visible = True
         self._mesh_visible = True
@@ -179,7 +213,7 @@ class HandViewport(QWidget):
     # ----------------------------------------------------------------------------------- scene setup
     def _build_grid(self) -> None:
         self._grid = _grid_lines(np.zeros(2), 500.0, 50.0, 0.0)
-        self._grid_actor = self._plotter.add_mesh(self._grid, color=GRID_COLOUR, opacity=0.55,
+        self._grid_actor = self._plotter.add_mesh(self._grid, color=GRID_COLOUR,
                                                   line_width=1, lighting=False, pickable=False,
                                                   name="ground-grid")
 
@@ -294,6 +328,7 @@ class HandViewport(QWidget):
 
     def _build_trails(self) -> None:
         self._trail_data = pv.PolyData()
+        self._trail_shape: tuple = ((), b"")        # point count of each polyline and their colours
         mapper = vtkPolyDataMapper()
         mapper.SetInputData(self._trail_data)
         mapper.SetColorModeToDirectScalars()
@@ -329,9 +364,15 @@ class HandViewport(QWidget):
 
     # ------------------------------------------------------------------------------------- events
     def eventFilter(self, watched: QObject, event: QEvent) -> bool:
-        """Keep key presses from VTK; turn a left click (press and release in place) into a pick."""
-        return watched is self._plotter and self._clicks.filter(
-            event, lambda x, y: self.marker_clicked.emit(self.marker_at(x, y)))
+        """Keep key presses from VTK; turn a left click (press and release in place) into a pick; name the
+        marker under the mouse while no button is held."""
+        if watched is not self._plotter:
+            return False
+        if event.type() == QEvent.Type.MouseMove and event.buttons() == Qt.MouseButton.NoButton:
+            self.set_hovered_marker(self.marker_at(event.position().x(), event.position().y()))
+        elif event.type() == QEvent.Type.Leave:
+            self.set_hovered_marker(-1)
+        return self._clicks.filter(event, lambda x, y: self.marker_clicked.emit(self.marker_at(x, y)))
 
     def marker_at(self, x: float, y: float) -> int:
         """Index of the shown marker nearest to widget position ``(x, y)`` (logical pixels) within
@@ -369,7 +410,7 @@ class HandViewport(QWidget):
         self._marker_names = list(names)
         self._marker_colours = (np.tile(MARKER_COLOUR, (count, 1)) if colours is None
                                else np.asarray(colours, dtype=float).reshape(count, 3))
-        self._selected = None
+        self._selected = self._hovered = None
         self._resize_points(self._marker_data, count, MARKER_COLOUR)
         self._marker_positions = np.full((count, 3), np.nan)
         self.update_markers(positions)
@@ -397,8 +438,7 @@ class HandViewport(QWidget):
         visible = np.isfinite(positions).all(axis=1)
         vtk_to_numpy(self._marker_data.GetPoints().GetData())[visible] = positions[visible]
         self._refresh_marker_style()
-        if self._labels_visible:
-            self._refresh_labels()
+        self._refresh_labels()
 
     def set_selected_marker(self, index: int | None) -> None:
         """Highlight marker ``index`` (bigger, yellow, labelled) or clear the highlight with None."""
@@ -422,26 +462,50 @@ class HandViewport(QWidget):
 
     # --------------------------------------------------------------------------------------- labels
     def set_labels_visible(self, visible: bool) -> None:
-        """Show or hide the name labels of all markers (the selected marker is always labelled)."""
+        """Show or hide the names of all markers (the selected marker and the one under the mouse are
+        always named)."""
         self._labels_visible = bool(visible)
         self._refresh_labels()
+        self.request_render()
+
+    def set_hovered_marker(self, index: int) -> None:
+        """Name marker ``index`` while the mouse is over it (-1: none)."""
+        hovered = index if 0 <= index < len(self._marker_names) else None
+        if hovered != self._hovered:
+            self._hovered = hovered
+            self._refresh_labels()
+            self.request_render()
+
+    def labelled_markers(self) -> list[int]:
+        """Indices of the markers whose names are drawn now."""
+        return [int(index) for index in self._labelled]
 
     def _refresh_labels(self) -> None:
+        """Name the selected and the hovered marker (all markers when names are switched on); the label
+        points move in place while the same markers keep the same names."""
         visible = np.isfinite(self._marker_positions).all(axis=1)
         if not self._labels_visible:
-            only_selected = np.zeros_like(visible)
-            if self._selected is not None:
-                only_selected[self._selected] = True
-            visible &= only_selected
+            named = np.zeros_like(visible)
+            for index in (self._selected, self._hovered):
+                if index is not None:
+                    named[index] = True
+            visible &= named
         indices = np.flatnonzero(visible)
+        texts = [f"  {self._marker_names[index]}" for index in indices]
+        if np.array_equal(indices, self._labelled) and texts == self._label_texts and len(indices):
+            vtk_to_numpy(self._label_data.GetPoints().GetData())[:] = self._marker_positions[indices]
+            self._label_data.GetPoints().Modified()
+            self._label_data.Modified()
+            return
         names = vtkStringArray()
         names.SetName("names")
-        for index in indices:
-            names.InsertNextValue(f"  {self._marker_names[index]}")
+        for text in texts:
+            names.InsertNextValue(text)
         label_data = pv.PolyData(self._marker_positions[indices]) if len(indices) else pv.PolyData()
         label_data.GetPointData().AddArray(names)
         self._label_data.ShallowCopy(label_data)
         self._label_actor.SetVisibility(bool(len(indices)))
+        self._labelled, self._label_texts = indices, texts
 
     # ---------------------------------------------------------------------------------- hand mesh
     def set_hand_mesh(self, vertices: np.ndarray | None, faces: np.ndarray | None = None) -> None:
@@ -500,12 +564,17 @@ class HandViewport(QWidget):
                 cells.append(np.concatenate([[end - start], offset + np.arange(end - start)]))
                 cell_colours.append(colour)
                 offset += end - start
-        if points:
+        shape = (tuple(len(part) for part in points), _as_rgb_bytes(np.array(cell_colours)).tobytes())
+        if points and shape == self._trail_shape:        # same polylines, moved: write the points in place
+            vtk_to_numpy(self._trail_data.GetPoints().GetData())[:] = np.concatenate(points)
+            self._trail_data.GetPoints().Modified()
+        elif points:
             lines = pv.PolyData(np.concatenate(points), lines=np.concatenate(cells))
             lines.cell_data["colors"] = _as_rgb_bytes(np.array(cell_colours))
+            self._trail_data.ShallowCopy(lines)
         else:
-            lines = pv.PolyData()
-        self._trail_data.ShallowCopy(lines)
+            self._trail_data.ShallowCopy(pv.PolyData())
+        self._trail_shape = shape
         self._trail_data.Modified()
 
     def set_loose_points(self, points: np.ndarray | None, colours: np.ndarray | None = None) -> None:
@@ -544,15 +613,13 @@ class HandViewport(QWidget):
         else:
             targets = np.asarray(targets, dtype=float).reshape(count, 3)
             paired = shown & np.isfinite(targets).all(axis=1)
-        self._residual_lines.ShallowCopy(_segments(effectors[paired], targets[paired]))
-        self._residual_lines.Modified()
+        _set_segments(self._residual_lines, effectors[paired], targets[paired])
 
     def set_rigid_bodies(self, segments: np.ndarray | None) -> None:
         """Draw rigid objects as lines between their labelled markers: ``segments (S, 2, 3)`` mm (start
         and end of each line); None or empty clears them."""
         segments = np.zeros((0, 2, 3)) if segments is None else np.asarray(segments, dtype=float).reshape(-1, 2, 3)
-        self._rigid_lines.ShallowCopy(_segments(segments[:, 0], segments[:, 1]))
-        self._rigid_lines.Modified()
+        _set_segments(self._rigid_lines, segments[:, 0], segments[:, 1])
 
     def rigid_body_segment_count(self) -> int:
         """Number of rigid-body lines drawn."""
@@ -567,7 +634,7 @@ class HandViewport(QWidget):
                 return
             self._frustum_lines = _segments(segments[:, 0], segments[:, 1])
             self._frustum_actor = self._plotter.add_mesh(
-                self._frustum_lines, color=(1.0, 0.85, 0.35), line_width=1.0, opacity=0.7, lighting=False,
+                self._frustum_lines, color=(0.75, 0.78, 0.85), line_width=1.0, opacity=0.6, lighting=False,
                 pickable=False, name="camera-frustum", reset_camera=False)
         self._frustum_lines.ShallowCopy(_segments(segments[:, 0], segments[:, 1]))
         self._frustum_lines.Modified()
@@ -627,14 +694,46 @@ class HandViewport(QWidget):
 
     # ------------------------------------------------------------------------------------- output
     def render(self) -> None:
-        """Redraw now."""
+        """Redraw now, anti-aliased (screenshots)."""
+        self._render_timer.stop()
+        self._idle_timer.stop()
+        self._set_multi_samples(MULTI_SAMPLES)
         self._plotter.render()
 
     def request_render(self) -> None:
-        """Redraw once the events waiting now are handled (many requests, one redraw: fast scrubbing
-        skips frames)."""
-        if not self._render_timer.isActive():
+        """Redraw with the next paint of the window: many requests before it, one render of the latest data
+        (fast scrubbing skips frames), without anti-aliasing; anti-aliased once nothing changed for
+        :data:`IDLE_MS`. The paint is Qt's, so the view and the widgets that changed with it are composed
+        on screen together (a timer of its own would make Qt compose the window once more)."""
+        self.draw_count += 1
+        self._set_multi_samples(0)
+        self._paint()
+        self._idle_timer.start()
+
+    def is_anti_aliased(self) -> bool:
+        """Whether the view is drawn with multisampling now (it is when still)."""
+        return self._plotter.GetRenderWindow().GetMultiSamples() > 0
+
+    def _draw_still(self) -> None:
+        self._set_multi_samples(MULTI_SAMPLES)
+        self._paint()
+
+    def _set_multi_samples(self, samples: int) -> None:
+        window = self._plotter.GetRenderWindow()
+        if window.GetMultiSamples() != samples:
+            window.SetMultiSamples(samples)
+
+    def _paint(self) -> None:
+        """Schedule one render: the OpenGL widget renders in its paint and shows the result (rendering
+        first and then painting would render twice); an off-screen view renders once the events waiting
+        now are handled."""
+        if self._off_screen:
             self._render_timer.start()
+        else:
+            QOpenGLWidget.update(self._plotter)
+
+    def _rendered(self, *_arguments: object) -> None:
+        self.render_count += 1
 
     def save_screenshot(self, path: str | Path) -> None:
         """Write the current 3D view to an image file (PNG/JPEG by extension)."""
@@ -643,4 +742,5 @@ class HandViewport(QWidget):
     def close_viewport(self) -> None:
         """Release the render window (call when the owning window closes)."""
         self._render_timer.stop()
+        self._idle_timer.stop()
         self._plotter.close()

@@ -47,7 +47,8 @@ def _version() -> str:
 def command_gui(args: argparse.Namespace) -> int:
     from app.gui.launch import run_gui
 
-    return run_gui(args.files, screenshot=args.screenshot, frame=args.frame, solve=args.solve, demo=args.demo)
+    return run_gui(args.files, screenshot=args.screenshot, frame=args.frame, solve=args.solve, demo=args.demo,
+                   size=args.size)
 
 
 def command_info(args: argparse.Namespace) -> int:
@@ -182,6 +183,7 @@ def build_parser() -> argparse.ArgumentParser:
     gui.add_argument("--frame", type=int, help="0-based frame to show in the screenshot")
     gui.add_argument("--solve", action="store_true", help="solve the opened takes at once")
     gui.add_argument("--demo", action="store_true", help="also open the demo session")
+    gui.add_argument("--size", metavar="WxH", help="window size in pixels, e.g. 1366x768 (default 1500x950)")
     add_outputs(gui, "screenshot")
     gui.set_defaults(handler=command_gui)
 

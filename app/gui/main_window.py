@@ -61,7 +61,9 @@ from core.io.durable import durable_path
 from core.model import layout_names, load_layout, skin_vertices
 from core.review.events import ReviewChanged
 from core.workflows.resolve import check_layout_names, solve_labelled_take
+from widgets.elided_combo import ElidedComboBox
 from widgets.marker_panel import MarkerPanel
+from widgets.message_panel import MessagePanel, PanelLogHandler
 from widgets.timeline import TimelineWidget
 from widgets.viewport import HandViewport
 from widgets.window_image import window_image
@@ -74,6 +76,7 @@ FRAMING_RADIUS_MM = 90.0                   # half-size of the box the camera fra
 TAKE_SUFFIXES = READ_SUFFIXES
 TAKE_FILTER = TAKE_FILE_FILTER
 SOLVE_JOB = "solve"                        # the IK solver's worker in Application.jobs
+TAKE_NAME_CHARACTERS = 28                  # the take choice's width; longer names are elided in the middle
 
 
 @dataclass
@@ -152,6 +155,7 @@ class MainWindow(QMainWindow):
         self._place_sessions()
         self._place_plots()
         self._place_cameras()
+        self._place_messages()
         self._connect_controllers()
         self.app.add_listener(self._draw_views)           # after the controllers' listeners
         self.resizeDocks([self.timeline_dock, self.tracks_dock], [140, 190], Qt.Orientation.Vertical)
@@ -241,9 +245,8 @@ class MainWindow(QMainWindow):
         toolbar.addAction(self.open_action)
         toolbar.addSeparator()
         toolbar.addWidget(QLabel(" Take "))
-        self.take_box = QComboBox(self)
-        self.take_box.setMinimumWidth(320)
-        self.take_box.setToolTip("Open takes: switch between them; each keeps its solve and frame")
+        self.take_box = ElidedComboBox(self, "Open takes: switch between them; each keeps its solve and frame")
+        self.take_box.setMinimumContentsLength(TAKE_NAME_CHARACTERS)
         self.take_box.currentIndexChanged.connect(self._take_chosen)
         toolbar.addWidget(self.take_box)
         toolbar.addSeparator()
@@ -302,6 +305,7 @@ class MainWindow(QMainWindow):
         menus.insertMenu(menus.actions()[-1], review.review_menu)    # before Solve
         for dock in (self.labels_dock, self.tracks_dock, self.gaps_dock):
             self.view_menu.addAction(dock.toggleViewAction())
+        self.addToolBarBreak()                   # a line of its own: at 1366 px both do not fit in one
         self.addToolBar(review.toolbar)
         self.file_menu.insertAction(self.export_action, self.close_take_action)
         self.file_menu.insertMenu(self.export_action, review.export_menu)
@@ -348,6 +352,29 @@ class MainWindow(QMainWindow):
         self.plots_dock.toggleViewAction().setShortcut("Ctrl+Shift+P")
         self.plots_dock.toggleViewAction().setToolTip("Trajectory plots of the selected labels (Ctrl+Shift+P)")
         self.view_menu.addAction(self.plots_dock.toggleViewAction())
+
+    def _place_messages(self) -> None:
+        """The message panel (View ▸ Messages), tabbed with the tracks: warnings of reading and labelling takes
+        land there (logging and Python warnings while the window is open), counted in the status bar."""
+        self.message_panel = MessagePanel(self)
+        self.messages_dock = self._add_dock("Messages", self.message_panel, Qt.DockWidgetArea.BottomDockWidgetArea)
+        self.tabifyDockWidget(self.tracks_dock, self.messages_dock)
+        self.tracks_dock.raise_()
+        self.view_menu.addAction(self.messages_dock.toggleViewAction())
+        self.messages_button = QToolButton(self)
+        self.messages_button.setAutoRaise(True)
+        self.messages_button.setToolTip("Warnings of reading and labelling the takes: show the message panel")
+        self.messages_button.clicked.connect(lambda: (self.messages_dock.show(), self.messages_dock.raise_()))
+        self.messages_button.hide()
+        self.statusBar().insertPermanentWidget(0, self.messages_button)
+        self.message_panel.count_changed.connect(self._messages_counted)
+        self.log_handler = PanelLogHandler(self.message_panel)
+        self.log_handler.install()
+
+    def _messages_counted(self, count: int) -> None:
+        self.messages_dock.setWindowTitle(f"Messages ({count})" if count else "Messages")
+        self.messages_button.setText(f"⚠ {count}")
+        self.messages_button.setVisible(count > 0)
 
     def _connect_controllers(self) -> None:
         """Show what the controllers tell, and pass on what one asks of the other."""
@@ -828,6 +855,7 @@ class MainWindow(QMainWindow):
 
     def closeEvent(self, event: QCloseEvent) -> None:
         """Cancel and wait for the workers, release the render window."""
+        self.log_handler.remove()
         self.timeline.pause()
         self.sessions.close()
         self.runner.stop()

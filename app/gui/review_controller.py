@@ -12,6 +12,7 @@ thread if the review has not changed since.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -91,6 +92,7 @@ from widgets.review_table import ReviewTable
 from widgets.timeline import TimelineWidget
 from widgets.viewport import HandViewport
 
+_log = logging.getLogger(__name__)
 UNLABELLED_COLOUR = (0.62, 0.62, 0.64)
 GHOST_COLOUR = (0.55, 0.22, 0.22)
 FILL_COLOUR = (0.45, 0.95, 0.55)
@@ -227,20 +229,22 @@ class ReviewController(QObject):
         self.lanes.link_x(self.timeline.plot.getPlotItem().vb)
         self.gap_list = GapList(host)
         self.preview = FillPreview(host)
-        splitter = QSplitter(Qt.Orientation.Vertical, host)
-        splitter.addWidget(self.gap_list)
-        splitter.addWidget(self.preview)
-        splitter.setSizes([560, 200])
+        gaps = QScrollArea(host)             # the gap table, check and fill-all need more height than a small
+        gaps.setWidgetResizable(True)        # screen has: they scroll, the preview beside them stays in view
+        gaps.setFrameShape(QScrollArea.Shape.NoFrame)
+        gaps.setWidget(self.gap_list)
+        self.gaps_panel = QSplitter(Qt.Orientation.Horizontal, host)
+        self.gaps_panel.addWidget(gaps)
+        self.gaps_panel.addWidget(self.preview)
+        self.gaps_panel.setStretchFactor(0, 3)
+        self.gaps_panel.setStretchFactor(1, 2)
+        self.gaps_panel.setChildrenCollapsible(False)
         self.gap_list.gap_selected.connect(self._gap_selected)
         self.gap_list.method_changed.connect(lambda _gap, method: self.preview.set_selected(method))
         self.gap_list.preview_requested.connect(self._preview_requested)
         self.gap_list.accept_requested.connect(self.accept_fill)
         self.gap_list.reject_requested.connect(self.reject_gap)
         self.gap_list.fill_all_requested.connect(self.fill_all)
-        self.gaps_panel = QScrollArea(host)           # the gap table, check and preview need more height than
-        self.gaps_panel.setWidgetResizable(True)      # a small screen has: scroll rather than grow the window
-        self.gaps_panel.setFrameShape(QScrollArea.Shape.NoFrame)
-        self.gaps_panel.setWidget(splitter)
 
     def _build_actions(self) -> None:
         host = self.host
@@ -252,6 +256,8 @@ class ReviewController(QObject):
         self.auto_label_action.setToolTip("Label the take's raw points automatically (Ctrl+L)")
         self.undo_action = action("&Undo", self.undo, QKeySequence.StandardKey.Undo)
         self.redo_action = action("&Redo", self.redo, "Ctrl+Shift+Z")
+        self.undo_action.setIconText("Undo")     # the toolbar stays short; the menu and tooltip say what
+        self.redo_action.setIconText("Redo")
         self.assign_action = action("&Assign label…", self.choose_label_to_assign, "L")
         self.swap_action = action("S&wap labels…", self.choose_label_to_swap, "W")
         self.ghost_action = action("Mark as &ghost", self.mark_ghost, "Shift+G")
@@ -949,6 +955,8 @@ class ReviewController(QObject):
                     f"Auto-labelled {report['frames']} frames: {100 * report['labelled_share']:.1f} % of label "
                     f"samples found, {report['ghost_points']} ghost points left unlabelled{kept}",
                     0 if report["health"] else 10000)
+                for warning in document.review.health:      # into the message panel, not only the status bar
+                    _log.warning("%s: auto-label: %s", document.title, warning.message)
                 self.auto_label_applied.emit(document, result.models, result.marker_sets)
             elif kind == "fill" and result is not None:
                 span = document.push(result)

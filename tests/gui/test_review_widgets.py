@@ -256,11 +256,11 @@ def test_table_sorts_numerically_with_unknown_values_last(table):
     observed = TABLE_COLUMNS.index("Seen %")
     table.sort_by(observed)
     assert table.visible_rows() == [0, 3, 2, 1]          # 9.5 < 45.25 < 80 < 100 (text order would differ)
-    table.sort_by(TABLE_COLUMNS.index("Longest"), descending=True)
+    table.sort_by(TABLE_COLUMNS.index("Longest (fr)"), descending=True)
     assert table.visible_rows() == [3, 0, 2, 1]
-    table.sort_by(TABLE_COLUMNS.index("Resid."))
+    table.sort_by(TABLE_COLUMNS.index("Resid. (mm)"))
     assert table.visible_rows() == [0, 3, 2, 1]          # NaN after every number
-    assert table.model.index(1, TABLE_COLUMNS.index("Resid.")).data() == "—"
+    assert table.model.index(1, TABLE_COLUMNS.index("Resid. (mm)")).data() == "—"
     assert table.model.index(0, observed).data() == "9.5"
 
 
@@ -292,7 +292,7 @@ def test_table_shows_core_review_statistics(qtbot):
     qtbot.addWidget(widget)
     widget.set_markers(review.marker_stats(), colours=np.full((4, 3), 0.5))
     assert widget.model.index(1, TABLE_COLUMNS.index("Gaps")).data() == "2"
-    assert widget.model.index(1, TABLE_COLUMNS.index("Longest")).data() == "40"
+    assert widget.model.index(1, TABLE_COLUMNS.index("Longest (fr)")).data() == "40"
     assert widget.model.index(1, TABLE_COLUMNS.index("Seen %")).data() == "75.0"
 
 
@@ -390,7 +390,7 @@ def test_gap_at_the_take_edge_cannot_be_filled(gaps, checked_rows, qtbot):
     assert not gaps.accept_button.isEnabled() and not gaps.preview_button.isEnabled()
     assert gaps.reject_button.isEnabled()
     assert "one side" in gaps.detail_note.text()
-    assert gaps.model.index(index, GAP_COLUMNS.index("Recommended")).data() == "cannot fill"
+    assert gaps.model.index(index, GAP_COLUMNS.index("Best fill")).data() == "cannot fill"
 
 
 def test_fill_all_counts_sorting_and_filters(qtbot):
@@ -406,7 +406,7 @@ def test_fill_all_counts_sorting_and_filters(qtbot):
     with qtbot.waitSignal(widget.fill_all_requested, timeout=1000) as fill_all:
         widget.fill_all_button.click()
     assert fill_all.args == [200]
-    widget.sort_by(GAP_COLUMNS.index("Length"))
+    widget.sort_by(GAP_COLUMNS.index("Frames"))
     assert widget.visible_rows() == [4, 0, 3, 2, 1]                  # 3 < 5 < 9 < 30 < 120, not text order
     widget.state_box.setCurrentIndex(widget.state_box.findText("Open"))
     assert sorted(widget.visible_rows()) == [0, 1, 4]
