@@ -168,7 +168,7 @@ class CameraController(QObject):
         self._shown_key: tuple | None = None
         self._draw_timer = QTimer(self)
         self._draw_timer.setSingleShot(True)
-        self._draw_timer.setInterval(0)
+        self._draw_timer.setInterval(1)        # not 0: an idle timer never fires while playback keeps Qt busy
         self._draw_timer.timeout.connect(self.draw_now)
         self.add_action = make_action(host, "Add &camera…", self.choose_camera_files)
         self.add_action.setToolTip("Add a camera (video or frames and its calibration) to the shown session take")
@@ -287,7 +287,7 @@ class CameraController(QObject):
 
     def redraw(self) -> None:
         """Draw once the events queued now are handled (a burst of frames draws the latest only)."""
-        if self.camera is not None:
+        if self.camera is not None and not self._draw_timer.isActive():     # restarting it would starve it
             self._draw_timer.start()
 
     def camera_frame_at(self, frame: int) -> int:

@@ -54,10 +54,18 @@ if TYPE_CHECKING:
 IMAGE_FILTER = "Board images (*.png *.jpg *.jpeg)"
 
 
-def intrinsics_task(paths: list[Path], spec: BoardSpec, name: str) -> Callable:
-    """Worker task: detect the board in every image, then calibrate (:class:`IntrinsicCalibration`)."""
+@dataclass
+class Intrinsics:
+    """An intrinsic calibration and the corners found in each image (0: the board was not found)."""
 
-    def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> IntrinsicCalibration:
+    calibration: IntrinsicCalibration
+    corners: list[int]
+
+
+def intrinsics_task(paths: list[Path], spec: BoardSpec, name: str) -> Callable:
+    """Worker task: detect the board in every image, then calibrate (:class:`Intrinsics`)."""
+
+    def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> Intrinsics:
         detections, size = [], None
         for index, path in enumerate(paths):
             if cancelled():
@@ -74,7 +82,7 @@ def intrinsics_task(paths: list[Path], spec: BoardSpec, name: str) -> Callable:
             progress(0.9 * (index + 1) / len(paths))
         result = calibrate_intrinsics(detections, size, name=name)
         progress(1.0)
-        return result
+        return Intrinsics(result, [0 if detection is None else len(detection.ids) for detection in detections])
 
     return task
 
@@ -219,6 +227,7 @@ class CameraWizard(QDialog):
         self.views_table.setHorizontalHeaderLabels(["Image", "Corners", "Error (px)", "Used"])
         self.views_table.horizontalHeader().setStretchLastSection(True)
         self.views_table.setColumnWidth(0, 260)
+        self.views_table.verticalHeader().setVisible(False)
         self.coverage_label = QLabel("", page)
         self.coverage_label.setWordWrap(True)
         layout = QVBoxLayout(page)
@@ -334,9 +343,9 @@ class CameraWizard(QDialog):
         self.runner.start(task)
 
     def _succeeded(self, _request: int, result: object) -> None:
-        if isinstance(result, IntrinsicCalibration):
+        if isinstance(result, Intrinsics):
             self._show_intrinsics(result)
-            previous = self.camera
+            result, previous = result.calibration, self.camera
             camera = result.camera
             if previous is not None:
                 camera = replace(camera, name=previous.name, clock=previous.clock)
@@ -358,16 +367,18 @@ class CameraWizard(QDialog):
             self._ended("offset estimated: Save camera keeps it")
         self._show_camera()
 
-    def _show_intrinsics(self, result: IntrinsicCalibration) -> None:
-        table = self.views_table
+    def _show_intrinsics(self, intrinsics: Intrinsics) -> None:
+        """Every view's corners, RMS error and whether it was used; the coverage hint."""
+        result, table = intrinsics.calibration, self.views_table
         table.setRowCount(len(self.image_paths))
         for row, path in enumerate(self.image_paths):
             error = result.view_errors[row]
-            found = np.isfinite(error)
-            cells = (path.name, "—" if not found else "found", "board not found" if not found else f"{error:.3f}",
+            found = intrinsics.corners[row] > 0
+            cells = (path.name, str(intrinsics.corners[row]), f"{error:.3f}" if found else "board not found",
                      "yes" if result.used[row] else ("rejected" if found else "—"))
             for column, text in enumerate(cells):
                 table.setItem(row, column, QTableWidgetItem(text))
+        table.resizeRowsToContents()
         self.coverage_label.setText(f"Coverage: {result.report()['coverage_hint']} · rejection threshold "
                                     f"{result.threshold_px:.3f} px")
 
@@ -392,7 +403,7 @@ class CameraWizard(QDialog):
             (fx, fy), (cx, cy) = camera.focal, camera.principal_point
             pose = f"at {np.array2string(camera.centre, precision=0)} mm" if camera.registered else "not registered"
             self.camera_label.setText(f"Camera '{camera.name}': {camera.width}×{camera.height} px, f {fx:.1f}, "
-                                      f"{fy:.1f} px, principal point {cx:.1f}, {cy:.1f} px, {pose}, clock offset "
+                                      f"{fy:.1f} px, principal point {cx:.1f}, {cy:.1f} px, {pose}, offset "
                                       f"{camera.clock.offset_s:+.4f} s")
         self.save_button.setEnabled(camera is not None and not self.runner.is_busy())
 

@@ -165,3 +165,65 @@ def test_wizard_calibrates_intrinsics_on_a_worker_and_can_be_cancelled(window, q
 
     np.testing.assert_allclose(load_camera(tmp_path / "calibrated.json").matrix, wizard.camera.matrix)
     wizard.close()
+
+
+def test_playback_keeps_the_video_in_step_with_the_take(window, qtbot, filmed, tmp_path):
+    open_session_take(window, qtbot, session_with_camera(filmed, tmp_path / "session"))
+    controller = window.cameras
+    draws = []
+    controller.view.canvas.set_content = (lambda original: lambda *args, **kwargs: (
+        draws.append(window.app.frame), original(*args, **kwargs))[1])(controller.view.canvas.set_content)
+    window.timeline.set_frame(0)
+    window.timeline.play()
+    qtbot.waitUntil(lambda: window.app.frame >= 60, timeout=20_000)
+    window.timeline.pause()
+    qtbot.waitUntil(lambda: controller._shown_key is not None and controller._shown_key[3] == window.app.frame,
+                    timeout=5000)
+    assert controller._shown_key[2] == controller.camera_frame_at(window.app.frame)
+    # the video followed (a new camera frame every few mocap frames), never more draws than frames shown
+    assert 5 <= len(draws) <= window.app.frame + 1
+
+
+def test_rgbd_camera_toggles_between_colour_and_depth(window, qtbot, filmed, tmp_path):
+    from core.camera.writers import write_depth_frames
+
+    files, simulated = filmed
+    depth = tmp_path / "depth"
+    depth.mkdir()
+    write_depth_frames(depth, (simulated.render(k)[1] for k in range(6)), 1.0)
+    folder = session_with_camera(filmed, tmp_path / "session", with_camera=False)
+    session = Session.open(folder)
+    add_camera(session, "t0001", simulated.camera, files / "video.avi", depth=depth, depth_unit_mm=1.0)
+    session.close()
+    open_session_take(window, qtbot, folder)
+    controller = window.cameras
+    window.timeline.set_frame(12)       # camera time 0.02 s: camera frame 1
+    qtbot.waitUntil(lambda: controller._shown_key is not None and controller._shown_key[3] == 12, timeout=5000)
+    assert controller.view.stream_box.isEnabled() and controller.view.canvas._image.array.ndim == 3
+    controller.view.stream_box.setCurrentText("depth")
+    qtbot.waitUntil(lambda: controller._shown_key[1] == "depth", timeout=5000)
+    grey = controller.view.canvas._image.array
+    assert grey.ndim == 2 and grey.dtype == np.uint8
+    assert ((grey > 0) == (simulated.render(1)[1] > 0)).mean() > 0.95     # no depth is black
+    assert np.isfinite(controller.view.canvas._pixels).any()                # the markers are drawn on depth too
+
+
+def test_wizard_estimates_the_offset_of_a_registered_camera(window, qtbot, filmed, tmp_path):
+    from app.gui.camera_wizard import CameraWizard
+    from core.camera.model import CameraClock
+
+    files, simulated = filmed
+    folder = session_with_camera(filmed, tmp_path / "session", with_camera=False)
+    session = Session.open(folder)
+    add_camera(session, "t0001", simulated.camera.with_clock(CameraClock(OFFSET_S + 0.08)), files / "video.avi")
+    session.close()
+    open_session_take(window, qtbot, folder)
+    wizard = CameraWizard(window, window.cameras)
+    qtbot.addWidget(wizard)
+    wizard.start_offset()
+    qtbot.waitUntil(lambda: not wizard.runner.is_busy(), timeout=120_000)
+    assert abs(wizard.camera.clock.offset_s - OFFSET_S) < 0.01, wizard.status_label.text()
+    assert wizard.save()
+    assert window.cameras.camera.camera.clock.offset_s == wizard.camera.clock.offset_s
+    assert abs(take_cameras(Session.open(folder, read_only=True), "t0001")[0].camera.clock.offset_s - OFFSET_S) < 0.01
+    wizard.close()
