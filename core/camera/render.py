@@ -59,6 +59,18 @@ def render_mesh(camera: Camera, vertices: np.ndarray, faces: np.ndarray) -> tupl
     return depth, face_index
 
 
+def rasterise(points: np.ndarray, faces: np.ndarray, focal: tuple[float, float], principal: tuple[float, float],
+              shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Z-buffer of camera-frame ``points (V,3)`` mm with ``faces (T,3) int64`` into an image of ``shape``
+    (rows, columns) with pinhole ``focal`` and ``principal`` point (px; e.g. a crop or a reduced image):
+    ``(depth (H,W) float32 mm, inf where empty; face (H,W) int32, -1 where empty)``."""
+    depth = np.full(shape, np.inf, dtype=np.float32)
+    face_index = np.full(shape, -1, dtype=np.int32)
+    _rasterise(np.ascontiguousarray(points, dtype=np.float64), faces, float(focal[0]), float(focal[1]),
+               float(principal[0]), float(principal[1]), depth, face_index)
+    return depth, face_index
+
+
 def shade(camera: Camera, vertices: np.ndarray, faces: np.ndarray, face_index: np.ndarray,
           colour: tuple[float, float, float], ambient: float = 0.35) -> tuple[np.ndarray, np.ndarray]:
     """Lambert shading with a light at the camera: ``(image (H,W,3) float32 BGR 0..255, mask (H,W) bool)``
