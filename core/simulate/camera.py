@@ -12,6 +12,7 @@ ChArUco or chessboard image through the homography of a random board pose, then 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -178,7 +179,7 @@ def render_scene(camera: Camera, vertices: np.ndarray | None, faces: np.ndarray 
                  ) -> tuple[np.ndarray, np.ndarray | None]:
     """Colour ``(H,W,3) uint8`` and depth ``(H,W) float32`` mm (or None) of a mesh (optional) with markers
     ``(M,3)`` mocap mm of ``radius`` mm over the background."""
-    colour, depth = background(camera, np.random.default_rng(0))
+    colour, depth = (array.copy() for array in _scene_background(camera))
     if vertices is not None:
         mesh_depth, face_index = render_mesh(camera, vertices, faces)
         skin, mask = shade(camera, vertices, faces, face_index, SKIN_BGR)
@@ -186,6 +187,15 @@ def render_scene(camera: Camera, vertices: np.ndarray | None, faces: np.ndarray 
         depth = np.minimum(depth, mesh_depth)
     _draw_markers(camera, colour, depth, markers, radius)
     return finish_colour(camera, colour, rng), finish_depth(camera, depth, rng) if with_depth else None
+
+
+@lru_cache(maxsize=2)
+def _scene_background(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`background` of :func:`render_scene`: the same for every frame a camera renders (read-only)."""
+    colour, depth = background(camera, np.random.default_rng(0))
+    colour.setflags(write=False)
+    depth.setflags(write=False)
+    return colour, depth
 
 
 def simulate_camera_take(seed: int = 0, n_frames: int = 400, mocap_rate: float = 100.0,
