@@ -1,6 +1,6 @@
 """The demo session: a session folder with a raw (unlabelled) simulated take to auto-label and review, a
-labelled simulated take, a labelled simulated take filmed by a calibrated 30 Hz colour camera (a 4 s
-640×480 video whose clock runs :data:`CAMERA_OFFSET_S` behind the mocap's), and, when the shared data
+labelled simulated take, a labelled simulated take filmed by a calibrated 30 Hz colour camera (a 3.1 s
+640×480 video whose first frame is at mocap time :data:`CAMERA_OFFSET_S`), and, when the shared data
 folder is present, the real DFKI glove recording (``../shared/data/real``; or
 ``$HANDMOCAP_SHARED/data/real``).
 
@@ -30,7 +30,7 @@ LABELLED_TAKE = "simulated grasps (dense, labelled).trc"
 CAMERA_TAKE = "simulated take with a camera (dense, labelled).c3d"
 CAMERA_VIDEO = "camera video (30 Hz).avi"
 CAMERA_FILE = "camera.json"
-CAMERA_FRAMES = 400        # mocap frames at 100 Hz: a 4 s take, about 117 camera frames
+CAMERA_FRAMES = 320        # mocap frames at 100 Hz: a 3.2 s take, a 3.1 s video of 93 camera frames
 CAMERA_OFFSET_S = 0.12     # the camera clock's known offset (s)
 CAMERA_DISTANCE_MM = 450.0  # from the workspace centre: the hand fills a good part of the image
 

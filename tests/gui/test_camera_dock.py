@@ -227,3 +227,16 @@ def test_wizard_estimates_the_offset_of_a_registered_camera(window, qtbot, filme
     assert window.cameras.camera.camera.clock.offset_s == wizard.camera.clock.offset_s
     assert abs(take_cameras(Session.open(folder, read_only=True), "t0001")[0].camera.clock.offset_s - OFFSET_S) < 0.01
     wizard.close()
+
+
+def test_demo_session_has_a_take_filmed_by_a_calibrated_camera(tmp_path):
+    from app.gui.demo import CAMERA_OFFSET_S, prepare_demo_session
+
+    session = Session.open(prepare_demo_session(tmp_path / "demo"))
+    [entry] = [entry for entry in session.takes if entry.cameras]
+    [camera] = take_cameras(session, entry.id)
+    assert camera.camera.registered and camera.camera.clock.offset_s == CAMERA_OFFSET_S
+    assert session.folder in camera.media.parents
+    with VideoFrames(camera.media) as video:
+        assert video.size == (640, 480) and video.frame_rate == 30.0
+        assert 3.0 <= video.count / video.frame_rate <= 5.0
