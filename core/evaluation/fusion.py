@@ -1,12 +1,13 @@
 """Markers + RGB-D fusion against markers-only layered IK on synthetic takes (``handmocap evaluate fusion``).
 
-Per seed: a simulated take (:func:`core.simulate.camera.simulate_camera_take`: 100 Hz mocap, mixed grasps,
-gestures and prior postures, 24-marker dense layout, 0.3 mm marker noise) filmed by a simulated RGB-D camera
+Per seed: a simulated take (as :func:`core.simulate.camera.simulate_camera_take`: 100 Hz mocap, 3 s, finger motion
+:data:`MOTIONS` in turn, 24-marker dense layout, 0.3 mm marker noise) filmed by a simulated RGB-D camera
 (30 Hz, Kinect-like depth, lens distortion, a clean plate of the empty scene as background) in which the thumb
 tip and IP markers and the ring tip and DIP markers (``thumb_distal``, ``thumb_proximal``, ``ring_distal``,
 ``ring_middle``) are hidden for one stretch of :data:`HIDDEN_SECONDS` s, as in Zhao et al. Fig. 6. Errors are
 mean distances (mm) of the middle joint, distal joint and tip of the occluded digits (thumb, ring) and of the
-visible fingers (index, middle, little) over the mocap frames of the stretch. The swarm (the paper's settings)
+visible fingers (index, middle, little) over the mocap frames of the stretch, and the occluded digits' error over
+the frames where the camera sees the hidden segments (:func:`camera_sees_hidden`). The swarm (the paper's settings)
 is run on the first :data:`SWARM_FRAMES` RGB-D frames of the stretch only (it takes seconds per frame).
 
 Development used seeds 1–8; :data:`HELD_OUT_SEEDS` are reported.
@@ -28,6 +29,9 @@ from core.simulate.camera import SimulatedCameraTake, render_scene, simulate_cam
 from core.simulate.take import simulate_take
 
 HELD_OUT_SEEDS = (201, 202, 203)
+#: finger motion of the n-th seed (:func:`core.simulate.motion.simulate_joint_angles`): grasps and gestures mixed
+#: with prior postures, grasps outside the posture prior, grasps of the prior set
+MOTIONS = ("mixed", "heldout", "grasps")
 HIDDEN_MARKERS = ("thumb_distal", "thumb_proximal", "ring_distal", "ring_middle")
 OCCLUDED_DIGITS = (0, 3)
 VISIBLE_DIGITS = (1, 2, 4)
@@ -190,7 +194,8 @@ def evaluate_fusion(seeds: tuple[int, ...] = HELD_OUT_SEEDS, settings: FusionSet
                     n_frames: int = TAKE_FRAMES, swarm: bool = True) -> dict:
     """Figures over ``seeds`` (means over seeds; the worst seed's ratio too)."""
     settings = settings or FusionSettings()
-    per_seed = [evaluate_seed(seed, settings, n_frames, swarm) for seed in seeds]
+    per_seed = [evaluate_seed(seed, settings, n_frames, swarm, MOTIONS[index % len(MOTIONS)])
+                for index, seed in enumerate(seeds)]
 
     def mean(key: str) -> float:
         return round(float(np.nanmean([figures[key] for figures in per_seed])), 3)
@@ -209,6 +214,7 @@ def evaluate_fusion(seeds: tuple[int, ...] = HELD_OUT_SEEDS, settings: FusionSet
         "fused_frames_per_s": mean("frames_per_s"),
         "optimiser": settings.optimiser,
         "seeds": list(seeds),
+        "motions": [MOTIONS[index % len(MOTIONS)] for index in range(len(seeds))],
         "rgbd_frames": int(sum(f["rgbd_frames"] for f in per_seed)),
         "hidden_markers": list(HIDDEN_MARKERS),
         "hidden_seconds": HIDDEN_SECONDS,

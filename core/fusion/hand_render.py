@@ -83,14 +83,16 @@ class Rendering:
 
 
 def edge_map(depth: np.ndarray, silhouette: np.ndarray, jump_mm: float = DEPTH_EDGE_MM) -> np.ndarray:
-    """Edges (h,w) bool of a depth image: the silhouette's outline and depth jumps over ``jump_mm`` inside."""
+    """Edges (h,w) bool of a depth image (inf = none): the silhouette's outline and depth jumps over ``jump_mm``
+    between neighbours inside it that both have depth."""
     mask = silhouette.astype(np.uint8)
     outline = silhouette & (cv2.erode(mask, np.ones((3, 3), np.uint8), borderType=cv2.BORDER_CONSTANT,
                                       borderValue=0) == 0)
-    finite = np.where(silhouette, depth, 0.0).astype(np.float32)
+    known = silhouette & np.isfinite(depth)
+    values = np.where(known, depth, 0.0).astype(np.float32)
     jump = np.zeros(depth.shape, dtype=bool)
-    jump[:, 1:] |= np.abs(np.diff(finite, axis=1)) > jump_mm
-    jump[1:, :] |= np.abs(np.diff(finite, axis=0)) > jump_mm
+    jump[:, 1:] |= (np.abs(np.diff(values, axis=1)) > jump_mm) & known[:, 1:] & known[:, :-1]
+    jump[1:, :] |= (np.abs(np.diff(values, axis=0)) > jump_mm) & known[1:, :] & known[:-1, :]
     return outline | (jump & silhouette)
 
 
