@@ -22,7 +22,7 @@ import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QBrush, QColor, QShowEvent
-from PySide6.QtWidgets import QCheckBox, QHBoxLayout, QLabel, QPushButton, QVBoxLayout, QWidget
+from PySide6.QtWidgets import QCheckBox, QGraphicsItem, QHBoxLayout, QLabel, QPushButton, QVBoxLayout, QWidget
 
 from core.model.provenance import FILL_CODES
 from core.review.take import runs
@@ -213,6 +213,8 @@ class TrajectoryPlots(QWidget):
             plot.hideButtons()
             plot.setMenuEnabled(False)
             plot.showGrid(x=True, y=True, alpha=0.2)
+            plot.setDownsampling(auto=True, mode="peak")    # long takes: a min and max per pixel, spikes kept
+            plot.setClipToView(True)
             left = plot.getAxis("left")
             left.setWidth(AXIS_WIDTH)
             left.enableAutoSIPrefix(False)
@@ -221,6 +223,8 @@ class TrajectoryPlots(QWidget):
             name.setParentItem(plot.getViewBox())        # in the box's pixels: stays at its corner when zooming
             name.setPos(4, 0)
             plot.getAxis("bottom").enableAutoSIPrefix(False)
+            for axis in ("left", "bottom"):               # the axes draw the grid: cached, as the curves
+                plot.getAxis(axis).setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
             plot.getViewBox().enableAutoRange(y=True)
             plot.getViewBox().setAutoVisible(y=True)
             if self.plots:
@@ -346,6 +350,10 @@ class TrajectoryPlots(QWidget):
 
     # ------------------------------------------------------------------------------------ helpers
     def _add(self, plot: pg.PlotItem, item: pg.GraphicsObject, z: float, ignore_bounds: bool = False) -> None:
+        """Add a drawn item; it and its parts (a PlotDataItem's curve) paint from a cached pixmap, so
+        moving the cursor over them repaints no curve."""
+        for part in (item, *item.childItems()):
+            part.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
         item.setZValue(z)
         plot.addItem(item, ignoreBounds=ignore_bounds)
         self._items.append((plot, item))
