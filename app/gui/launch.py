@@ -2,16 +2,22 @@
 
 from __future__ import annotations
 
+import hashlib
+import os
 import sys
 from pathlib import Path
 
-from PySide6.QtCore import QElapsedTimer, QTimer
-from PySide6.QtWidgets import QApplication
+from PySide6.QtCore import QElapsedTimer, Qt, QTimer
+from PySide6.QtGui import QIcon
+from PySide6.QtWidgets import QApplication, QSplashScreen
 
 from app.gui.palette import apply_dark_palette
 from core.errors import InputError
 
 SCREENSHOT_TIMEOUT_MS = 120_000
+ICONS = Path(__file__).resolve().parents[2] / "resources" / "icons"
+ICON_SIZES = (16, 32, 48, 64, 128, 256, 512)   # pixels of the shipped PNGs (handmocap-<size>.png)
+SPLASH_SIZE = 256                                # pixels of the icon on the start-up splash
 MIN_SIZE = (640, 480)        # smaller windows cannot hold the 3D view and the docks
 MAX_SIDE = 16384             # larger than any screen (and than Qt's widget size limit)
 
@@ -34,23 +40,37 @@ def run_gui(files: list[str], screenshot: str | None = None, frame: int | None =
     ``solve``: solve the files at once), ``size`` ``"WxH"`` pixels (default the window's own). With
     ``screenshot``, wait until everything is opened and solved, go to ``frame`` (0-based; default a third
     into the take), save a PNG and quit. Returns the process exit code."""
-    from app.gui.main_window import APP_NAME, MainWindow
-
     requested = window_size(size) if size else None
     app = QApplication.instance() or QApplication(sys.argv[:1])
+    icon = application_icon()
+    app.setWindowIcon(icon)
+    splash = QSplashScreen(icon.pixmap(SPLASH_SIZE, SPLASH_SIZE))
+    splash.show()
+    _tell(splash, "Starting Hand Mocap Studio…")
+
+    from app.gui.main_window import APP_NAME, MainWindow
+
     app.setApplicationName(APP_NAME)
     app.setStyle("Fusion")
     apply_dark_palette(app)
+    if getattr(sys, "frozen", False):
+        _prepare_kernels(splash)
     window = MainWindow()
     window.show()
+    splash.finish(window)
     app.processEvents()
     if requested is not None:          # after showing: before, the unfinished layout makes Qt grow it
         window.resize(*requested)
         app.processEvents()
     if demo or not files:
         window.open_demo()
-    if files:
-        window.open_files(files, solve=solve)
+    folders = [session_folder(Path(path)) for path in files]
+    sessions = [folder for folder in folders if folder is not None]
+    takes = [path for path, folder in zip(files, folders, strict=True) if folder is None]
+    if sessions:                       # a session folder or its session.json (the file manager's "Open with")
+        window.sessions.open_session(sessions[-1])
+    if takes:
+        window.open_files(takes, solve=solve)
     if screenshot is None:
         code = app.exec()
         _release(window, app)
@@ -78,6 +98,53 @@ def run_gui(files: list[str], screenshot: str | None = None, frame: int | None =
     app.exec()
     _release(window, app)
     return outcome["code"]
+
+
+def session_folder(path: Path) -> Path | None:
+    """The session folder ``path`` names (the folder or its manifest, ``session.json``), else None."""
+    from core.session.session import MANIFEST_NAME
+
+    if path.name == MANIFEST_NAME and path.is_file():
+        return path.parent
+    return path if (path / MANIFEST_NAME).is_file() else None
+
+
+def application_icon() -> QIcon:
+    """The Hand Mocap Studio icon: the PNGs of ``resources/icons`` at every shipped size."""
+    icon = QIcon()
+    for pixels in ICON_SIZES:
+        icon.addFile(str(ICONS / f"handmocap-{pixels}.png"))
+    return icon
+
+
+def _tell(splash: QSplashScreen, message: str) -> None:
+    """Show ``message`` on the splash now (the event loop is not running yet)."""
+    splash.showMessage(message, Qt.AlignmentFlag.AlignBottom | Qt.AlignmentFlag.AlignHCenter, Qt.GlobalColor.white)
+    QApplication.processEvents()
+
+
+def _prepare_kernels(splash: QSplashScreen) -> None:
+    """At the first start of a frozen bundle, compile (or load the bundle's warmed cache of) every numba
+    kernel under the splash, so that no operator action waits for the compiler; later starts skip it.
+
+    The stamp file in the user cache folder names the executable and its modification time, so a new or
+    moved bundle prepares its kernels once again."""
+    from core.io.durable import write_text_atomic
+    from core.workflows.warm_up import warm_up
+
+    executable = Path(sys.executable).resolve()
+    key = hashlib.sha1(f"{executable}:{executable.stat().st_mtime_ns}".encode()).hexdigest()[:16]
+    cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "handmocap"
+    stamp = cache / f"kernels-ready-{key}"
+    if stamp.exists():
+        return
+    _tell(splash, "First start: preparing the computing kernels (once, up to a minute)…")
+    seconds = warm_up(report=lambda line: _tell(splash, f"First start: {line}…"))
+    try:
+        cache.mkdir(parents=True, exist_ok=True)
+        write_text_atomic(stamp, f"{executable}\nkernels ready in {seconds:.1f} s\n")
+    except OSError:
+        pass  # a cache folder that cannot be written: the kernels are prepared again at the next start
 
 
 def _release(window, app: QApplication) -> None:

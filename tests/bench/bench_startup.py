@@ -5,10 +5,19 @@ Each figure is measured in a fresh process (interpreter start and imports includ
 session folder ("first start") and then on the same folder again ("next start").
 
 Run (needs a display or runs offscreen): python tests/bench/bench_startup.py [runs]
+
+With ``--command PATH`` the program started is an installed ``handmocap`` executable (the frozen bundle's
+``dist/handmocap/handmocap`` or a venv's ``.venv/bin/handmocap``) run as ``PATH gui --screenshot``: "window"
+is when its main window is first mapped on the X display (polled with xwininfo; needs an X display, e.g.
+under xvfb-run) and "ready" when it has opened and solved the demo session, saved the screenshot and exited.
+Each first start also gets a new user cache folder (XDG_CACHE_HOME), as on an operator's new account.
 """
 
+import argparse
 import json
 import os
+import re
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -68,13 +77,46 @@ def one_start(demo_folder: Path) -> dict[str, float]:
     return stages
 
 
-def main(runs: int = 2) -> None:
+def _main_window_mapped() -> bool:
+    """Whether a top-level window titled Hand Mocap Studio is viewable on ``$DISPLAY``."""
+    tree = subprocess.run(["xwininfo", "-root", "-tree"], capture_output=True, text=True).stdout
+    for window in re.findall(r"^\s*(0x[0-9a-f]+) \"[^\"]*Hand Mocap Studio\"", tree, flags=re.MULTILINE):
+        state = subprocess.run(["xwininfo", "-id", window], capture_output=True, text=True).stdout
+        if "IsViewable" in state:
+            return True
+    return False
+
+
+def one_command_start(command: str, folder: Path) -> dict[str, float]:
+    """Seconds from spawning ``command gui --screenshot`` to its mapped main window and to its exit."""
+    environment = dict(os.environ, HANDMOCAP_DEMO_SESSION=str(folder / "demo-session"),
+                       HANDMOCAP_DATA=str(folder / "data"), XDG_CACHE_HOME=str(folder / "cache"))
+    start = time.perf_counter()
+    child = subprocess.Popen([command, "gui", "--screenshot", str(folder / "start.png")], env=environment,
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    stages: dict[str, float] = {}
+    while child.poll() is None:
+        if "window" not in stages and _main_window_mapped():
+            stages["window"] = round(time.perf_counter() - start, 2)
+        time.sleep(0.02)
+    if child.returncode == 0 and (folder / "start.png").exists():
+        stages["ready"] = round(time.perf_counter() - start, 2)
+    return stages
+
+
+def main(runs: int = 2, command: str | None = None) -> None:
+    if command is not None and not (os.environ.get("DISPLAY") and shutil.which("xwininfo")):
+        sys.exit("--command needs an X display and xwininfo (run under xvfb-run -a)")
     figures: dict[str, list[dict[str, float]]] = {"first_start": [], "next_start": []}
     for _ in range(runs):
         with tempfile.TemporaryDirectory() as folder:
-            demo = Path(folder) / "demo-session"
-            figures["first_start"].append(one_start(demo))
-            figures["next_start"].append(one_start(demo))
+            if command is None:
+                demo = Path(folder) / "demo-session"
+                figures["first_start"].append(one_start(demo))
+                figures["next_start"].append(one_start(demo))
+            else:
+                figures["first_start"].append(one_command_start(command, Path(folder)))
+                figures["next_start"].append(one_command_start(command, Path(folder)))
     for name, starts in figures.items():
         for stage in ("window", "demo", "ready"):
             values = [start[stage] for start in starts if stage in start]
@@ -85,4 +127,8 @@ def main(runs: int = 2) -> None:
 
 
 if __name__ == "__main__":
-    main(int(sys.argv[1]) if len(sys.argv) > 1 else 2)
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("runs", nargs="?", type=int, default=2)
+    parser.add_argument("--command", metavar="PATH", help="time this handmocap executable instead")
+    arguments = parser.parse_args()
+    main(arguments.runs, arguments.command)

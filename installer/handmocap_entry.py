@@ -1,0 +1,10 @@
+"""Entry point of the frozen application: the ``handmocap`` command (GUI when no subcommand is given)."""
+
+import multiprocessing
+import sys
+
+if __name__ == "__main__":
+    multiprocessing.freeze_support()  # Dask's local workers are spawned processes of this executable
+    from app.cli.main import main
+
+    sys.exit(main())
