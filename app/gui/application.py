@@ -281,6 +281,11 @@ class Application:
         self._open_session().record_export(take_id, kind, path)
         self._announce(SessionFolderChanged(SessionPart.TAKE_STATE, take_id))
 
+    def take_processed(self, take_id: str) -> None:
+        """A batch (its worker processes) changed a take of the session: read the manifest again and say so."""
+        self._open_session().reload()
+        self._announce(SessionFolderChanged(SessionPart.TAKE_STATE, take_id))
+
     def save_document(self, document: TakeDocument) -> None:
         """Write the snapshot of a take kept in a session (its own, for a file opened outside one) now (a raw
         take with labels becomes "labelled")."""

@@ -318,7 +318,8 @@ class MainWindow(QMainWindow):
         self.session_dock = self._add_dock("Session", sessions.browser, Qt.DockWidgetArea.LeftDockWidgetArea)
         self.session_dock.hide()
         first = self.file_menu.actions()[0]
-        for action in (sessions.new_action, sessions.open_action, sessions.add_action, sessions.close_action):
+        for action in (sessions.new_action, sessions.open_action, sessions.add_action, sessions.process_action,
+                       sessions.close_action):
             self.file_menu.insertAction(first, action)
         self.file_menu.insertSeparator(first)
         self.view_menu.addAction(self.session_dock.toggleViewAction())

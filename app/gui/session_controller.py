@@ -80,6 +80,7 @@ class SessionController(QObject):
         self.open_action = make_action(host, "Open s&ession…", self.choose_session, "Ctrl+Shift+O")
         self.add_action = make_action(host, "&Add takes to session…", self.browser.choose_files, "Ctrl+Shift+A")
         self.close_action = make_action(host, "C&lose session", self.close_session)
+        self.process_action = make_action(host, "&Process takes…", self.open_batch_panel)
         app.add_listener(self._follow_app)
         self.autosave_timer = QTimer(self)
         self.autosave_timer.setInterval(AUTOSAVE_MS)
@@ -177,6 +178,14 @@ class SessionController(QObject):
         writable = self.session is not None and not self.session.read_only
         self.add_action.setEnabled(writable)
         self.close_action.setEnabled(self.session is not None)
+        self.process_action.setEnabled(writable)
+
+    def open_batch_panel(self) -> None:
+        """Session ▸ Process takes…: the batch panel of the open session (:mod:`app.gui.batch_panel`)."""
+        from app.gui.batch_panel import BatchPanel
+
+        if self.session is not None:
+            BatchPanel(self.app, self.host).show()
 
     # ----------------------------------------------------------------------------------- takes
     def add_takes(self, paths: list[str]) -> None:

@@ -12,17 +12,16 @@ import signal
 
 import numpy as np
 import pytest
+from batch_study import make_study
 
 from app.cli.main import main
 from core.batch.pipeline import pipeline_from_dict
 from core.batch.runner import open_study, plan_batch, run_batch
 from core.batch.state import read_state
 from core.batch.task import process_take
-from core.io import load_take, save_take
+from core.io import load_take
 from core.session.session import Session
-from core.simulate import simulate_take
 
-FRAMES = 200
 LABEL_ONLY = {"steps": ["label", "export"], "layout": "glove-13", "hands": "right", "exports": ["c3d"]}
 FULL = {"steps": ["label", "calibrate", "fill", "solve", "export"], "layout": "glove-13", "hands": "right",
         "max_gap": 20, "exports": ["c3d", "csv", "bvh"]}
@@ -37,20 +36,6 @@ def cluster():
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as local, \
             Client(local) as client:
         yield local.scheduler_address, client
-
-
-def make_study(folder, count, first_seed=0):
-    """``count`` raw takes in ``folder/raw`` and a session ``folder/session`` holding them."""
-    raw = folder / "raw"
-    raw.mkdir(parents=True, exist_ok=True)
-    session = Session.create(folder / "session")
-    for number in range(count):
-        take = simulate_take(layout="glove-13", n_frames=FRAMES, seed=first_seed + number, noise_mm=0.3,
-                             ghost_rate=0.05, occlusion=True, unlabelled=True).take
-        path = raw / f"trial{number:02d}.c3d"
-        save_take(take, path)
-        session.add_take(path, layout="glove-13", hands=["right"])
-    return session
 
 
 def run(session, settings, scheduler, **options):
