@@ -13,8 +13,8 @@ from core.calibration.pipeline import calibrate_scan, load_template_file
 from core.calibration.scan import save_ply
 from core.calibration.synthetic_scan import synthetic_scan
 from core.errors import HandMocapError, InputError
-from core.io.gltf import classify_joint_name, load_gltf_hand, save_gltf_hand
 from core.model import HandModel, load_layout, load_template, resolve_layout, skin_vertices
+from core.model.gltf import classify_joint_name, load_gltf_hand, save_gltf_hand
 from core.model.skeleton import N_PARAMS
 from core.model.template_mesh import LANDMARK_NAMES
 

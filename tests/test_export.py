@@ -10,10 +10,10 @@ import pytest
 
 from core.errors import InputError
 from core.io import load_take
-from core.io.bvh import read_bvh, write_bvh
 from core.io.errors import TakeFormatError
 from core.io.labelled_c3d import decode_runs, encode_runs, read_labelled_c3d, write_labelled_c3d
 from core.model import load_template
+from core.model.bvh import read_bvh, write_bvh
 from core.review import (
     AcceptFills,
     AssignLabel,

@@ -18,7 +18,7 @@ def command_calibrate(args: argparse.Namespace) -> int:
                             strictness=args.strictness)
     result.save(args.out, args.report)
     if args.gltf:
-        from core.io.gltf import save_gltf_hand
+        from core.model.gltf import save_gltf_hand
 
         save_gltf_hand(result.model, args.gltf)
     summary = result.report.to_json()

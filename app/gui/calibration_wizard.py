@@ -663,7 +663,7 @@ class SavePage(QWizardPage):
 
     def save(self) -> bool:
         """Write the model (and glTF); returns whether everything was written."""
-        from core.io.gltf import save_gltf_hand
+        from core.model.gltf import save_gltf_hand
 
         result = self.state.result
         written = []

@@ -108,7 +108,7 @@ def load_template_file(path: str | Path | None, side: str = "right") -> HandMode
         return load_template(side)
     path = Path(path)
     if path.suffix.lower() in (".gltf", ".glb"):
-        from core.io.gltf import load_gltf_hand
+        from core.model.gltf import load_gltf_hand
 
         return load_gltf_hand(path)
     if path.suffix.lower() == ".npz":

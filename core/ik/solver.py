@@ -19,8 +19,8 @@ import numpy as np
 from core.errors import CancelledError, InputError
 from core.ik.kernel import frame_energy_kernel, solve_frame_kernel
 from core.io.durable import durable_stream, verify_zip
-from core.io.joint_angles import write_joint_angles_csv
 from core.model import HandModel, MarkerLayout, MarkerSet, marker_columns, marker_positions, resolve_layout
+from core.model.joint_angles import write_joint_angles_csv
 from core.model.kinematics import ANCESTOR, vector_from_rotation
 from core.model.skeleton import N_PARAMS, PARAM_NAMES, default_joint_limits
 from core.prior import load_default_prior
@@ -72,7 +72,7 @@ class IKResult:
                                 param_names=np.array(PARAM_NAMES))
 
     def save_csv(self, path: str | Path) -> None:
-        """Joint angles as CSV (see :func:`core.io.joint_angles.write_joint_angles_csv`)."""
+        """Joint angles as CSV (see :func:`core.model.joint_angles.write_joint_angles_csv`)."""
         write_joint_angles_csv(path, [("", self.joint_angles)], self.first_frame, self.frame_rate)
 
 

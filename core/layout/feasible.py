@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
-from core.io.joint_angles import read_result_joint_angles
 from core.model import HandModel
+from core.model.joint_angles import read_result_joint_angles
 from core.model.skeleton import N_GLOBAL, N_PARAMS, N_POSTURE
 from core.prior import canonical_postures
 from core.simulate import global_motion, minimum_jerk_trajectory, simulate_joint_angles

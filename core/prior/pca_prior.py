@@ -16,8 +16,8 @@ import numpy as np
 
 from core.errors import InputError
 from core.io.durable import durable_stream, verify_zip
-from core.io.joint_angles import read_result_joint_angles
 from core.io.npz import load_npz
+from core.model.joint_angles import read_result_joint_angles
 from core.model.skeleton import N_GLOBAL, N_POSTURE, default_joint_limits
 from core.prior.canonical_postures import prior_postures
 

@@ -15,10 +15,7 @@ import numpy as np
 
 from core.errors import InputError
 from core.io import Take
-from core.io.bvh import write_bvh
 from core.io.csv_file import write_csv
-from core.io.gltf import HandAnimation, save_gltf_hand
-from core.io.joint_angles import write_joint_angles_csv
 from core.io.labelled_c3d import (
     GROUP,
     SUBJECT_GROUP,
@@ -30,6 +27,9 @@ from core.io.labelled_c3d import (
 )
 from core.io.trc import write_trc
 from core.model import HandModel, load_layout, marker_columns
+from core.model.bvh import write_bvh
+from core.model.gltf import HandAnimation, save_gltf_hand
+from core.model.joint_angles import write_joint_angles_csv
 from core.model.provenance import MEASURED, MISSING
 from core.review.take import HandTrack, ReviewTake
 
@@ -216,7 +216,7 @@ def export_joint_angles_csv(review: ReviewTake, path: str | PathLike[str]) -> No
 
 def export_bvh(review: ReviewTake, path: str | PathLike[str], model: HandModel, hand: int | str = 0,
                units: str = "mm", up: str = "z") -> None:
-    """One hand's joint angles as BVH (``core.io.bvh``) on ``model``'s rest skeleton (the subject's
+    """One hand's joint angles as BVH (``core.model.bvh``) on ``model``'s rest skeleton (the subject's
     calibrated model, or the template; it must be of the hand's side) in ``units`` with ``up`` ("z" or
     "y"). Joint names are prefixed ``R_``/``L_`` when the take has two hands."""
     track = _hand(review, hand)
@@ -228,7 +228,7 @@ def export_bvh(review: ReviewTake, path: str | PathLike[str], model: HandModel, 
 
 def export_gltf(review: ReviewTake, path: str | PathLike[str], model: HandModel, hand: int | str = 0) -> None:
     """One hand as a skinned glTF 2.0 (``.glb``/``.gltf``) on ``model`` with its joint angles as the
-    animation (``core.io.gltf``: metres, Y up, times in seconds from the take's first frame)."""
+    animation (``core.model.gltf``: metres, Y up, times in seconds from the take's first frame)."""
     track = _hand(review, hand)
     if model.side != track.side:
         raise InputError(f"the {track.name} hand is a {track.side} hand; the model is a {model.side} hand")

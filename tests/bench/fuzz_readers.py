@@ -82,9 +82,9 @@ def write_seeds(folder: Path) -> dict[str, list[Path]]:
     from core.calibration.scan import Scan, save_ply
     from core.io.c3d_writer import write_c3d
     from core.io.csv_file import write_csv
-    from core.io.gltf import load_gltf_hand, save_gltf_hand
     from core.io.take import Take
     from core.io.trc import write_trc
+    from core.model.gltf import load_gltf_hand, save_gltf_hand
     from core.model.hand_model import HandModel
     from core.prior.pca_prior import PosturePrior
     from core.simulate.take import save_truth
@@ -323,10 +323,10 @@ def make_case(fmt: str, seeds: list[Path], seed: int, index: int, folder: Path) 
 def read_case(path: Path) -> None:
     """Read ``path`` with the reader its format and seed name call for."""
     from core.calibration.scan import load_scan
-    from core.io.gltf import load_gltf_hand
-    from core.io.joint_angles import read_result_joint_angles
     from core.io.loader import load_take
+    from core.model.gltf import load_gltf_hand
     from core.model.hand_model import HandModel
+    from core.model.joint_angles import read_result_joint_angles
     from core.prior.pca_prior import PosturePrior
     from core.simulate.take import load_truth
 

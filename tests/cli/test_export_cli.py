@@ -13,9 +13,9 @@ import pytest
 from app.cli.main import main
 from core.io import load_take, save_take
 from core.io.axes import Y_UP
-from core.io.bvh import read_bvh
-from core.io.gltf import load_gltf_hand
 from core.io.labelled_c3d import read_labelled_c3d
+from core.model.bvh import read_bvh
+from core.model.gltf import load_gltf_hand
 from core.review import AcceptFills, GapFill, export_labelled_c3d, review_from_labelled_c3d
 from core.session import Session
 from core.simulate import simulate_take

@@ -12,10 +12,10 @@ from PySide6.QtWidgets import QMessageBox
 from app.gui.export_dialog import ExportDialog
 from core.io import load_take
 from core.io.axes import Y_UP
-from core.io.bvh import read_bvh
-from core.io.gltf import load_gltf_hand
 from core.io.labelled_c3d import read_labelled_c3d
 from core.model import load_template
+from core.model.bvh import read_bvh
+from core.model.gltf import load_gltf_hand
 from core.review import ReviewTake
 from core.review.synthetic import synthetic_labelling
 from core.simulate.motion import simulate_joint_angles

@@ -67,16 +67,16 @@ def writer(case: str):
         return lambda path: write_labelled_c3d(path, take.marker_names, take.marker_positions, provenance, 100.0,
                                                unlabelled=take.marker_positions[:, :2], ghost=provenance[:, :2] == 0)
     if case == "bvh":
-        from core.io.bvh import write_bvh
+        from core.model.bvh import write_bvh
 
         skeleton = load_template().skeleton
         return lambda path: write_bvh(path, skeleton, angles, 100.0)
     if case == "angles_csv":
-        from core.io.joint_angles import write_joint_angles_csv
+        from core.model.joint_angles import write_joint_angles_csv
 
         return lambda path: write_joint_angles_csv(path, [("", angles)], 1, 100.0)
     if case in ("glb", "gltf"):
-        from core.io.gltf import save_gltf_hand
+        from core.model.gltf import save_gltf_hand
 
         model = load_template()
         return lambda path: save_gltf_hand(model, path)

@@ -20,12 +20,12 @@ import pytest
 from core.errors import InputError
 from core.io import Take, load_take
 from core.io.axes import Y_UP
-from core.io.bvh import _axis_rotation, read_bvh, write_bvh
 from core.io.c3d_writer import write_c3d_points
-from core.io.gltf import HandAnimation, save_gltf_hand
 from core.io.labelled_c3d import read_labelled_c3d, write_labelled_c3d
 from core.io.trc import read_trc, write_trc
 from core.model import load_template
+from core.model.bvh import _axis_rotation, read_bvh, write_bvh
+from core.model.gltf import HandAnimation, save_gltf_hand
 from core.model.hand_model import skin_vertices
 from core.review import AcceptFills, GapFill, ReviewTake
 from core.review.export import export_points_csv, export_review

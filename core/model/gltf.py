@@ -626,7 +626,7 @@ def _animation_locals(model: HandModel, animation: HandAnimation) -> tuple[np.nd
     """Per frame the wrist node's translation ``(F, 3)`` m and every joint node's local rotation
     ``(F, 16, 4)`` quaternions in the glTF frame (Y up: the lab's Z-up frame turned by
     :data:`core.io.axes.Y_UP`), and the times ``(F,)`` s from the first frame."""
-    from core.io.bvh import _held
+    from core.model.bvh import _held
     from core.model.kinematics import KinematicChain
 
     angles = _held(animation.joint_angles)
