@@ -170,7 +170,7 @@ class CameraWizard(QDialog):
         self.cancel_button = QPushButton("Cancel", self)
         self.cancel_button.clicked.connect(self.runner.cancel)
         self.save_button = QPushButton("Save camera", self)
-        self.save_button.clicked.connect(self.save)
+        self.save_button.clicked.connect(lambda: self.save())
         close_button = QPushButton("Close", self)
         close_button.clicked.connect(self.close)
         bottom = QHBoxLayout()
@@ -240,8 +240,10 @@ class CameraWizard(QDialog):
         page = QWidget(self)
         layout = QVBoxLayout(page)
         text = QLabel("Registers the camera to the mocap space from the shown take's markers: the bright marker "
-                      "blobs of every video frame are matched to the projected markers (PnP over RANSAC-like "
-                      "hypotheses), and the clock offset is found with the pose.", page)
+                      "blobs of every video frame are matched to the projected markers (P3P hypotheses, then PnP) "
+                      "and the clock offset is found with the pose. A registered camera is refined from its pose; "
+                      "an unregistered one is searched for around its current clock offset, so nudge the offset "
+                      "close to the truth in the camera dock first.", page)
         text.setWordWrap(True)
         layout.addWidget(text)
         form = QFormLayout()
@@ -322,8 +324,7 @@ class CameraWizard(QDialog):
     def start_registration(self) -> None:
         inputs = self._take_inputs()
         if inputs is not None:
-            unregistered = replace(self.camera, registered=False, rotation=np.eye(3), translation=np.zeros(3))
-            self._start("extrinsics", registration_task(unregistered, self.media, *inputs,
+            self._start("extrinsics", registration_task(self.camera, self.media, *inputs,
                                                         self.register_window_box.value()), "Registering")
 
     def start_offset(self) -> None:

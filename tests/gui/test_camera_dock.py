@@ -240,3 +240,30 @@ def test_demo_session_has_a_take_filmed_by_a_calibrated_camera(tmp_path):
     with VideoFrames(camera.media) as video:
         assert video.size == (640, 480) and video.frame_rate == 30.0
         assert 3.0 <= video.count / video.frame_rate <= 5.0
+
+
+def test_wizard_registers_an_unregistered_camera_from_the_takes_markers(window, qtbot, filmed, tmp_path):
+    from app.gui.camera_wizard import CameraWizard
+    from core.camera.model import Camera, rotation_angle_deg
+
+    files, simulated = filmed
+    truth = simulated.camera
+    intrinsics_only = Camera(truth.matrix, truth.distortion, truth.size, clock=truth.clock, name="unregistered")
+    folder = session_with_camera(filmed, tmp_path / "session", with_camera=False)
+    session = Session.open(folder)
+    add_camera(session, "t0001", intrinsics_only, files / "video.avi")
+    session.close()
+    open_session_take(window, qtbot, folder)
+    frustum = getattr(window.viewport, "_frustum_actor", None)
+    assert frustum is None or not frustum.visibility                # not registered: no frustum
+    wizard = CameraWizard(window, window.cameras)
+    qtbot.addWidget(wizard)
+    wizard.start_registration()
+    qtbot.waitUntil(lambda: not wizard.runner.is_busy(), timeout=120_000)
+    camera = wizard.camera
+    assert camera.registered, wizard.status_label.text()
+    assert np.linalg.norm(camera.centre - truth.centre) < 5.0
+    assert rotation_angle_deg(camera.rotation, truth.rotation) < 0.5
+    assert wizard.save() and window.cameras.camera.camera.registered
+    assert window.viewport._frustum_actor.visibility            # registered: the frustum is shown
+    wizard.close()
