@@ -171,7 +171,6 @@ class HandViewport(QWidget):
         layout.addWidget(self._plotter)
         self.setMinimumSize(320, 240)
         self.render_count = 0                     # VTK renders of this view so far (benchmarks and tests)
-        self.draw_count = 0                       # redraws asked for so far
         self._plotter.GetRenderWindow().AddObserver("EndEvent", self._rendered)
         self._render_timer = QTimer(self)            # off screen: there is no paint to render in
         self._render_timer.setSingleShot(True)
@@ -187,6 +186,9 @@ class HandViewport(QWidget):
         plotter.enable_lightkit()
         if plotter.iren is not None:
             plotter.enable_terrain_style(mouse_wheel_zooms=True)
+            style = plotter.iren.interactor.GetInteractorStyle()      # orbiting: fast renders, smooth once still
+            style.AddObserver("StartInteractionEvent", lambda *_: self._set_multi_samples(0))
+            style.AddObserver("EndInteractionEvent", lambda *_: self._idle_timer.start())
         plotter.add_axes(interactive=False, line_width=2, color="white",
                          xlabel="X", ylabel="Y", zlabel="Z")
 
@@ -705,7 +707,6 @@ class HandViewport(QWidget):
         (fast scrubbing skips frames), without anti-aliasing; anti-aliased once nothing changed for
         :data:`IDLE_MS`. The paint is Qt's, so the view and the widgets that changed with it are composed
         on screen together (a timer of its own would make Qt compose the window once more)."""
-        self.draw_count += 1
         self._set_multi_samples(0)
         self._paint()
         self._idle_timer.start()

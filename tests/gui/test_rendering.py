@@ -104,3 +104,25 @@ def test_hovering_a_marker_in_the_view_names_it(shown, qtbot):
     QApplication.sendEvent(plotter, QMouseEvent(QMouseEvent.Type.MouseMove, QPointF(1, 1), plotter.mapToGlobal(
         QPointF(1, 1)), Qt.MouseButton.NoButton, Qt.MouseButton.NoButton, Qt.KeyboardModifier.NoModifier))
     assert view.labelled_markers() == []
+
+
+def test_orbiting_draws_without_anti_aliasing_until_released(shown, qtbot):
+    from PySide6.QtCore import QPointF, Qt
+    from PySide6.QtGui import QMouseEvent
+    from PySide6.QtWidgets import QApplication
+
+    view = shown.viewport
+    plotter = view.plotter
+    qtbot.waitUntil(view.is_anti_aliased, timeout=5_000)
+
+    def send(kind, x, button, buttons):
+        point = QPointF(x, 200)
+        QApplication.sendEvent(plotter, QMouseEvent(kind, point, plotter.mapToGlobal(point), button, buttons,
+                                                    Qt.KeyboardModifier.NoModifier))
+
+    left, none = Qt.MouseButton.LeftButton, Qt.MouseButton.NoButton
+    send(QMouseEvent.Type.MouseButtonPress, 200, left, left)
+    send(QMouseEvent.Type.MouseMove, 230, none, left)
+    assert not view.is_anti_aliased()
+    send(QMouseEvent.Type.MouseButtonRelease, 240, left, none)
+    qtbot.waitUntil(view.is_anti_aliased, timeout=5_000)
