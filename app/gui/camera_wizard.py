@@ -3,7 +3,8 @@ clock offset (sync); each step on a :class:`~app.gui.workers.TaskRunner` with pr
 
 Steps are tabs: 1 Intrinsics (ChArUco or chessboard images: every view's corners and RMS error, which views
 were rejected, the coverage hint), 2 Extrinsics (the shown camera's video registered against the shown take's
-markers: pose and clock, :func:`core.camera.registration.register_take`), 3 Offset (the clock offset of a
+markers: pose and clock, :func:`core.camera.registration.register_take`; or from a marked board filmed in the
+video, :func:`core.camera.extrinsics.register_from_board`), 3 Offset (the clock offset of a
 registered camera searched around the current one, :func:`core.camera.sync.sync_markers`). The worker
 reads its own copies (images, its own video reader); a step's result replaces the wizard's camera only on
 the GUI thread. Save writes the camera: into the session with the take (the shown camera), else to a
@@ -12,6 +13,7 @@ camera file chosen by the operator; both are durable writes.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -39,11 +41,12 @@ from PySide6.QtWidgets import (
 )
 
 from app.gui.workers import TaskRunner
-from core.camera.extrinsics import Blobs, detect_blobs
+from core.camera.extrinsics import Blobs, Registration, detect_blobs, register_from_board
 from core.camera.files import save_camera
 from core.camera.frames import image_file_size, open_frames
 from core.camera.intrinsics import BOARD_KINDS, BoardSpec, IntrinsicCalibration, calibrate_intrinsics, detect_board
 from core.camera.model import Camera
+from core.camera.overlay import markers_at
 from core.camera.registration import TakeRegistration, register_take
 from core.camera.sync import SyncResult, sync_markers
 from core.errors import CancelledError, HandMocapError, InputError
@@ -52,6 +55,9 @@ if TYPE_CHECKING:
     from app.gui.camera_controller import CameraController
 
 IMAGE_FILTER = "Board images (*.png *.jpg *.jpeg)"
+#: video frames searched for the marked board (evenly spread over the video)
+BOARD_FRAMES = 60
+METHODS = ("the take's markers", "a marked board")
 
 
 @dataclass
@@ -119,6 +125,52 @@ def registration_task(camera: Camera, media: Path, positions: np.ndarray, mocap_
     def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> TakeRegistration:
         found = _video_blobs(camera, media, progress, cancelled, 0.7)
         result = register_take(camera, found.blobs, found.times, positions, mocap_rate, window_s)
+        progress(1.0)
+        return result
+
+    return task
+
+
+def read_board_markers(path: str | Path, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """The marked board's file ``{"markers": {"<take marker name>": [x, y, z], ...}}`` (board frame, mm):
+    ``(columns (B,) of those markers in the take's ``names``, points (B,3) mm)``; InputError (one line)."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        markers = data["markers"]
+        points = np.array([[float(value) for value in markers[name]] for name in markers], dtype=float)
+    except (OSError, UnicodeDecodeError, RecursionError, KeyError, TypeError, ValueError) as error:
+        raise InputError(f"{path.name}: not a board marker file {{\"markers\": {{name: [x, y, z] mm}}}} "
+                         f"({type(error).__name__}: {error})") from None
+    missing = [name for name in markers if name not in names]
+    if missing:
+        raise InputError(f"{path.name}: the take has no marker {', '.join(missing[:5])}")
+    if len(points) < 3 or points.shape[1:] != (3,) or not np.isfinite(points).all():
+        raise InputError(f"{path.name}: the board needs at least 3 markers with 3 finite coordinates (mm)")
+    return np.array([names.index(name) for name in markers]), points
+
+
+def board_task(camera: Camera, media: Path, spec: BoardSpec, columns: np.ndarray, board_points: np.ndarray,
+               positions: np.ndarray, mocap_rate: float) -> Callable:
+    """Worker task: pose of ``camera`` from its video's views of a board carrying the markers ``columns`` of the
+    take's ``positions (F,M,3)`` mm at ``board_points (B,3)`` mm on the board, paired through the camera's clock
+    (:class:`Registration`)."""
+
+    def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> Registration:
+        detections, markers = [], []
+        with open_frames(media) as video:
+            if video.size != camera.size:
+                raise InputError(f"{media.name} is {video.size[0]}×{video.size[1]} px but the camera is "
+                                 f"{camera.width}×{camera.height}")
+            chosen = np.unique(np.linspace(0, video.count - 1, min(BOARD_FRAMES, video.count)).astype(int))
+            for number, index in enumerate(chosen):
+                if cancelled():
+                    raise CancelledError("cancelled")
+                detections.append(detect_board(video.frame(index), spec))
+                frame = float(camera.clock.mocap_frame(video.time(index), mocap_rate))
+                markers.append(markers_at(positions, frame)[columns])
+                progress(0.9 * (number + 1) / len(chosen))
+        result = register_from_board(camera, detections, board_points, np.array(markers))
         progress(1.0)
         return result
 
@@ -239,18 +291,33 @@ class CameraWizard(QDialog):
     def _extrinsics_page(self) -> QWidget:
         page = QWidget(self)
         layout = QVBoxLayout(page)
-        text = QLabel("Registers the camera to the mocap space from the shown take's markers: the bright marker "
-                      "blobs of every video frame are matched to the projected markers (P3P hypotheses, then PnP) "
-                      "and the clock offset is found with the pose. A registered camera is refined from its pose; "
-                      "an unregistered one is searched for around its current clock offset, so nudge the offset "
-                      "close to the truth in the camera dock first.", page)
+        text = QLabel("Registers the camera to the mocap space. From the take's markers: the bright marker blobs "
+                      "of every video frame are matched to the projected markers (P3P hypotheses, then PnP) and the "
+                      "clock offset is found with the pose; a registered camera is refined from its pose, an "
+                      "unregistered one is searched for around its current clock offset (nudge it close in the "
+                      "camera dock first). From a marked board: the board (step 1's) is found in the video frames, "
+                      "its markers' mocap positions at those frames (through the clock) place it in the mocap "
+                      "space, and one PnP over all its corners gives the pose.", page)
         text.setWordWrap(True)
         layout.addWidget(text)
         form = QFormLayout()
+        self.method_box = QComboBox(page)
+        self.method_box.addItems(list(METHODS))
+        self.method_box.setToolTip("A marked board: a ChArUco board (step 1's board) carrying markers the mocap "
+                                   "measures, filmed by the camera; its marker file gives their board positions")
+        form.addRow("From", self.method_box)
         self.register_window_box = self._window_box(page, 1.0)
         form.addRow("Offset search (± s)", self.register_window_box)
+        self.board_file_edit = QLineEdit(page)
+        self.board_file_edit.setPlaceholderText('{"markers": {"<take marker name>": [x, y, z] mm on the board}}')
+        board_button = QPushButton("Browse…", page)
+        board_button.clicked.connect(self.choose_board_file)
+        board_row = QHBoxLayout()
+        board_row.addWidget(self.board_file_edit, 1)
+        board_row.addWidget(board_button)
+        form.addRow("Board marker file", board_row)
         layout.addLayout(form)
-        self.register_button = QPushButton("Register from the take's markers", page)
+        self.register_button = QPushButton("Register", page)
         self.register_button.clicked.connect(self.start_registration)
         layout.addWidget(self.register_button)
         self.register_label = QLabel("", page)
@@ -321,11 +388,28 @@ class CameraWizard(QDialog):
             return None
         return document.take.marker_positions.copy(), document.take.frame_rate
 
+    def choose_board_file(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, "Board marker file", "", "Board markers (*.json)")
+        if path:
+            self.board_file_edit.setText(path)
+
     def start_registration(self) -> None:
         inputs = self._take_inputs()
-        if inputs is not None:
+        if inputs is None:
+            return
+        if self.method_box.currentText() == METHODS[0]:
             self._start("extrinsics", registration_task(self.camera, self.media, *inputs,
                                                         self.register_window_box.value()), "Registering")
+            return
+        try:
+            spec = self.board_spec()
+            columns, points = read_board_markers(self.board_file_edit.text().strip(),
+                                                 self.controller.document.take.marker_names)
+        except InputError as error:
+            self.status_label.setText(str(error))
+            return
+        self._start("extrinsics", board_task(self.camera, self.media, spec, columns, points, *inputs),
+                    "Registering from the board")
 
     def start_offset(self) -> None:
         inputs = self._take_inputs()
@@ -361,6 +445,12 @@ class CameraWizard(QDialog):
                 f"({100 * report['matched_share']:.0f} % of the blobs); offset {report['offset_s']:+.4f} s, "
                 f"rate ratio {report['rate_ratio']:.5f}, sync quality {report['quality']:.2f}")
             self._ended("registered: Save camera keeps it")
+        elif isinstance(result, Registration):
+            report = result.report()
+            self.camera = result.camera
+            self.register_label.setText(f"reprojection {report['reprojection_px']:.3f} px over {report['matches']} "
+                                        f"board corners; board markers fit to {report['residual_mm']:.2f} mm RMS")
+            self._ended("registered from the board: Save camera keeps it")
         elif isinstance(result, SyncResult):
             self.camera = self.camera.with_clock(result.clock)
             self.offset_label.setText(f"offset {result.offset_s:+.4f} s = {result.offset_frames:+.2f} mocap frames, "

@@ -267,3 +267,45 @@ def test_wizard_registers_an_unregistered_camera_from_the_takes_markers(window, 
     assert wizard.save() and window.cameras.camera.camera.registered
     assert window.viewport._frustum_actor.visibility            # registered: the frustum is shown
     wizard.close()
+
+
+def test_wizard_registers_from_a_marked_board_filmed_in_the_video(window, qtbot, tmp_path):
+    import json
+
+    from app.gui.camera_wizard import CameraWizard
+    from core.camera.model import Camera, rotation_angle_deg
+    from core.io import Take
+
+    truth = random_camera(31)                           # clock offset 0: camera frame k at mocap time k / 30 s
+    views = board_views(truth, BoardSpec(), 8, seed=31)
+    board_points = np.array([[0.0, 0.0, -5.0], [210.0, 0.0, -5.0], [0.0, 150.0, -5.0], [210.0, 150.0, -5.0]])
+    positions = np.empty((26, 4, 3))
+    for frame in range(26):                             # the board held still while each camera frame is taken
+        view = min(int(round(frame / 100.0 * 30.0)), 7)
+        positions[frame] = truth.to_mocap(board_points @ views.rotations[view].T + views.translations[view])
+    names = [f"board{number}" for number in range(1, 5)]
+    save_take(Take(names, positions, 100.0), tmp_path / "board.c3d")
+    write_video(tmp_path / "board.avi", views.images, 30.0, truth.size)
+    markers = dict(zip(names, board_points.tolist(), strict=True))
+    (tmp_path / "board_markers.json").write_text(json.dumps({"markers": markers}))
+    session = Session.create(tmp_path / "session")
+    entry = session.add_take(tmp_path / "board.c3d")
+    add_camera(session, entry.id, Camera(truth.matrix, truth.distortion, truth.size, name="board camera"),
+               tmp_path / "board.avi")
+    session.close()
+    open_session_take(window, qtbot, tmp_path / "session")
+    wizard = CameraWizard(window, window.cameras)
+    qtbot.addWidget(wizard)
+    wizard.method_box.setCurrentIndex(1)
+    wizard.board_file_edit.setText(str(tmp_path / "missing.json"))
+    wizard.start_registration()
+    assert not wizard.runner.is_busy() and "missing.json" in wizard.status_label.text()
+    wizard.board_file_edit.setText(str(tmp_path / "board_markers.json"))
+    wizard.start_registration()
+    qtbot.waitUntil(lambda: not wizard.runner.is_busy(), timeout=120_000)
+    camera = wizard.camera
+    assert camera.registered, wizard.status_label.text()
+    assert np.linalg.norm(camera.centre - truth.centre) < 2.0
+    assert rotation_angle_deg(camera.rotation, truth.rotation) < 0.2
+    assert "board corners" in wizard.register_label.text()
+    wizard.close()
