@@ -80,7 +80,7 @@ def command_batch(args: argparse.Namespace) -> int:
     finally:
         signal.signal(signal.SIGINT, previous)
         printer.close()
-    state = read_state(session.folder)
+    state = read_state(session.folder, plan.up_to_date)
     rows = [progress.summaries.get(job.take_id) or {"take": job.take_id, "name": job.name, "status": "queued"}
             for job in plan.jobs]
     rows += [{"take": take_id, "name": session.take(take_id).name} | state[take_id].get("summary", {})

@@ -5,7 +5,7 @@ skipped unless ``redo``) and checks the outputs; :func:`run_batch` submits one t
 (:func:`core.batch.task.process_take`) to a ``LocalCluster`` (``workers`` processes of one thread: the
 numba kernels are single-threaded, and one task per process makes a worker's death that task's) or to
 the scheduler at ``scheduler``, and reports progress as the tasks finish. Tasks return small summaries;
-the driver records failures and skips in the batch state (a finished task records itself).
+the driver records failures and skips in the batch state (a task records its own progress).
 
 A worker that dies (killed, out of memory) has its task tried once more on another worker
 (:data:`ALLOWED_FAILURES`: the death may be someone else's, e.g. the OS killing the largest process);
@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from core.batch.pipeline import Pipeline
-from core.batch.state import input_key, read_state, update_state
+from core.batch.state import input_key, read_state, write_state
 from core.batch.task import process_take
 from core.errors import InputError
 from core.session.session import Session
@@ -119,7 +119,7 @@ def plan_batch(session: Session, pipeline: Pipeline, only: str | None = None, re
         raise InputError(f"no take of session {session.name} matches '{only}'" if only else
                          f"session {session.name} has no take")
     output = Path(pipeline.output) if pipeline.output else session.folder / "exports"
-    state = read_state(session.folder)
+    state = read_state(session.folder, [entry.id for entry in takes])
     pipeline_key = pipeline.key()
     jobs, up_to_date, failed = [], [], {}
     for entry in takes:
@@ -149,7 +149,7 @@ def _check_outputs(jobs: list[TakeJob], pipeline: Pipeline, output: Path, state:
 
     for job in jobs:
         if job.take_id in state:
-            continue  # an earlier batch of this take (maybe interrupted) wrote its outputs
+            continue  # a batch of this take (maybe interrupted) wrote them
         for path in output_paths(pipeline, output, job.stem).values():
             if path.exists():
                 raise InputError(f"{path} exists; use --overwrite to replace it")
@@ -168,15 +168,14 @@ def run_batch(plan: BatchPlan, workers: int = 2, scheduler: str | None = None,
     folder = plan.session.folder
     progress = BatchProgress(len(plan.jobs) + len(plan.failed))
     if plan.failed:
-        update_state(folder, {take_id: {"state": "failed", "reason": reason}
-                              for take_id, reason in plan.failed.items()})
+        for take_id, reason in plan.failed.items():
+            write_state(folder, take_id, "failed", reason=reason)
         progress.states |= dict.fromkeys(plan.failed, "failed")
         progress.summaries |= {take_id: {"take": take_id, "status": "failed", "reason": reason}
                                for take_id, reason in plan.failed.items()}
     if not plan.jobs:
         return progress
     plan.output.mkdir(parents=True, exist_ok=True)
-    update_state(folder, {job.take_id: {"state": "queued", "key": ""} for job in plan.jobs})
     progress.states |= {job.take_id: "queued" for job in plan.jobs}
     logging.getLogger("distributed").setLevel(logging.ERROR)
     started = time.perf_counter()
@@ -262,8 +261,7 @@ def _finished(plan: BatchPlan, progress: BatchProgress, job: TakeJob, future: An
     if status == "done":
         progress.frames += job.frames
     else:
-        update_state(plan.session.folder, {job.take_id: {"state": status, "key": "", "reason": summary["reason"],
-                                                         "summary": _json_ready(summary)}})
+        write_state(plan.session.folder, job.take_id, status, reason=summary["reason"], summary=_json_ready(summary))
 
 
 def _json_ready(summary: dict[str, Any]) -> dict[str, Any]:

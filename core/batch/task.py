@@ -26,7 +26,7 @@ from typing import Any
 from numba.core import event
 
 from core.batch.pipeline import Pipeline, pipeline_from_dict
-from core.batch.state import update_state
+from core.batch.state import write_state
 from core.batch.steps import export_take, output_paths, review_figures, run_steps, undo_all
 from core.errors import HandMocapError
 from core.review import CompoundCommand
@@ -42,9 +42,10 @@ def process_take(folder: str, take_id: str, settings: dict[str, Any], key: str, 
                  ) -> dict[str, Any]:
     """Run the pipeline ``settings`` on take ``take_id`` of the session in ``folder``, exports to
     ``output/<stem>.*``; ``key`` is the take's input key. Never raises: returns ``{"take", "status":
-    "done"|"failed"|"skipped", "reason", "seconds", "compilations" (numba compilations in this task),
+    "done"|"failed"|"skipped", "reason", "seconds" (wall), "cpu_seconds" (this thread's CPU time: the
+    machine's load does not change it), "compilations" (numba compilations in this task),
     ...figures}``."""
-    started = time.perf_counter()
+    started, cpu_started = time.perf_counter(), time.thread_time()
     summary: dict[str, Any] = {"take": take_id, "status": "failed", "reason": ""}
     with event.install_recorder("numba:compile") as recorder:
         try:
@@ -58,6 +59,7 @@ def process_take(folder: str, take_id: str, settings: dict[str, Any], key: str, 
             summary["reason"] = f"internal error: {type(error).__name__}: {error}"
             summary["trace"] = traceback.format_exc(limit=8)
     summary["seconds"] = round(time.perf_counter() - started, 3)
+    summary["cpu_seconds"] = round(time.thread_time() - cpu_started, 3)
     summary["compilations"] = _compilations(recorder)
     return summary
 
@@ -75,6 +77,7 @@ def _process(folder: Path, take_id: str, pipeline: Pipeline, key: str, output: P
     try:
         if opened.read_only:
             return {"status": "skipped", "reason": opened.read_only_reason()}
+        write_state(folder, take_id, "running", key)  # from now on its exports are the batch's to replace
         description = step_description(pipeline, key)
         review = opened.review
         outputs: dict[str, Path] = {}
@@ -99,7 +102,7 @@ def _process(folder: Path, take_id: str, pipeline: Pipeline, key: str, output: P
         _record_exports(session, take_id, outputs)
         summary["seconds"] = round(time.perf_counter() - started, 3)
         summary["compilations"] = compilations()
-        update_state(folder, {take_id: {"state": "done", "key": key, "reason": "", "summary": summary}})
+        write_state(folder, take_id, "done", key, summary=summary)
         return summary
     finally:
         opened.close(save=False)

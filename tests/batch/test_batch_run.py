@@ -80,7 +80,7 @@ def test_full_pipeline_resume_and_corrupt_take(tmp_path, cluster):
     assert first.interrupted
     finished = {take for take, state in first.states.items() if state in ("done", "failed")}
     assert finished and len(finished) < 4
-    state = read_state(session.folder)
+    state = read_state(session.folder, [entry.id for entry in session.takes])
     assert all(state[take]["state"] in ("done", "failed") for take in finished)
     plan, second = run(session, FULL, cluster[0])
     resumed = {job.take_id for job in plan.jobs}
@@ -88,7 +88,7 @@ def test_full_pipeline_resume_and_corrupt_take(tmp_path, cluster):
     assert not resumed & done_before, "a finished take was run again"
     assert plan.up_to_date == sorted(done_before)
     assert all(second.states[take] in ("done", "failed") for take in resumed)
-    final = read_state(session.folder)
+    final = read_state(session.folder, [entry.id for entry in session.takes])
     assert final[corrupt.id]["state"] == "failed" and final[corrupt.id]["reason"]
     good = [entry for entry in session.takes if entry.id != corrupt.id]
     for entry in good:
@@ -120,7 +120,7 @@ def test_worker_killed_mid_run_loses_nothing(tmp_path, cluster):
     _, progress = run(session, FULL, address, on_progress=kill_once)
     assert killed, "no worker was killed"
     assert progress.count("done") == 6, progress.summaries
-    state = read_state(session.folder)
+    state = read_state(session.folder, [entry.id for entry in session.takes])
     for entry in session.takes:
         assert state[entry.id]["state"] == "done"
         opened = Session.open(session.folder, read_only=True).open_take(entry.id)

@@ -150,7 +150,8 @@ def batch_run(root: Path, paths: list[Path], workers: int) -> dict:
             "frames_per_s": round(frames / (end - start), 1),
             "peak_worker_mib": round(max(memory.values()), 1),
             "compilations": sum(summary.get("compilations", 0) for summary in summaries),
-            "mean_task_s": round(sum(s.get("seconds", 0) for s in summaries) / max(len(summaries), 1), 3)}
+            "mean_task_s": round(sum(s.get("seconds", 0) for s in summaries) / max(len(summaries), 1), 3),
+            "mean_task_cpu_s": round(sum(s.get("cpu_seconds", 0) for s in summaries) / max(len(summaries), 1), 3)}
 
 
 def _peak_rss_mib() -> float:
@@ -188,9 +189,9 @@ def main() -> None:
         for run in runs:
             print(f"{run['workers']} worker(s): {run['takes']} takes ({run['failed']} failed) in {run['seconds']} s "
                   f"({run['seconds_without_start']} s after the cluster started): {run['takes_per_min']} takes/min, "
-                  f"{run['frames_per_s']} frames/s; mean task {run['mean_task_s']} s; peak worker memory "
-                  f"{run['peak_worker_mib']} MiB; {run['compilations']} numba compilations; load average before "
-                  f"{run['load_before']}")
+                  f"{run['frames_per_s']} frames/s; mean task {run['mean_task_s']} s ({run['mean_task_cpu_s']} s CPU); "
+                  f"peak worker memory {run['peak_worker_mib']} MiB; {run['compilations']} numba compilations; "
+                  f"load average before {run['load_before']}")
         print(f"per take, measured in turn: steps in one process {base['plain']:.2f} s, as a batch task without "
               f"Dask {base['task']:.2f} s (session: +{100 * figures['session_overhead']:.1f} %), single-take CLI "
               f"(label, fill, solve) {base['cli']:.2f} s ({figures['cli_over_plain']:.2f}× the steps)")
