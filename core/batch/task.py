@@ -30,7 +30,7 @@ from core.batch.state import write_state
 from core.batch.steps import export_take, output_paths, review_figures, run_steps, undo_all
 from core.errors import HandMocapError
 from core.review import CompoundCommand
-from core.session.session import Session
+from core.session.session import OpenTake, Session
 
 
 def step_description(pipeline: Pipeline, key: str) -> str:
@@ -95,11 +95,11 @@ def _process(folder: Path, take_id: str, pipeline: Pipeline, key: str, output: P
             if done.commands:
                 opened.push(CompoundCommand(done.commands, description))
             fills = done.fills
+        _record_take(session, opened, outputs)
         if opened.is_modified():
             opened.save()
         summary = {"take": take_id, "status": "done", "reason": "", "name": opened.entry.name, "fills": fills,
                    "outputs": {kind: str(path) for kind, path in outputs.items()}} | review_figures(review)
-        _record_exports(session, take_id, outputs)
         summary["seconds"] = round(time.perf_counter() - started, 3)
         summary["compilations"] = compilations()
         write_state(folder, take_id, "done", key, summary=summary)
@@ -109,14 +109,21 @@ def _process(folder: Path, take_id: str, pipeline: Pipeline, key: str, output: P
         session.close()
 
 
-def _record_exports(session: Session, take_id: str, outputs: dict[str, Path]) -> None:
-    """The exports in the take's manifest entry (the session browser shows the take as exported)."""
-    if not outputs:
-        return
+def _record_take(session: Session, opened: OpenTake, outputs: dict[str, Path]) -> None:
+    """One manifest update for the take (each one rewrites the whole manifest under the session lock, so
+    with many workers they are what waits): its review snapshot (saved right after), its exports and its
+    state ("exported" with exports, else "labelled" once labelled), so that the save finds nothing left
+    to update and the session browser shows the take's new state."""
+    relative = str(opened.snapshot_path.relative_to(session.folder))
+    labelled = bool((opened.review.assignment >= 0).any())
 
     def change() -> None:
-        entry = session.take(take_id)
+        entry = session.take(opened.entry.id)
+        entry.results["review"] = relative
         entry.exports.update({kind: str(path) for kind, path in outputs.items()})
-        entry.state = "exported"
+        if outputs:
+            entry.state = "exported"
+        elif entry.state == "raw" and labelled and not entry.labelled_source:
+            entry.state = "labelled"
 
     session.update(change)

@@ -149,3 +149,19 @@ def test_cli_on_a_folder_of_takes(tmp_path, capsys):
     assert len(session.takes) == 2 and (session.folder / "batch-report.html").exists()
     assert main(["batch", str(tmp_path / "raw"), "--pipeline", str(pipeline)]) == 0
     assert "0 takes to process, 2 up to date" in capsys.readouterr().out
+
+
+def test_a_take_costs_one_manifest_update(tmp_path, monkeypatch):
+    """With many workers the manifest updates (each rewrites the whole manifest under the session lock)
+    are what waits: a task makes one."""
+    session = make_study(tmp_path, 1)
+    entry = session.takes[0]
+    calls, original = [], Session.update
+    monkeypatch.setattr(Session, "update", lambda self, change: calls.append(1) or original(self, change))
+    (tmp_path / "out").mkdir()
+    settings = pipeline_from_dict(LABEL_ONLY).to_dict()
+    summary = process_take(str(session.folder), entry.id, settings, "k" * 64, str(tmp_path / "out"), "x")
+    assert summary["status"] == "done" and len(calls) == 1
+    saved = Session.open(session.folder).take(entry.id)
+    assert saved.state == "exported" and (session.folder / saved.results["review"]).is_file()
+    assert saved.exports["c3d"] == str(tmp_path / "out" / "x.c3d")
