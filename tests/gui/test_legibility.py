@@ -5,6 +5,7 @@ warnings of reading and labelling in the message panel instead of on the termina
 import logging
 import threading
 import warnings
+from pathlib import Path
 
 import pytest
 from PySide6.QtCore import QPoint
@@ -107,3 +108,19 @@ def test_window_size_option():
     for text in ("big", "1366", "10x10", "1366x-768"):
         with pytest.raises(InputError):
             window_size(text)
+
+
+REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "real" / "dfki_glove_right_hand_frames_0001_3000.tsv"
+
+
+@pytest.mark.skipif(not REAL.exists(), reason="the real recording is not in ../shared")
+def test_a_file_reading_warning_lands_in_the_message_panel(window, qtbot, tmp_path, capsys):
+    lines = REAL.read_text().splitlines(keepends=True)
+    header = next(number for number, line in enumerate(lines) if line.startswith("Frame\t")) + 1
+    short = tmp_path / "short.tsv"
+    short.write_text("".join(lines[:header + 40]))          # NO_OF_FRAMES still says 3000
+    with qtbot.waitSignal(window.loader.succeeded, timeout=30_000):
+        window.open_files([short])
+    qtbot.waitUntil(lambda: bool(window.message_panel.messages()), timeout=5_000)
+    assert window.message_panel.messages() == ["short.tsv: NO_OF_FRAMES says 3000, the file has 40 frames"]
+    assert "NO_OF_FRAMES" not in capsys.readouterr().err
