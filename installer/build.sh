@@ -19,9 +19,11 @@ fi
 version="$(.venv/bin/python -c 'import importlib.metadata as m; print(m.version("handmocap"))')"
 
 echo "building the wheel"
-rm -f dist/handmocap-*.whl
+# setuptools would reuse a stale build/lib, and the files listed in an old handmocap.egg-info (a by-product
+# of the editable install; the installed metadata lives in .venv)
+rm -rf dist/handmocap-*.whl build/lib build/bdist.* handmocap.egg-info
 .venv/bin/python -m pip wheel -q --no-deps -w dist .
-rm -rf build/lib build/bdist.*    # setuptools' staging folders; the wheel is built
+rm -rf build/lib build/bdist.*
 
 echo "freezing the application (PyInstaller)"
 .venv/bin/pyinstaller --noconfirm --log-level WARN --distpath dist --workpath build/pyinstaller \

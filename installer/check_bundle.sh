@@ -2,8 +2,9 @@
 # Smoke test of what build.sh makes, run as an operator would, from a folder outside the source tree:
 #   the frozen bundle (dist/handmocap/handmocap) and the wheel installed into a new virtual environment.
 # Each answers --version and the --help of every subcommand, simulates a take, labels it, reads a vendor
-# C3D (shared/data/c3d when present, else the simulated take) with info, and starts the GUI on a virtual
-# screen on the demo session, saves a screenshot and exits. Screenshots go to dist/check/.
+# C3D (shared/data/c3d when present, else the simulated take) with info, processes a folder of two takes
+# with batch (Dask worker processes), and starts the GUI on a virtual screen on the demo session, saves a
+# screenshot and exits. Screenshots go to dist/check/.
 # Slow (a full build, then a pip install of every dependency): not part of the test run.
 # Usage: bash installer/check_bundle.sh [--no-build]   (--no-build: check the artefacts already in dist/)
 set -euo pipefail
@@ -49,10 +50,16 @@ check() {  # check NAME EXECUTABLE PYTHON: the executable's CLI and GUI, run fro
   done < <("$python" -c "$commands_py")
   echo "   --version and the --help of $count subcommands"
   "$exe" simulate --layout dense --frames 300 --seed 2 --noise 0.3 --unlabelled --out raw.c3d --truth truth.npz >/dev/null
-  "$exe" label raw.c3d --layout dense --out labelled.c3d --report report.json --quiet
+  "$exe" label raw.c3d --layout dense --out labelled.c3d --report report.json --quiet >label.log
   [ -s labelled.c3d ] && [ -s report.json ] || { echo "$name: label wrote nothing" >&2; return 1; }
   "$exe" info "${vendor:-labelled.c3d}" --json >info.json
   echo "   simulate, label, info ($(basename "${vendor:-labelled.c3d}")): $(head -c 120 info.json)…"
+  mkdir takes && cp raw.c3d takes/a.c3d
+  "$exe" simulate --layout dense --frames 200 --seed 3 --noise 0.3 --unlabelled --out takes/b.c3d --truth b.npz >/dev/null
+  printf 'steps = ["label", "export"]\nlayout = "dense"\nhands = "right"\nexports = ["c3d"]\n' >pipeline.toml
+  "$exe" batch takes --pipeline pipeline.toml --workers 2 >batch.log 2>&1 || { cat batch.log >&2; return 1; }
+  grep -q "2 takes processed" batch.log || { cat batch.log >&2; return 1; }
+  echo "   batch of 2 takes on 2 local Dask worker processes"
   local start=$SECONDS
   "${screen[@]}" "$exe" gui --screenshot gui.png >gui.log 2>&1 || { cat gui.log >&2; return 1; }
   [ "$(stat -c %s gui.png)" -gt 50000 ] || { echo "$name: the GUI screenshot is empty" >&2; return 1; }
