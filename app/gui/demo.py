@@ -18,13 +18,13 @@ from pathlib import Path
 from core.camera.files import load_camera, save_camera
 from core.camera.writers import write_video
 from core.errors import HandMocapError
+from core.evaluation.data import REAL_RECORDING
 from core.io import save_take
 from core.session import Session
 from core.session.cameras import add_camera
 from core.simulate import simulate_take
 from core.simulate.camera import random_camera, simulate_camera_take
 
-REAL_RECORDING = "dfki_glove_right_hand_frames_0001_3000.tsv"
 RAW_TAKE = "simulated raw take (dense, unlabelled).c3d"
 LABELLED_TAKE = "simulated grasps (dense, labelled).trc"
 CAMERA_TAKE = "simulated take with a camera (dense, labelled).c3d"
@@ -33,15 +33,6 @@ CAMERA_FILE = "camera.json"
 CAMERA_FRAMES = 320        # mocap frames at 100 Hz: a 3.2 s take, a 3.1 s video of 93 camera frames
 CAMERA_OFFSET_S = 0.12     # the camera clock's known offset (s)
 CAMERA_DISTANCE_MM = 450.0  # from the workspace centre: the hand fills a good part of the image
-
-
-def shared_folder() -> Path | None:
-    """``../shared`` next to the project (or ``$HANDMOCAP_SHARED``) when it exists."""
-    candidates = [os.environ.get("HANDMOCAP_SHARED"), Path(__file__).resolve().parents[2] / "shared"]
-    for candidate in candidates:
-        if candidate and Path(candidate, "data").is_dir():
-            return Path(candidate)
-    return None
 
 
 def demo_folder() -> Path:
@@ -65,10 +56,8 @@ def prepare_demo_session(folder: Path | None = None) -> Path:
     session = Session.create(folder, name="Demo session")
     files = folder / "files"
     files.mkdir(exist_ok=True)
-    shared = shared_folder()
-    real = None if shared is None else shared / "data" / "real" / REAL_RECORDING
-    if real is not None and real.exists():
-        session.add_take(real, subject="DFKI subject", layout="glove-13", name="DFKI glove recording (real)")
+    if REAL_RECORDING.exists():
+        session.add_take(REAL_RECORDING, subject="DFKI subject", layout="glove-13", name="DFKI glove recording (real)")
     labelled = simulate_take(layout="dense", n_frames=900, seed=1, noise_mm=0.3, occlusion=True).take
     save_take(labelled, files / LABELLED_TAKE)
     session.add_take(files / LABELLED_TAKE, subject="simulated subject", layout="dense", take=labelled)

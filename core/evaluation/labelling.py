@@ -23,12 +23,11 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
+from core.evaluation.data import REAL_RECORDING
 from core.evaluation.labelling_metrics import labelling_accuracy
 from core.labelling.models import SceneSettings
 from core.labelling.scene import label_scene
 
-REAL_RECORDING = Path(__file__).resolve().parents[3] / "shared" / "data" / "real" / \
-    "dfki_glove_right_hand_frames_0001_3000.tsv"
 TARGETS = {"correct_share": 0.995, "ghost_labelled_share": 0.005, "longest_swap_frames": 10}
 
 

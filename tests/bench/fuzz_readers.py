@@ -28,7 +28,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import numpy as np  # noqa: E402
 
-SHARED_DATA = Path("/work/shared/data")
+from core.evaluation.data import SHARED_DATA  # noqa: E402
+
 FORMATS = ("c3d", "tsv", "trc", "csv", "ply", "obj", "gltf", "glb", "npz")
 INTERESTING_TEXT = ["", "0", "-1", "1e308", "-1e308", "nan", "inf", "9" * 30, "18446744073709551616",
                     "9223372036854775808", "x", "\t\t\t", "1e-320", "2147483648", "65535", " "]

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import cv2
 import numpy as np
@@ -16,6 +15,7 @@ from core.camera.intrinsics import BoardSpec, calibrate_intrinsics, detect_board
 from core.camera.model import Camera, CameraClock, rotation_angle_deg
 from core.camera.sync import sync_markers
 from core.errors import InputError
+from core.evaluation.data import RGBD_FRAMES
 from core.simulate.camera import (
     MARKER_RADIUS,
     OBJECT_MARKER_RADIUS,
@@ -25,7 +25,7 @@ from core.simulate.camera import (
     simulate_camera_take,
 )
 
-SR305 = Path(__file__).resolve().parents[3] / "shared" / "data" / "rgbd" / "sr305_open_right_hand"
+SR305 = RGBD_FRAMES / "sr305_open_right_hand"
 
 
 def test_projection_and_back_projection_round_trip_with_distortion():

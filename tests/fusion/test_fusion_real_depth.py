@@ -3,18 +3,17 @@ nearest object, with the depth and silhouette terms only, the fit ends with the 
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import cv2
 import numpy as np
 import pytest
 
 from core.camera.model import Camera
+from core.evaluation.data import RGBD_FRAMES
 from core.fusion.depth_fit import fit_depth_frame
 from core.fusion.pose import digit_points
 from core.model import load_template
 
-FRAME = Path(__file__).resolve().parents[3] / "shared" / "data" / "rgbd" / "sr305_open_right_hand" / "110.png"
+FRAME = RGBD_FRAMES / "sr305_open_right_hand" / "110.png"
 #: SR305 intrinsics and depth unit from the data's README
 SR305 = Camera(np.array([[476.007, 0.0, 313.683], [0.0, 476.007, 242.755], [0.0, 0.0, 1.0]]), np.zeros(5),
                (640, 480), registered=True, name="SR305")

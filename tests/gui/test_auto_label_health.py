@@ -2,7 +2,6 @@
 kept through auto-label, solve after auto-label with the subject's hand, and the labelling's warnings
 in the status bar and the problem list (F3), driven through the real widgets."""
 
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,6 +9,7 @@ from PySide6.QtCore import Qt, QTimer
 from PySide6.QtWidgets import QApplication, QDialogButtonBox
 
 from app.gui.review_controller import AutoLabelDialog, AutoLabelSettings
+from core.evaluation.data import REAL_RECORDING
 from core.io import load_take, save_take
 from core.io.labelled_c3d import subject_calibrations
 from core.review import MEASURED
@@ -18,10 +18,9 @@ from core.simulate import simulate_take
 
 pytestmark = pytest.mark.gui
 
-REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "real" / "dfki_glove_right_hand_frames_0001_3000.tsv"
 OTHER = ["right_elbow", "back_top", "back_left", "back_right", "right_shoulder", "pillow_top", "pillow_left",
          "pillow_right"]
-needs_real = pytest.mark.skipif(not REAL.exists(), reason="the real recording is not in ../shared")
+needs_real = pytest.mark.skipif(not REAL_RECORDING.exists(), reason="the real recording is not in ../shared")
 
 
 def open_and_wait(window, qtbot, path):
@@ -65,7 +64,7 @@ def test_dialog_defaults_to_auto_hands_and_offers_relabel(window, qtbot):
 
 @needs_real
 def test_real_take_keeps_its_other_markers_and_solves_with_the_subject(window, qtbot):
-    open_and_wait(window, qtbot, REAL)
+    open_and_wait(window, qtbot, REAL_RECORDING)
     document = window.document
     label_through_dialog(window, qtbot, "glove-13")
     review = document.review
@@ -88,7 +87,7 @@ def test_real_take_keeps_its_other_markers_and_solves_with_the_subject(window, q
 
 @needs_real
 def test_labelling_warning_in_status_bar_problem_list_and_screenshot(window, qtbot, tmp_path):
-    open_and_wait(window, qtbot, REAL)
+    open_and_wait(window, qtbot, REAL_RECORDING)
     label_through_dialog(window, qtbot, "glove-13", relabel=True)    # the arm, back and pillow become ghosts
     review = window.document.review
     assert review.health and any(warning.kind == "many_ghosts" for warning in review.health)

@@ -5,7 +5,6 @@ warnings of reading and labelling in the message panel instead of on the termina
 import logging
 import threading
 import warnings
-from pathlib import Path
 
 import pytest
 from PySide6.QtCore import QPoint
@@ -13,6 +12,7 @@ from PySide6.QtCore import QPoint
 from app.gui.document import TakeDocument
 from app.gui.launch import window_size
 from core.errors import InputError
+from core.evaluation.data import REAL_RECORDING
 from core.simulate import simulate_take
 from widgets.gap_list import COLUMNS as GAP_COLUMNS
 from widgets.review_table import COLUMNS as TABLE_COLUMNS
@@ -110,12 +110,11 @@ def test_window_size_option():
             window_size(text)
 
 
-REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "real" / "dfki_glove_right_hand_frames_0001_3000.tsv"
 
 
-@pytest.mark.skipif(not REAL.exists(), reason="the real recording is not in ../shared")
+@pytest.mark.skipif(not REAL_RECORDING.exists(), reason="the real recording is not in ../shared")
 def test_a_file_reading_warning_lands_in_the_message_panel(window, qtbot, tmp_path, capsys):
-    lines = REAL.read_text().splitlines(keepends=True)
+    lines = REAL_RECORDING.read_text().splitlines(keepends=True)
     header = next(number for number, line in enumerate(lines) if line.startswith("Frame\t")) + 1
     short = tmp_path / "short.tsv"
     short.write_text("".join(lines[:header + 40]))          # NO_OF_FRAMES still says 3000

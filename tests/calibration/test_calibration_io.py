@@ -2,7 +2,6 @@
 
 import argparse
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,13 +12,13 @@ from core.calibration.pipeline import calibrate_scan, load_template_file
 from core.calibration.scan import save_ply
 from core.calibration.synthetic_scan import synthetic_scan
 from core.errors import HandMocapError, InputError
+from core.evaluation.data import GLTF_TEMPLATES
 from core.model import HandModel, load_layout, load_template, resolve_layout, skin_vertices
 from core.model.gltf import classify_joint_name, load_gltf_hand, save_gltf_hand
 from core.model.skeleton import N_PARAMS
 from core.model.template_mesh import LANDMARK_NAMES
 
-TEMPLATES = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "templates"
-WEBXR = {side: TEMPLATES / f"webxr_generic_hand_{side}.glb" for side in ("right", "left")}
+WEBXR = {side: GLTF_TEMPLATES / f"webxr_generic_hand_{side}.glb" for side in ("right", "left")}
 needs_webxr = pytest.mark.skipif(not all(path.exists() for path in WEBXR.values()),
                                  reason="shared glTF templates not available")
 

@@ -1,22 +1,20 @@
 """PCA marker-intercorrelation gap fill (Gløersen & Federolf 2016), the fill check's ranking, and the
 evaluation of many gaps hidden at once through the fill of the command line."""
 
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from core.errors import InputError
+from core.evaluation.data import REAL_RECORDING
 from core.evaluation.gaps import evaluate_hidden_gaps, hide_gaps
 from core.gaps import FillCheck, Gap, fill_gap, fill_linear, fill_pca, fill_spline
 from core.gaps.check import LOCAL_HORIZON_S
-from core.io import Take, load_take
+from core.io import Take
 from core.model import load_layout
 from core.simulate import simulate_take
 
-REAL_TSV = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / \
-    "dfki_glove_right_hand_frames_0001_3000.tsv"
-needs_real = pytest.mark.skipif(not REAL_TSV.exists(), reason="shared data absent")
+needs_real = pytest.mark.skipif(not REAL_RECORDING.exists(), reason="shared data absent")
 FINGERS = ("thumb_tip", "thumb_middle", "index_tip", "index_middle", "middle_tip", "middle_middle", "ring_tip",
            "ring_middle", "little_tip", "little_middle")
 
@@ -102,9 +100,9 @@ def test_ranking_keeps_pca_first_unless_clearly_beaten_on_a_short_gap():
     assert check_with(10, {"spline": [(0.4, 0.9)] * 2, "linear": [(0.3, 2.0)] * 2}).ranking() == ["spline", "linear"]
 
 
-@pytest.fixture(scope="module")
-def real_half():
-    take = load_take(REAL_TSV)
+@pytest.fixture
+def real_half(real_recording):
+    take = real_recording
     return Take(list(take.marker_names), take.marker_positions[:take.n_frames // 2], take.frame_rate)
 
 

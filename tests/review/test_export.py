@@ -1,7 +1,6 @@
 """Exports of a review: labelled C3D read back by ezc3d, the c3d package and our reader; CSV; BVH."""
 
 import warnings
-from pathlib import Path
 
 import c3d
 import ezc3d
@@ -9,6 +8,7 @@ import numpy as np
 import pytest
 
 from core.errors import InputError
+from core.evaluation.data import REAL_RECORDING, VENDOR_C3D
 from core.io import load_take
 from core.io.errors import TakeFormatError
 from core.io.labelled_c3d import decode_runs, encode_runs, read_labelled_c3d, write_labelled_c3d
@@ -30,8 +30,6 @@ from core.review import (
 from core.review.synthetic import synthetic_labelling
 from core.simulate.motion import simulate_joint_angles
 
-REAL_TSV = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / \
-    "dfki_glove_right_hand_frames_0001_3000.tsv"
 FRAMES = 90
 
 
@@ -226,9 +224,9 @@ def test_bvh_export_of_a_review_and_bad_input(tmp_path, reviewed):
         read_bvh(path)
 
 
-@pytest.mark.skipif(not REAL_TSV.exists(), reason="shared data absent")
+@pytest.mark.skipif(not REAL_RECORDING.exists(), reason="shared data absent")
 def test_real_recording_exports_its_measured_coordinates_unchanged(tmp_path):
-    take = load_take(REAL_TSV)
+    take = load_take(REAL_RECORDING)
     take.marker_positions = take.marker_positions[:300]
     review = ReviewTake.from_labelled_take(take)
     path = tmp_path / "real.c3d"
@@ -241,7 +239,7 @@ def test_real_recording_exports_its_measured_coordinates_unchanged(tmp_path):
     assert np.array_equal(stored, take.marker_positions[present].astype(np.float32).astype(np.float64))
 
 
-VENDOR_C3D = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "c3d"
+VENDOR_C3D = VENDOR_C3D
 
 
 @pytest.mark.skipif(not VENDOR_C3D.is_dir(), reason="shared data absent")

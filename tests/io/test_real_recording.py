@@ -1,24 +1,22 @@
 """The real DFKI glove recording (../shared/data/real): solve with glove-13 and fit marker placement."""
 
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from core.calibration.marker_placement import fit_marker_placement
 from core.errors import InputError
+from core.evaluation.data import REAL_RECORDING
 from core.ik import solve_take
-from core.io import Take, load_take
+from core.io import Take
 from core.model import MarkerLayout, MarkerSpec, load_layout, load_template
 
-REAL_TSV = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / \
-    "dfki_glove_right_hand_frames_0001_3000.tsv"
-pytestmark = pytest.mark.skipif(not REAL_TSV.exists(), reason="shared data absent")
+pytestmark = pytest.mark.skipif(not REAL_RECORDING.exists(), reason="shared data absent")
 
 
-@pytest.fixture(scope="module")
-def real_take() -> Take:
-    take = load_take(REAL_TSV)
+@pytest.fixture
+def real_take(real_recording) -> Take:
+    take = real_recording
     return Take(take.marker_names, take.marker_positions[:600], take.frame_rate, take.first_frame, take.vendor)
 
 

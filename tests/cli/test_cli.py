@@ -9,14 +9,12 @@ import numpy as np
 import pytest
 
 from app.cli.main import build_parser, main
-
-SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
-REAL_TSV = SHARED / "real" / "dfki_glove_right_hand_frames_0001_3000.tsv"
+from core.evaluation.data import REAL_RECORDING
 
 
 def run(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "app.cli.main", *args], capture_output=True, text=True,
-                          timeout=600, cwd=Path(__file__).resolve().parents[1])
+                          timeout=600, cwd=Path(__file__).resolve().parents[2])
 
 
 def test_version_and_help_of_every_subcommand(capsys):
@@ -81,9 +79,9 @@ def test_unlabelled_simulation_writes_point_marker(tmp_path):
         assert (data["point_marker"] == -1).any()
 
 
-@pytest.mark.skipif(not REAL_TSV.exists(), reason="shared data absent")
+@pytest.mark.skipif(not REAL_RECORDING.exists(), reason="shared data absent")
 def test_info_on_the_real_recording(capsys):
-    assert main(["info", str(REAL_TSV), "--json"]) == 0
+    assert main(["info", str(REAL_RECORDING), "--json"]) == 0
     info = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert info["frames"] == 3000 and info["markers"] == 21 and info["vendor"] == "Qualisys"
     assert "thumb_tip" in info["marker_names"]

@@ -33,7 +33,7 @@ from core.review.synthetic import synthetic_labelling
 from core.session import Session
 from core.session.journal import JOURNAL_NAME
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 FRAMES = 200
 
 

@@ -1,19 +1,17 @@
 """Automatic labelling of the real DFKI glove recording with its labels stripped (skipped without the data)."""
 
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from core.evaluation.data import REAL_RECORDING
 from core.evaluation.labelling import evaluate_real_recording, unlabelled_real_take
 
-REAL_TSV = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / \
-    "dfki_glove_right_hand_frames_0001_3000.tsv"
-pytestmark = pytest.mark.skipif(not REAL_TSV.exists(), reason="shared data absent")
+pytestmark = pytest.mark.skipif(not REAL_RECORDING.exists(), reason="shared data absent")
 
 
 def test_stripped_take_hides_the_labels():
-    take, point_marker, names = unlabelled_real_take(REAL_TSV, frames=100)
+    take, point_marker, names = unlabelled_real_take(REAL_RECORDING, frames=100)
     assert all(name.startswith("point_") for name in take.marker_names)
     assert len(names) == 21 and "thumb_tip" in names
     ghosts = (point_marker < 0) & np.isfinite(take.marker_positions).all(axis=2)
@@ -24,7 +22,7 @@ def test_stripped_take_hides_the_labels():
 
 
 def test_real_recording_meets_the_targets():
-    report = evaluate_real_recording(REAL_TSV, frames=600, compare_uncalibrated=False)
+    report = evaluate_real_recording(REAL_RECORDING, frames=600, compare_uncalibrated=False)
     assert report["hand_samples_correct_share"] >= 0.995, report
     assert report["other_marker_samples"] > 0 and report["other_marker_samples_given_hand_label"] == 0, report
     assert report["ghost_points"] > 0 and report["ghost_points_given_hand_label"] == 0, report

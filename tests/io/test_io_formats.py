@@ -6,10 +6,8 @@ import numpy as np
 import pytest
 
 from core.errors import InputError
+from core.evaluation.data import REAL_RECORDING
 from core.io import Take, TakeFormatError, load_take, save_take
-
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
-REAL_TSV = DATA / "real" / "dfki_glove_right_hand_frames_0001_3000.tsv"
 
 
 def _take(
@@ -36,9 +34,9 @@ def _assert_one_line(error: pytest.ExceptionInfo[TakeFormatError], path: Path) -
 
 
 def test_real_qualisys_tsv() -> None:
-    if not REAL_TSV.is_file():
-        pytest.skip(f"{REAL_TSV} is absent")
-    take = load_take(REAL_TSV)
+    if not REAL_RECORDING.is_file():
+        pytest.skip(f"{REAL_RECORDING} is absent")
+    take = load_take(REAL_RECORDING)
     assert (take.n_frames, take.n_markers, take.frame_rate, take.first_frame) == (3000, 21, 100.0, 1)
     assert {"hand_top", "thumb_tip", "index_tip", "pillow_right"} <= set(take.marker_names)
     assert take.vendor == "Qualisys" and take.source_units == "mm"
@@ -47,7 +45,7 @@ def test_real_qualisys_tsv() -> None:
         take.marker_positions[0, take.marker_names.index("hand_top")], [110.406, 135.075, 460.584]
     )
     thumb = take.marker_names.index("thumb_tip")
-    lines = REAL_TSV.read_text().splitlines()
+    lines = REAL_RECORDING.read_text().splitlines()
     data_rows = [
         line.split("\t") for line in lines[lines.index(next(x for x in lines if x.startswith("Frame"))) + 1 :]
     ]

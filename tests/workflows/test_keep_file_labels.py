@@ -3,13 +3,13 @@ exported C3D), the file's hand labels are evidence (``relabel`` labels afresh), 
 C3D uses the subject calibration auto-label made; solve and label refuse what they cannot do."""
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from app.cli.main import main
 from core.errors import InputError
+from core.evaluation.data import REAL_RECORDING
 from core.io import Take, TakeFormatError, is_marker_label, load_take, save_take
 from core.io.labelled_c3d import (
     SUBJECT_GROUP,
@@ -24,7 +24,6 @@ from core.simulate import simulate_take
 from core.workflows.labelling import auto_label, subject_model
 from core.workflows.resolve import solve_labelled_take
 
-REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "dfki_glove_right_hand_frames_0001_3000.tsv"
 OTHER = ["right_elbow", "back_top", "back_left", "back_right", "right_shoulder", "pillow_top", "pillow_left",
          "pillow_right"]
 
@@ -156,9 +155,9 @@ def test_cli_label_take_without_a_hand_is_refused(tmp_path, capsys):
     assert len(error.splitlines()) == 1 and "hand" in error and not (tmp_path / "o.c3d").exists()
 
 
-@pytest.mark.skipif(not REAL.exists(), reason="the real recording is not in ../shared")
+@pytest.mark.skipif(not REAL_RECORDING.exists(), reason="the real recording is not in ../shared")
 def test_real_recording_keeps_its_other_markers_and_solves_with_the_subject():
-    take = load_take(REAL)
+    take = load_take(REAL_RECORDING)
     outcome = auto_label(take, "glove-13", "right")
     review = ReviewTake.unlabelled(take)
     outcome.command.do(review)

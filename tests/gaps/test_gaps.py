@@ -1,11 +1,11 @@
 """Gap detection, fills, fill check, fill-all and the gap-fill evaluation on the real recording."""
 
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from core.errors import InputError
+from core.evaluation.data import REAL_RECORDING
 from core.evaluation.gaps import evaluate_gap_fill
 from core.gaps import (
     FILL_METHODS,
@@ -23,14 +23,12 @@ from core.gaps import (
     minimum_acceleration_interpolation,
     recommend,
 )
-from core.io import Take, load_take
+from core.io import Take
 from core.model import load_layout, load_template
 from core.model.kinematics import rotation_from_vector
 from core.simulate import simulate_take
 
-REAL_TSV = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / \
-    "dfki_glove_right_hand_frames_0001_3000.tsv"
-needs_real = pytest.mark.skipif(not REAL_TSV.exists(), reason="shared data absent")
+needs_real = pytest.mark.skipif(not REAL_RECORDING.exists(), reason="shared data absent")
 
 
 def straight_line(n_frames: int = 60) -> np.ndarray:
@@ -188,9 +186,9 @@ def test_model_fill_on_a_simulated_take_with_true_angles():
     assert np.linalg.norm(filled - positions[50:60, marker], axis=1).mean() < 1.0
 
 
-@pytest.fixture(scope="module")
-def real_take():
-    return load_take(REAL_TSV)
+@pytest.fixture
+def real_take(real_recording):
+    return real_recording
 
 
 @needs_real

@@ -1,17 +1,14 @@
 """``handmocap fill --method pca``, the refusal of an unlabelled take, and ``handmocap evaluate gaps``."""
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from app.cli.main import main
+from core.evaluation.data import REAL_RECORDING
 from core.io import Take, load_take, save_take
 from core.simulate import simulate_take
-
-REAL_TSV = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / \
-    "dfki_glove_right_hand_frames_0001_3000.tsv"
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +52,7 @@ def test_fill_refuses_an_unlabelled_take(tmp_path, capsys):
     assert not out.exists()
 
 
-@pytest.mark.skipif(not REAL_TSV.exists(), reason="shared data absent")
+@pytest.mark.skipif(not REAL_RECORDING.exists(), reason="shared data absent")
 def test_evaluate_gaps_prints_every_method_and_auto_against_pca(capsys):
     assert main(["evaluate", "gaps", "--lengths", "10", "80", "--trials", "2", "--gaps", "2", "--json"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()

@@ -10,11 +10,11 @@ import ezc3d
 import numpy as np
 import pytest
 
+from core.evaluation.data import VENDOR_C3D
 from core.io import Take, TakeFormatError, load_take, save_take
 from core.io.take import mm_per_unit, unique_marker_names
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
-C3D_FOLDER = DATA / "c3d"
+C3D_FOLDER = VENDOR_C3D
 SAMPLES = sorted(C3D_FOLDER.glob("*.c3d")) if C3D_FOLDER.is_dir() else []
 SAMPLE_PARAMS = [pytest.param(path, id=path.stem) for path in SAMPLES] or [
     pytest.param(None, marks=pytest.mark.skip(reason=f"{C3D_FOLDER} is absent"))
