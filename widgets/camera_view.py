@@ -2,7 +2,9 @@
 
 The widget knows nothing about takes or cameras: it shows an image array (BGR colour ``(H,W,3) uint8``
 or depth ``(H,W)`` mm, 0 = none) and an overlay in image pixels: points ``(N,2)`` with colours, one
-selected point ringed, skeleton segments. The image becomes a :class:`QImage` over the array's own
+selected point ringed, skeleton segments, and outlines (closed polygons, e.g. the rendered silhouette of the
+solved hand). Under the frame, an :class:`~widgets.energy_strip.EnergyStrip` shows a fusion's energy terms
+(hidden until there is one). The image becomes a :class:`QImage` over the array's own
 memory (no copy for colour), and the overlay is painted with :class:`QPainter` on top, scaled with the
 image to fit the widget; so a new frame costs a conversion and a paint, nothing more.
 """
@@ -11,14 +13,26 @@ from __future__ import annotations
 
 import numpy as np
 from PySide6.QtCore import QPointF, QRectF, Qt, Signal
-from PySide6.QtGui import QColor, QImage, QMouseEvent, QPainter, QPaintEvent, QPen
-from PySide6.QtWidgets import QComboBox, QHBoxLayout, QLabel, QSizePolicy, QToolButton, QVBoxLayout, QWidget
+from PySide6.QtGui import QColor, QImage, QMouseEvent, QPainter, QPaintEvent, QPen, QPolygonF
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QHBoxLayout,
+    QLabel,
+    QSizePolicy,
+    QToolButton,
+    QVBoxLayout,
+    QWidget,
+)
+
+from widgets.energy_strip import EnergyStrip
 
 POINT_RADIUS_PX = 5.0          # marker circle radius on screen
 SELECTED_RADIUS_PX = 9.0       # ring around the selected marker
 CLICK_RADIUS_PX = 12.0         # a click this close to a point (on screen) picks it
 SELECTED_COLOUR = QColor(255, 220, 50)
 SKELETON_COLOUR = QColor(255, 255, 255, 200)
+OUTLINE_COLOUR = QColor(60, 255, 200)     # the solved hand's silhouette: a colour no marker state uses
 BACKGROUND = QColor(24, 26, 30)
 
 
@@ -60,6 +74,7 @@ class FrameCanvas(QWidget):
         self._colours = np.zeros((0, 3), dtype=np.uint8)
         self._selected = -1
         self._skeleton = np.zeros((0, 2, 2))
+        self._outlines: list[np.ndarray] = []
         self._message = ""
         self.paint_count = 0
 
@@ -73,7 +88,17 @@ class FrameCanvas(QWidget):
         self._selected = selected
         self._skeleton = np.zeros((0, 2, 2)) if skeleton is None else np.asarray(skeleton, dtype=float)
         self._message = message
+        self._outlines = []
         self.update()
+
+    def set_outlines(self, outlines: list[np.ndarray]) -> None:
+        """Draw closed polygons ``(N,2)`` image px over the image (cleared by :meth:`set_content`)."""
+        self._outlines = [np.asarray(outline, dtype=float).reshape(-1, 2) for outline in outlines]
+        self.update()
+
+    @property
+    def outlines(self) -> list[np.ndarray]:
+        return self._outlines
 
     def image_rect(self) -> QRectF:
         """Where the image is drawn in the widget (fitted, centred)."""
@@ -118,6 +143,10 @@ class FrameCanvas(QWidget):
             return
         painter.drawImage(self.image_rect(), self._image)
         painter.setRenderHint(QPainter.RenderHint.Antialiasing)
+        painter.setBrush(Qt.BrushStyle.NoBrush)
+        painter.setPen(QPen(OUTLINE_COLOUR, 2.0))
+        for outline in self._outlines:
+            painter.drawPolygon(QPolygonF([self.widget_point(pixel) for pixel in outline]))
         painter.setPen(QPen(SKELETON_COLOUR, 2.0))
         for start, end in self._skeleton:
             if np.isfinite(start).all() and np.isfinite(end).all():
@@ -146,6 +175,7 @@ class CameraView(QWidget):
     nudged = Signal(int, int)          # camera frames, mocap frames to add to the clock offset
     stream_changed = Signal(str)       # "colour" or "depth"
     camera_chosen = Signal(int)        # index in the camera choice
+    silhouette_toggled = Signal(bool)  # draw the solved hand's rendered silhouette
 
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -179,11 +209,18 @@ class CameraView(QWidget):
         self.offset_label = QLabel("", self)
         bar.addWidget(self.offset_label)
         bar.addStretch(1)
+        self.silhouette_box = QCheckBox("Silhouette", self)
+        self.silhouette_box.setToolTip("Outline the solved hand as the camera sees it (rendered from the model)")
+        self.silhouette_box.toggled.connect(self.silhouette_toggled)
+        bar.addWidget(self.silhouette_box)
+        self.energy_strip = EnergyStrip(self)
+        self.energy_strip.hide()
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
         layout.setSpacing(0)
         layout.addLayout(bar)
         layout.addWidget(self.canvas, 1)
+        layout.addWidget(self.energy_strip)
         self.set_cameras([], False)
 
     def set_cameras(self, names: list[str], has_depth: bool) -> None:

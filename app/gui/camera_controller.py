@@ -6,13 +6,16 @@ The dock follows the application: the shown take's cameras are read from the ses
 :class:`~app.gui.application.FrameChanged` the camera frame at the mocap frame's time (through the camera
 clock) is shown with the raw points of the take at that camera frame's own time projected over it,
 coloured as in the 3D view (by label, unlabelled grey, ghosts dark red), the selected point ringed, the
-solved hands' skeletons drawn. Drawing waits for the events queued now (a burst of frames during
-playback or scrubbing draws the latest only), and a frame that shows the same camera frame with the same
-overlay is not drawn again, so the video never makes playback lag: it drops frames instead.
+solved hands' skeletons drawn, and with the dock's Silhouette toggle the outlines
+:attr:`CameraController.outline_provider` gives (the fusion controller's rendered silhouette of the solved
+hand). Drawing waits for the events queued now (a burst of frames during playback or scrubbing draws the
+latest only), and a frame that shows the same camera frame with the same overlay is not drawn again, so
+the video never makes playback lag: it drops frames instead.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
@@ -162,6 +165,9 @@ class CameraController(QObject):
         self.view.nudged.connect(self.nudge)
         self.view.stream_changed.connect(lambda _stream: self.redraw())
         self.view.camera_chosen.connect(self.choose_camera)
+        self.view.silhouette_toggled.connect(lambda _on: self.redraw())
+        #: outlines (image px) of the document's solved hands at a mocap frame seen by a camera (None: none drawn)
+        self.outline_provider: Callable[[TakeDocument, Camera, int], list[np.ndarray]] | None = None
         self.cameras: list[TakeCamera] = []
         self.index = -1
         self._sources: dict[tuple[str, str], FrameSource] = {}
@@ -310,7 +316,7 @@ class CameraController(QObject):
             frame = self.app.frame
             index = self.camera_frame_at(frame)
             key = (taken.name, self.view.stream, index, frame, self.app.selection.column,
-                   None if document.review is None else document.review.version)
+                   None if document.review is None else document.review.version, self.view.silhouette_box.isChecked())
             if key == self._shown_key:
                 return
             self._shown_key = key
@@ -335,6 +341,9 @@ class CameraController(QObject):
             text += " · not registered: Tools ▸ Camera calibration… to overlay the markers"
         self.view.canvas.set_content(image, pixels, self.point_colours(frame), self.app.selection.column,
                                      skeleton, text)
+        if camera.registered and self.outline_provider is not None and self.view.silhouette_box.isChecked():
+            solved_frame = min(max(int(round(mocap_frame)), 0), take.n_frames - 1)
+            self.view.canvas.set_outlines(self.outline_provider(document, camera, solved_frame))
 
     def point_colours(self, frame: int) -> np.ndarray:
         """``(P,3)`` colours of the take's raw points at ``frame``, as the 3D view draws them."""

@@ -1,6 +1,7 @@
 """The demo session: a session folder with a raw (unlabelled) simulated take to auto-label and review, a
-labelled simulated take, a labelled simulated take filmed by a calibrated 30 Hz colour camera (a 3.1 s
-640×480 video whose first frame is at mocap time :data:`CAMERA_OFFSET_S`), and, when the shared data
+labelled simulated take, a labelled simulated take filmed by a calibrated, registered 30 Hz RGB-D camera (a 3.1 s
+640×480 video and its 16-bit depth frames in mm, whose first frame is at mocap time :data:`CAMERA_OFFSET_S`; Solve ▸
+Fuse with RGB-D works on it), and, when the shared data
 folder is present, the real DFKI glove recording (``../shared/data/real``; or
 ``$HANDMOCAP_SHARED/data/real``).
 
@@ -15,8 +16,10 @@ import shutil
 import time
 from pathlib import Path
 
+import numpy as np
+
 from core.camera.files import load_camera, save_camera
-from core.camera.writers import write_video
+from core.camera.writers import write_depth_frames, write_video
 from core.errors import HandMocapError
 from core.evaluation.data import REAL_RECORDING
 from core.io import save_take
@@ -29,6 +32,7 @@ RAW_TAKE = "simulated raw take (dense, unlabelled).c3d"
 LABELLED_TAKE = "simulated grasps (dense, labelled).trc"
 CAMERA_TAKE = "simulated take with a camera (dense, labelled).c3d"
 CAMERA_VIDEO = "camera video (30 Hz).avi"
+CAMERA_DEPTH = "camera depth (30 Hz)"
 CAMERA_FILE = "camera.json"
 CAMERA_FRAMES = 320        # mocap frames at 100 Hz: a 3.2 s take, a 3.1 s video of 93 camera frames
 CAMERA_OFFSET_S = 0.12     # the camera clock's known offset (s)
@@ -71,8 +75,9 @@ def prepare_demo_session(folder: Path | None = None) -> Path:
 
 
 def _add_camera_take(session: Session, files: Path) -> None:
-    """A labelled simulated take, its camera's video and the camera file (the simulation's truth: intrinsics,
-    pose and clock), added to ``session`` with its camera."""
+    """A labelled simulated take, its RGB-D camera's video and depth frames (rendered once: the depth costs about
+    0.9 s more than the video alone) and the camera file (the simulation's truth: intrinsics, pose and clock),
+    added to ``session`` with its camera."""
     filmed = simulate_camera_take(seed=7, n_frames=CAMERA_FRAMES, mocap_rate=100.0, offset_s=CAMERA_OFFSET_S,
                                   camera=random_camera(7, distance=CAMERA_DISTANCE_MM))
     take = filmed.simulated.take
@@ -80,7 +85,16 @@ def _add_camera_take(session: Session, files: Path) -> None:
     entry = session.add_take(files / CAMERA_TAKE, subject="simulated subject", layout="dense", take=take,
                              name="simulated take with a camera")
     camera = filmed.camera
-    write_video(files / CAMERA_VIDEO, (filmed.render(index, with_depth=False)[0]
-                                       for index in range(len(filmed.camera_times))), filmed.frame_rate, camera.size)
+    depths = []
+
+    def colours():
+        for index in range(len(filmed.camera_times)):
+            colour, depth = filmed.render(index)
+            depths.append(np.round(depth).astype(np.uint16))
+            yield colour
+
+    write_video(files / CAMERA_VIDEO, colours(), filmed.frame_rate, camera.size)
+    (files / CAMERA_DEPTH).mkdir(exist_ok=True)
+    write_depth_frames(files / CAMERA_DEPTH, depths, 1.0)
     save_camera(camera, files / CAMERA_FILE)
-    add_camera(session, entry.id, load_camera(files / CAMERA_FILE), files / CAMERA_VIDEO)
+    add_camera(session, entry.id, load_camera(files / CAMERA_FILE), files / CAMERA_VIDEO, files / CAMERA_DEPTH, 1.0)
