@@ -48,6 +48,7 @@ from app.gui.application import (
 from app.gui.camera_controller import CameraController
 from app.gui.document import TakeDocument
 from app.gui.export_dialog import export_action
+from app.gui.fusion_controller import FusionController
 from app.gui.load_queue import LoadQueue
 from app.gui.loose_takes import loose_document
 from app.gui.plots_controller import PlotsController
@@ -151,6 +152,7 @@ class MainWindow(QMainWindow):
         self.sessions = SessionController(self.app, self, self.loader)
         self.plots = PlotsController(self.app, self)
         self.cameras = CameraController(self.app, self, self.viewport)
+        self.fusion = FusionController(self.app, self, self.cameras)
         self._place_review()
         self._place_sessions()
         self._place_plots()
@@ -232,7 +234,7 @@ class MainWindow(QMainWindow):
         tools_menu = self.tools_menu = menus.addMenu("&Tools")
         tools_menu.addAction(self._action("&Calibrate a hand scan…", self.open_calibration, "Ctrl+Shift+K"))
         tools_menu.addAction(self._action("Marker &layouts…", self.open_layout_tools, "Ctrl+Shift+L"))
-        solve_menu = menus.addMenu("&Solve")
+        solve_menu = self.solve_menu = menus.addMenu("&Solve")
         solve_menu.addAction(self.solve_action)
         solve_menu.addAction(self.cancel_action)
 
@@ -380,7 +382,11 @@ class MainWindow(QMainWindow):
     def _connect_controllers(self) -> None:
         """Show what the controllers tell, and pass on what one asks of the other."""
         review, sessions = self.review, self.sessions
-        for controller in (review, sessions):
+        self.solve_menu.insertAction(self.cancel_action, self.fusion.fuse_action)
+        self.fusion.progress_started.connect(self.show_progress)
+        self.fusion.progressed.connect(self.set_progress)
+        self.fusion.progress_ended.connect(self.hide_progress)
+        for controller in (review, sessions, self.fusion):
             controller.status_message.connect(self.statusBar().showMessage)
             controller.error_raised.connect(self.show_error)
         review.progress_started.connect(self.show_progress)
@@ -862,5 +868,6 @@ class MainWindow(QMainWindow):
         self.runner.stop()
         self.loader.stop()
         self.review.stop()
+        self.fusion.close()
         self.viewport.close_viewport()
         super().closeEvent(event)
