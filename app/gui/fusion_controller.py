@@ -35,11 +35,11 @@ from app.gui.document import TakeDocument
 from app.gui.workers import TaskRunner
 from core.camera.frames import open_frames
 from core.camera.model import Camera
-from core.errors import InputError
+from core.errors import HandMocapError, InputError
 from core.fusion import FusionResult, FusionSettings, RGBDFrames, fuse_take
 from core.fusion.energy import TERMS
 from core.fusion.hand_render import HandRenderer, crop_around
-from core.model import HandModel, load_layout, marker_positions, resolve_layout
+from core.model import HandModel, load_layout, marker_columns, marker_positions, resolve_layout
 from core.review import Command, CompoundCommand, DefineHand, SetSolve
 from core.review.events import ReviewChanged
 
@@ -70,16 +70,16 @@ def silhouette_outlines(renderer: HandRenderer, theta: np.ndarray) -> list[np.nd
 
 def fused_residuals(model: HandModel, layout_name: str, take, joint_angles: np.ndarray) -> np.ndarray:
     """Distance ``(F, M)`` mm of each layout marker of the fused pose from its label in ``take`` (NaN where
-    unseen); ``take``'s marker names are the review's labels."""
+    unseen or not labelled); ``take``'s marker names are the review's labels."""
     layout = load_layout(layout_name)
     markers = resolve_layout(model, layout)
-    lower = [name.lower() for name in take.marker_names]
-    columns = [lower.index(name.lower()) for name in layout.names]
+    columns = marker_columns(take.marker_names, layout.names)
+    measured = np.full((len(joint_angles), len(columns), 3), np.nan)
+    measured[:, columns >= 0] = take.marker_positions[:, columns[columns >= 0]]
     residuals = np.full((len(joint_angles), len(columns)), np.nan)
     for frame, theta in enumerate(joint_angles):
         if np.isfinite(theta).all():
-            measured = take.marker_positions[frame, columns]
-            residuals[frame] = np.linalg.norm(marker_positions(model, markers, theta) - measured, axis=1)
+            residuals[frame] = np.linalg.norm(marker_positions(model, markers, theta) - measured[frame], axis=1)
     return residuals
 
 
@@ -125,6 +125,7 @@ class FusionController(QObject):
     def _follow(self, event: object) -> None:
         if isinstance(event, FrameChanged):
             self.strip.set_frame(event.frame)
+            self.update_enabled()       # a camera registered or re-timed in the dock announces nothing else
         elif isinstance(event, DocumentClosed):
             self.results.pop(event.document, None)
         elif isinstance(event, CurrentDocumentChanged | ReviewChanged):
@@ -224,7 +225,11 @@ class FusionController(QObject):
             number = len(review.hands)
         steps.append(SetSolve(number, 0, result.joint_angles, residuals))
         command = CompoundCommand(steps, f"RGB-D fusion of the {side} hand ({len(result.rgbd_frames)} RGB-D frames)")
-        document.push(command)
+        try:
+            document.push(command)
+        except HandMocapError as error:
+            self.error_raised.emit("Fusion not applied", f"{document.title}: {error}")
+            return
         self.results[document] = (command, result)
         self.cameras.view.silhouette_box.setChecked(True)
         self.show_energy()
