@@ -22,6 +22,9 @@ TERM_COLOURS = {"marker": QColor(90, 200, 255), "silhouette": QColor(120, 230, 1
                 "depth": QColor(255, 150, 80), "edge": QColor(230, 120, 230), "smoothness": QColor(170, 170, 170)}
 #: the terms drawn (the smoothness term only ties a frame to the previous one)
 SHOWN_TERMS = ("marker", "silhouette", "depth", "edge")
+#: units of the terms (:mod:`core.fusion.energy`): marker distance and depth difference mm, edge distance image
+#: px, the silhouette term a sum of two shares of area
+UNITS = {"marker": " mm", "silhouette": "", "depth": " mm", "edge": " px"}
 
 
 class EnergyStrip(QWidget):
@@ -98,7 +101,7 @@ class EnergyStrip(QWidget):
             painter.drawPolyline(QPolygonF(points))
             painter.drawText(QRectF(4, 4 + row * line_height, LEGEND_WIDTH_PX - 8, line_height),
                              Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter,
-                             f"{name} {current[name]:.3g}" if name in current else name)
+                             f"{name} {current[name]:.3g}{UNITS.get(name, '')}" if name in current else name)
         painter.setPen(QPen(CURSOR_COLOUR, 1.0))
         x = self.x_of(self.frame)
         painter.drawLine(QPointF(x, rect.top()), QPointF(x, rect.bottom()))
