@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Installs everything (system packages, .venv with the test tools), then runs the checks and tests:
-# ruff, the import contracts (core has no GUI dependencies), and pytest (GUI tests offscreen/Xvfb).
+# ruff, the import contracts (core has no GUI dependencies), mypy on core, and pytest (GUI tests offscreen/Xvfb).
 # Usage: bash installer/test.sh [pytest arguments]
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -8,6 +8,7 @@ cd "$root"
 bash installer/setup.sh --test
 .venv/bin/ruff check app core widgets tests
 .venv/bin/lint-imports
+.venv/bin/mypy
 if [ -z "${DISPLAY:-}" ] && command -v xvfb-run >/dev/null 2>&1; then
   exec xvfb-run -a -s "-screen 0 1600x1000x24" .venv/bin/python -m pytest -q -p no:cacheprovider "$@"
 fi
