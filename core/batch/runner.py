@@ -18,6 +18,8 @@ from __future__ import annotations
 import fnmatch
 import logging
 import re
+import signal
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -161,7 +163,7 @@ def run_batch(plan: BatchPlan, workers: int = 2, scheduler: str | None = None,
     """Run ``plan`` on Dask (module docstring); ``on_progress`` hears the progress after every change
     and every :data:`POLL_S` seconds. Returns the final progress (``interrupted`` when stopped)."""
     import dask
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
     if not scheduler and workers < 1:
         raise InputError(f"--workers must be at least 1, got {workers}")
@@ -187,8 +189,7 @@ def run_batch(plan: BatchPlan, workers: int = 2, scheduler: str | None = None,
             if scheduler:
                 client = Client(scheduler, timeout="20s")
             else:
-                cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                       dashboard_address=":0", silence_logs=logging.ERROR)
+                cluster = _local_cluster(workers)
                 client = Client(cluster)
         except OSError as error:
             raise InputError(f"cannot reach the Dask scheduler {scheduler or '(local)'} ({error})") from None
@@ -200,6 +201,21 @@ def run_batch(plan: BatchPlan, workers: int = 2, scheduler: str | None = None,
             if cluster is not None:
                 cluster.close()
     return progress
+
+
+def _local_cluster(workers: int) -> Any:
+    """A LocalCluster of ``workers`` one-thread worker processes that ignore Ctrl+C (it reaches the whole
+    process group; the driver stops them cleanly instead of each printing a traceback)."""
+    from distributed import LocalCluster
+
+    ignoring = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if ignoring else None
+    try:
+        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
+                            silence_logs=logging.ERROR)
+    finally:
+        if ignoring:
+            signal.signal(signal.SIGINT, previous)
 
 
 def _drive(client: Any, plan: BatchPlan, progress: BatchProgress, started: float,
@@ -225,10 +241,7 @@ def _drive(client: Any, plan: BatchPlan, progress: BatchProgress, started: float
             pending -= finished
             for future in finished:
                 _finished(plan, progress, futures[future], future)
-            running = {key for keys in client.processing().values() for key in keys}
-            for key in running:
-                if key in by_key and progress.states.get(by_key[key].take_id) == "queued":
-                    progress.states[by_key[key].take_id] = "running"
+            _mark_running(client, progress, by_key)
             progress.elapsed = time.perf_counter() - started
             if on_progress is not None:
                 on_progress(progress)
@@ -237,6 +250,17 @@ def _drive(client: Any, plan: BatchPlan, progress: BatchProgress, started: float
         client.cancel(list(pending))
         for future in pending:
             progress.states[futures[future].take_id] = "queued"
+
+
+def _mark_running(client: Any, progress: BatchProgress, by_key: dict[str, TakeJob]) -> None:
+    """The takes whose tasks a worker is running: the first ones of each worker's list, as many as its
+    threads (the scheduler may already have given it the next one)."""
+    threads = client.nthreads()
+    running = {key for worker, keys in client.processing().items() for key in list(keys)[:threads.get(worker, 1)]}
+    for key, job in by_key.items():
+        state = progress.states.get(job.take_id)
+        if state in ("queued", "running"):
+            progress.states[job.take_id] = "running" if key in running else "queued"
 
 
 def _finished(plan: BatchPlan, progress: BatchProgress, job: TakeJob, future: Any) -> None:
