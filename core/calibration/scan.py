@@ -231,7 +231,7 @@ def _read_ply_binary(path: Path, data: bytes, offset: int, elements: list[_PlyEl
             if element.name == "vertex":
                 points, normals, colors = _vertex_arrays(path, {n: table[n] for n in table.dtype.names or ()})
         elif element.name == "face" and not element.properties:
-            faces = _binary_faces(path, data, offset, element)
+            faces = _binary_faces(path, data, offset, element.count, element.list_property)
             break
         else:
             raise InputError(f"{path.name}: unsupported PLY element '{element.name}' with list properties")
@@ -240,20 +240,22 @@ def _read_ply_binary(path: Path, data: bytes, offset: int, elements: list[_PlyEl
     return _finish(path, points, normals, colors, faces)
 
 
-def _binary_faces(path: Path, data: bytes, offset: int, element: _PlyElement) -> np.ndarray:
-    """Triangles (T,3) from a binary PLY face list in which every polygon has the same corner count."""
-    if element.count == 0:
+def _binary_faces(path: Path, data: bytes, offset: int, count: int, list_property: tuple[str, str, str]
+                  ) -> np.ndarray:
+    """Triangles (T,3) from a binary PLY face list of ``count`` polygons (``list_property``: name, count
+    type, index type) in which every polygon has the same corner count."""
+    if count == 0:
         return np.zeros((0, 3), dtype=np.int64)
-    _, count_type, item_type = element.list_property
+    _, count_type, item_type = list_property
     if offset + np.dtype(count_type).itemsize > len(data):
         raise InputError(f"{path.name}: the PLY file ends inside the 'face' element")
     corners = int(np.frombuffer(data, dtype="<" + count_type, count=1, offset=offset)[0])
     if not 3 <= corners <= len(data):
         raise InputError(f"{path.name}: malformed PLY face data ({corners} corners)")
     dtype = np.dtype([("k", "<" + count_type), ("i", "<" + item_type, (corners,))])
-    if offset + dtype.itemsize * element.count > len(data):
+    if offset + dtype.itemsize * count > len(data):
         raise InputError(f"{path.name}: the PLY file ends inside the 'face' element")
-    table = np.frombuffer(data, dtype=dtype, count=element.count, offset=offset)
+    table = np.frombuffer(data, dtype=dtype, count=count, offset=offset)
     if np.any(table["k"] != corners):
         raise InputError(f"{path.name}: binary PLY faces with mixed polygon sizes are not supported")
     return _fan_triangles(table["i"].astype(np.int64))
@@ -323,7 +325,7 @@ def _load_obj(path: Path) -> Scan:
     faces, normal_faces = (_obj_faces(path, face_lines, len(points), 0 if vn is None else len(vn))
                            if face_lines else (None, None))
     normals = None
-    if vn is not None and normal_faces is not None:
+    if vn is not None and faces is not None and normal_faces is not None:
         if normal_faces.min() < 0 or normal_faces.max() >= len(vn):
             raise InputError(f"{path.name}: a face refers to a normal that does not exist")
         normals = np.zeros_like(points)

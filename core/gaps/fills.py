@@ -151,7 +151,8 @@ def minimum_acceleration_interpolation(before: np.ndarray, after: np.ndarray, le
     known = np.zeros((length + 4, before.shape[1]))
     known[:2], known[-2:] = before, after
     stencil = (1.0, -4.0, 6.0, -4.0, 1.0)
-    right_side = -sum(weight * known[shift:shift + length] for shift, weight in enumerate(stencil))
+    right_side = -sum((weight * known[shift:shift + length] for shift, weight in enumerate(stencil)),
+                      np.zeros((length, before.shape[1])))
     banded = np.zeros((3, length))
     banded[0, 2:], banded[1, 1:], banded[2] = 1.0, -4.0, 6.0
     return solveh_banded(banded, right_side)
@@ -228,7 +229,7 @@ def fill_model(positions: np.ndarray, start: int, length: int, marker: int, join
         raise InputError(f"model fill: no IK solution during the gap (frames {start}..{end - 1})")
     inner = angles[1:-1, ~affected]
     steps = inner[[0, -1]] - inner[[1, -2]] if length >= 2 else np.zeros((2, inner.shape[1]))
-    angles[np.ix_([0, -1], np.flatnonzero(~affected))] = inner[[0, -1]] + steps
+    angles[np.ix_(np.array([0, -1]), np.flatnonzero(~affected))] = inner[[0, -1]] + steps
     boundary = _boundary_angles(joint_angles, start, end)
     angles[1:-1, affected] = minimum_acceleration_interpolation(boundary[:2, affected], boundary[2:, affected],
                                                                 length)

@@ -140,7 +140,7 @@ def _training_donors(observed: np.ndarray, marker: int, donors: np.ndarray, dist
     """Which ``donors`` (K,) bool to use and the training frames (N,) bool where they and ``marker`` are
     all measured: every donor measured throughout the window; then, nearest first, the others that are
     not distal, each while at least :data:`FRAMES_PER_COLUMN` training frames per column remain."""
-    keep = observed[:, donors].all(axis=0)
+    keep = np.asarray(observed[:, donors].all(axis=0))
     training = observed[:, marker] & observed[:, donors[keep]].all(axis=1)
     for index in np.argsort(distances, kind="stable"):
         if keep[index] or distances[index] > distal_share * distances.mean():

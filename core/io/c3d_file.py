@@ -116,10 +116,10 @@ def read_c3d(path: str | PathLike[str]) -> Take:
     first, last = c3d.first_frame, c3d.last_frame
     trial_start = _frame_number(value("TRIAL", "ACTUAL_START_FIELD"))
     trial_end = _frame_number(value("TRIAL", "ACTUAL_END_FIELD"))
-    use_trial = trial_start is not None and trial_end is not None and trial_end >= trial_start
-    use_trial = use_trial and (last == 0xFFFF or trial_end > 0xFFFF)
-    if use_trial:
-        first, last = trial_start, trial_end
+    use_trial = False
+    if (trial_start is not None and trial_end is not None and trial_end >= trial_start
+            and (last == 0xFFFF or trial_end > 0xFFFF)):
+        first, last, use_trial = trial_start, trial_end, True
     n_frames = last - first + 1
     if n_frames <= 0:
         raise TakeFormatError.at(path, f"contains no frames (first frame {first}, last frame {last})")
@@ -266,9 +266,9 @@ def _parse_parameters(
         position = name_end + offset
 
     groups: dict[str, dict[str, _Parameter]] = {name: {} for name in group_names.values()}
-    for group_id, name, parameter in entries:
+    for group_id, parameter_name, parameter in entries:
         if group_id in group_names:
-            groups[group_names[group_id]].setdefault(name, parameter)
+            groups[group_names[group_id]].setdefault(parameter_name, parameter)
     return groups, descriptions
 
 

@@ -45,14 +45,14 @@ def read_tsv(path: str | PathLike[str]) -> Take:
         frame_rate = _header_number(header, "FREQUENCY", path)
 
         columns = [cell.strip() for cell in current[1].split("\t")] if current is not None else []
-        if "Frame" in columns or any(f"{name} X" in columns for name in names[:1]):
+        if current is not None and ("Frame" in columns or any(f"{name} X" in columns for name in names[:1])):
             frame_column = columns.index("Frame") if "Frame" in columns else None
             marker_columns = _marker_columns(columns, file_names, current[0], path)
             width = len(columns)
             data: Iterable[tuple[int, str]] = lines
         else:
             width = len(_trim(columns)) if columns else 3 * len(names)
-            if columns and width not in (3 * len(names), 3 * len(names) + 2):
+            if current is not None and width not in (3 * len(names), 3 * len(names) + 2):
                 raise TakeFormatError.at(path, f"line {current[0]}: {width} columns for {len(names)} markers")
             offset = width - 3 * len(names)
             frame_column = 0 if offset else None

@@ -37,7 +37,7 @@ import stat
 import struct
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
-from typing import Any
+from typing import Any, TypeGuard
 from urllib.parse import unquote
 
 import numpy as np
@@ -198,11 +198,11 @@ class _Document:
         raw = np.ndarray((count, width), dtype=dtype, buffer=buffer, offset=view_offset + offset,
                          strides=(stride, dtype.itemsize)).copy()
         if accessor.get("normalized") is True and np.issubdtype(dtype, np.integer):
-            return raw.astype(np.float64) / np.iinfo(dtype).max
+            return raw.astype(np.float64) / np.iinfo(dtype.str).max
         return raw if np.issubdtype(dtype, np.integer) else raw.astype(np.float64)
 
 
-def _is_int(value: object) -> bool:
+def _is_int(value: object) -> TypeGuard[int]:
     return isinstance(value, int) and not isinstance(value, bool)
 
 
@@ -275,17 +275,21 @@ def _world_matrices(document: _Document) -> list[np.ndarray]:
             parent[child] = index
     world: list[np.ndarray | None] = [None] * len(nodes)
     for index in range(len(nodes)):
-        chain, current = [], index
+        chain: list[int] = []
+        current: int | None = index
         while current is not None and world[current] is None:
             chain.append(current)
             if len(chain) > len(nodes):
                 raise document.error("the node hierarchy has a cycle")
             current = parent.get(current)
-        matrix = np.eye(4) if current is None else world[current]
-        for node in reversed(chain):
-            matrix = matrix @ _node_matrix(nodes[node])
-            world[node] = matrix
-    return world
+        above = None if current is None else world[current]
+        matrix = np.eye(4) if above is None else above
+        for member in reversed(chain):
+            matrix = matrix @ _node_matrix(nodes[member])
+            world[member] = matrix
+    filled = [matrix for matrix in world if matrix is not None]
+    assert len(filled) == len(world), "every node's chain ends at a root or a node already placed"
+    return filled
 
 
 # --------------------------------------------------------------------------- joint names

@@ -264,9 +264,9 @@ class Journal:
             seq, operation = entry["seq"], entry["op"]
             try:
                 if operation == "do":
-                    stack.push(command_from_json(entry.get("command"), FileBlobs(self.root, blobs_folder, seq)))
+                    stack.push(command_from_json(entry["command"], FileBlobs(self.root, blobs_folder, seq)))
                 elif operation == "attach" and (index == 0 or applied[index - 1]):
-                    stack.attach(command_from_json(entry.get("command"), FileBlobs(self.root, blobs_folder, seq)))
+                    stack.attach(command_from_json(entry["command"], FileBlobs(self.root, blobs_folder, seq)))
                 elif operation == "undo" and index > 0 and applied[index - 1]:
                     stack.undo()
                 elif operation == "redo" and index < len(applied) and applied[index]:

@@ -625,6 +625,7 @@ class OpenTake:
         """The newest readable snapshot (or the initial review) and the journal replayed on top."""
         root, entry = self.session.folder, self.entry
         loaded, damaged = None, []
+        path: Path | None = None   # the snapshot opened (None: none could be)
         for path, _ in snapshot_files(root, self.folder):
             try:
                 loaded = (path, *load_snapshot(read_snapshot_file(root, path), take, path.name))

@@ -112,7 +112,7 @@ def npz_bytes(arrays: dict[str, np.ndarray], compress_level: int = 1) -> bytes:
 def read_npz(source: str | os.PathLike[str] | bytes, name: str | None = None) -> dict[str, np.ndarray]:
     """Every array of an ``.npz`` file, or of its bytes (no pickles; each array's size checked against
     its archive entry before it is allocated); InputError naming the file (``name``) when unreadable."""
-    name = name or Path(source).name
+    name = name or ("the snapshot data" if isinstance(source, bytes) else Path(source).name)
     try:
         with zipfile.ZipFile(io.BytesIO(source) if isinstance(source, bytes) else source) as archive:
             arrays = {}
@@ -320,11 +320,11 @@ def load_snapshot(data: bytes, take: Take, name: str = SNAPSHOT_NAME) -> tuple[R
         hands = [HandTrack(str(h["name"]), h["side"], h.get("layout"), np.asarray(h["labels"], np.int64),
                            arrays[f"hand{index}"])
                  for index, h in enumerate(_typed(meta["hands"], list, "hands"))]
+        frame_arrays: dict[str, Any] = {key: arrays[key] for key in FRAME_ARRAYS}
         review = ReviewTake(take=take, label_names=list(_typed(meta["label_names"], list, "label_names")),
                             hands=hands, rigid_bodies=_typed(meta.get("rigid_bodies", {}), dict, "rigid_bodies"),
                             health=copy_health(meta.get("health", [])), noise_mm=meta.get("noise_mm"),
-                            settings=_settings(meta.get("settings", {})),
-                            **{key: arrays[key] for key in FRAME_ARRAYS})
+                            settings=_settings(meta.get("settings", {})), **frame_arrays)
         blobs = DictBlobs(arrays, "blob")
         history = _typed(meta.get("history", {}), dict, "history")
         steps = _typed(history.get("steps", []), list, "history steps")
@@ -354,7 +354,7 @@ def snapshot_files(root: Path, folder: Path) -> list[tuple[Path, int | None]]:
              if (match := OLDER_SNAPSHOT.fullmatch(path.name))]
     newest = folder / SNAPSHOT_NAME
     refuse_links(root, newest)
-    first = [(newest, None)] if newest.is_file() else []
+    first: list[tuple[Path, int | None]] = [(newest, None)] if newest.is_file() else []
     return first + sorted(older, key=lambda item: -item[1])
 
 

@@ -329,7 +329,7 @@ def simulate_take(layout: str | MarkerLayout = "dense", n_frames: int = 600, see
 def save_truth(truth: dict[str, np.ndarray], path: str | Path) -> None:
     """Store a truth dictionary as ``.npz`` through :mod:`core.io.durable` (WriteError naming the file)."""
     with durable_stream(path, verify=verify_zip) as stream:
-        np.savez_compressed(stream, **truth)
+        np.savez_compressed(stream, **truth)  # type: ignore[arg-type]  # numpy's stub checks **kwds against allow_pickle
 
 
 def load_truth(path: str | Path) -> dict[str, np.ndarray]:
