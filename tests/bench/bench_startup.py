@@ -87,20 +87,24 @@ def _main_window_mapped() -> bool:
     return False
 
 
-def one_command_start(command: str, folder: Path) -> dict[str, float]:
+def one_command_start(command: str, folder: Path, screenshot: str) -> dict[str, float]:
     """Seconds from spawning ``command gui --screenshot`` to its mapped main window and to its exit."""
     environment = dict(os.environ, HANDMOCAP_DEMO_SESSION=str(folder / "demo-session"),
                        HANDMOCAP_DATA=str(folder / "data"), XDG_CACHE_HOME=str(folder / "cache"))
+    errors = folder / f"{screenshot}.stderr"
     start = time.perf_counter()
-    child = subprocess.Popen([command, "gui", "--screenshot", str(folder / "start.png")], env=environment,
-                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    with errors.open("w") as stderr:
+        child = subprocess.Popen([command, "gui", "--screenshot", str(folder / screenshot)], env=environment,
+                                 stdout=subprocess.DEVNULL, stderr=stderr)
     stages: dict[str, float] = {}
     while child.poll() is None:
         if "window" not in stages and _main_window_mapped():
             stages["window"] = round(time.perf_counter() - start, 2)
         time.sleep(0.02)
-    if child.returncode == 0 and (folder / "start.png").exists():
+    if child.returncode == 0 and (folder / screenshot).exists():
         stages["ready"] = round(time.perf_counter() - start, 2)
+    else:
+        print(f"start failed (exit code {child.returncode}): {errors.read_text()[-2000:]}", file=sys.stderr)
     return stages
 
 
@@ -115,8 +119,8 @@ def main(runs: int = 2, command: str | None = None) -> None:
                 figures["first_start"].append(one_start(demo))
                 figures["next_start"].append(one_start(demo))
             else:
-                figures["first_start"].append(one_command_start(command, Path(folder)))
-                figures["next_start"].append(one_command_start(command, Path(folder)))
+                figures["first_start"].append(one_command_start(command, Path(folder), "first.png"))
+                figures["next_start"].append(one_command_start(command, Path(folder), "next.png"))
     for name, starts in figures.items():
         for stage in ("window", "demo", "ready"):
             values = [start[stage] for start in starts if stage in start]
