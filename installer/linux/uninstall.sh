@@ -10,6 +10,8 @@ if [ -f "$launcher" ] && grep -q "$opt/handmocap" "$launcher"; then rm -f "$laun
 rm -f "$data/applications/handmocap.desktop"
 rm -f "$data"/icons/hicolor/*/apps/handmocap.png "$data/icons/hicolor/scalable/apps/handmocap.svg"
 rm -f "$data/mime/packages/handmocap.xml"
+defaults="${XDG_CONFIG_HOME:-$HOME/.config}/mimeapps.list"   # the associations install.sh made with xdg-mime
+[ -f "$defaults" ] && sed -i '/^application\/x-\(c3d\|handmocap-session\)=handmocap\.desktop;\?$/d' "$defaults"
 command -v update-mime-database >/dev/null 2>&1 && [ -d "$data/mime" ] && update-mime-database "$data/mime" || true
 command -v update-desktop-database >/dev/null 2>&1 && update-desktop-database -q "$data/applications" || true
 rm -rf "$opt"

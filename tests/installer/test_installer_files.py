@@ -130,6 +130,8 @@ def test_install_and_uninstall_under_a_home_folder(tmp_path):
     left = sorted(str(path.relative_to(home)) for path in home.rglob("*") if path.is_file())
     assert [path for path in left if "handmocap" in path] == []
     assert not any(path.startswith(".local/opt") for path in left)
+    defaults = home / ".config" / "mimeapps.list"
+    assert not defaults.exists() or "handmocap" not in defaults.read_text()
 
 
 def test_a_session_folder_or_its_manifest_opens_the_session(tmp_path):
