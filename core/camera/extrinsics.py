@@ -263,6 +263,7 @@ def _search_pose(camera: Camera, frames: list[MarkerFrame], triples: int) -> tup
                 if score > best_score:
                     best_score, best_pose = score, poses[candidate]
             if scores.max() >= EARLY_STOP * min(len(frame.blobs.centres), len(markers)):
+                assert best_pose is not None  # the candidates just scored (scores >= 0) beat the initial -1
                 return best_pose   # most of the frame explained: this triple was right
     if best_pose is None:
         raise InputError("no camera pose found: need frames with at least 3 marker blobs and 3 markers")

@@ -131,13 +131,16 @@ def _load_opencv(path: Path) -> Camera:
         rotation = _node_matrix(storage, _ROTATION_KEYS)
         translation = _node_matrix(storage, _TRANSLATION_KEYS)
         try:
-            pose = {}
+            pose_rotation: np.ndarray = np.eye(3)
+            pose_translation, registered = np.zeros(3), False
             if rotation is not None and translation is not None:
-                rotation = cv2.Rodrigues(rotation.reshape(3, 1))[0] if rotation.size == 3 else rotation.reshape(3, 3)
-                pose = {"rotation": rotation, "translation": translation.ravel(), "registered": True}
+                pose_rotation = (cv2.Rodrigues(rotation.reshape(3, 1))[0] if rotation.size == 3
+                                 else rotation.reshape(3, 3))
+                pose_translation, registered = translation.ravel(), True
             return Camera(matrix=matrix.reshape(3, 3), size=(_integer(width), _integer(height)),
                           distortion=np.zeros(0) if distortion is None else distortion.ravel(),
-                          name=path.stem[:200], **pose)
+                          rotation=pose_rotation, translation=pose_translation, registered=registered,
+                          name=path.stem[:200])
         except (ValueError, cv2.error) as error:
             raise InputError(f"{path.name}: invalid calibration values ({error})") from None
     finally:

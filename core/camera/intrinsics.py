@@ -99,7 +99,7 @@ class Detection:
 def detect_board(image: np.ndarray, spec: BoardSpec) -> Detection | None:
     """The board's corners in ``image`` (BGR or grey), refined to sub-pixel; None when fewer than
     :data:`MIN_CORNERS` are found (or, for ChArUco, they are collinear)."""
-    grey = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY) if image.ndim == 3 else image
+    grey: np.ndarray = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY) if image.ndim == 3 else image
     if spec.kind == "charuco":
         board = spec.charuco_board()
         corners, ids, _, _ = cv2.aruco.CharucoDetector(board).detectBoard(grey)
@@ -108,7 +108,7 @@ def detect_board(image: np.ndarray, spec: BoardSpec) -> Detection | None:
         ids = ids.ravel()
     else:
         found, corners = cv2.findChessboardCorners(grey, spec.inner_corners,
-                                                   cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
+                                                   flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
         if not found:
             return None
         ids = np.arange(len(corners))
@@ -150,7 +150,7 @@ def calibrate_intrinsics(detections: list[Detection | None], image_size: tuple[i
                          f"calibration needs at least {MIN_VIEWS}")
     used = found.copy()
     while True:
-        camera, errors = _calibrate([d for d, u in zip(detections, used, strict=True) if u], image_size, name)
+        camera, errors = _calibrate(_used(detections, used), image_size, name)
         view_errors = np.full(len(detections), np.nan)
         view_errors[used] = errors
         median = float(np.median(errors))
@@ -161,12 +161,17 @@ def calibrate_intrinsics(detections: list[Detection | None], image_size: tuple[i
             break
         used &= ~bad
     rms = float(np.sqrt(np.sum(errors ** 2 * _counts(detections, used)) / _counts(detections, used).sum()))
-    points = np.concatenate([d.image_points for d, u in zip(detections, used, strict=True) if u])
+    points = np.concatenate([d.image_points for d in _used(detections, used)])
     return IntrinsicCalibration(camera, rms, view_errors, used, threshold, empty_cells(points, image_size))
 
 
+def _used(detections: list[Detection | None], used: np.ndarray) -> list[Detection]:
+    """The ``detections`` where ``used (N,)`` bool is set (only ever where the board was found)."""
+    return [d for d, u in zip(detections, used, strict=True) if u and d is not None]
+
+
 def _counts(detections: list[Detection | None], used: np.ndarray) -> np.ndarray:
-    return np.array([len(d.ids) for d, u in zip(detections, used, strict=True) if u], dtype=float)
+    return np.array([len(d.ids) for d in _used(detections, used)], dtype=float)
 
 
 def _calibrate(detections: list[Detection], image_size: tuple[int, int], name: str) -> tuple[Camera, np.ndarray]:

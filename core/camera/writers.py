@@ -26,7 +26,7 @@ def write_video(path: str | Path, frames: Iterable[np.ndarray], frame_rate: floa
         raise InputError(f"{path.name}: videos are written as {' or '.join(CODECS)}")
     count = 0
     with durable_path(path, verify=_verify_video) as temporary:
-        writer = cv2.VideoWriter(str(temporary), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*codec), frame_rate, size)
+        writer = cv2.VideoWriter(str(temporary), cv2.CAP_FFMPEG, cv2.VideoWriter.fourcc(*codec), frame_rate, size)
         if not writer.isOpened():
             raise InputError(f"{path.name}: OpenCV cannot write {codec} video here")
         try:

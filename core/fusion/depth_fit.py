@@ -140,6 +140,8 @@ def fit_depth_frame(depth: np.ndarray, camera: Camera, settings: DepthFitSetting
         value = FrameEnergy(renderer, observation, no_markers, None, DEPTH_ONLY)(theta)
         if value < best_energy:
             best, best_energy = theta, value
+    if best is None:
+        raise InputError("the depth fit failed: no start pose gave a finite energy")
     observation = observe(renderer, best, depth, None, None, absent, max_side=settings.max_side, include=corners)
     terms = FrameEnergy(renderer, observation, no_markers, None, DEPTH_ONLY).terms(best)
     return DepthFit(best, float(terms[2]), float(terms[1]), box)

@@ -188,10 +188,10 @@ class ArticulatedICP:
             return None
         candidates = np.nonzero(facing)[0]
         distance, nearest = cKDTree(positions[candidates]).query(targets)
-        keep = distance < settings.max_distance_mm
+        keep = np.asarray(distance < settings.max_distance_mm, dtype=bool)
         if not keep.any():
             return None
-        index = candidates[nearest[keep]]
+        index = candidates[np.asarray(nearest)[keep]]
         target = targets[keep]
         normal = normals[index]
         residual = np.abs(np.einsum("pa,pa->p", normal, positions[index] - target))

@@ -76,7 +76,7 @@ def _reduce(mask: np.ndarray, crop: Crop) -> np.ndarray:
         return mask[:crop.rows, :crop.columns].copy()
     padded = np.zeros((crop.rows * crop.stride, crop.columns * crop.stride), dtype=bool)
     padded[:mask.shape[0], :mask.shape[1]] = mask
-    return padded.reshape(crop.rows, crop.stride, crop.columns, crop.stride).any(axis=(1, 3))
+    return np.asarray(padded.reshape(crop.rows, crop.stride, crop.columns, crop.stride).any(axis=(1, 3)), dtype=bool)
 
 
 def _majority(mask: np.ndarray, crop: Crop) -> np.ndarray:
@@ -122,6 +122,7 @@ def observe(renderer: HandRenderer, guess: np.ndarray, depth: np.ndarray, colour
     elif cut_wrist:
         silhouette = cut_at_wrist(silhouette, wrist, towards_fingers)
     if source == "colour":
+        assert colour is not None  # the colour silhouette needs the colour image
         near = cv2.dilate(silhouette.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
         edges = _reduce(_canny(np.ascontiguousarray(full.window(colour)), near), crop)
     else:

@@ -47,7 +47,8 @@ def grabcut(colour: np.ndarray, sure: np.ndarray, likely: np.ndarray, possible: 
         return foreground
     background_model, foreground_model = np.zeros((1, 65)), np.zeros((1, 65))
     try:
-        cv2.grabCut(colour, mask, None, background_model, foreground_model, GRABCUT_ITERATIONS,
+        # the stubs require a rect, but OpenCV takes None with GC_INIT_WITH_MASK
+        cv2.grabCut(colour, mask, None, background_model, foreground_model, GRABCUT_ITERATIONS,  # type: ignore[call-overload]
                     cv2.GC_INIT_WITH_MASK)
     except cv2.error:
         return foreground

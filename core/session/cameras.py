@@ -50,8 +50,11 @@ def add_camera(session: Session, take_id: str, camera: Camera, media: str | os.P
     session._check_writable_session()
     if media is None and depth is None:
         raise InputError("a camera needs a video, a folder of frames or a folder of depth frames")
-    if depth is not None and not (depth_unit_mm and depth_unit_mm > 0):
-        raise InputError("depth frames need a depth unit in mm (e.g. 1 or 0.125)")
+    unit_mm: float | None = None
+    if depth is not None:
+        if depth_unit_mm is None or not depth_unit_mm > 0:
+            raise InputError("depth frames need a depth unit in mm (e.g. 1 or 0.125)")
+        unit_mm = float(depth_unit_mm)
     media_path = None if media is None else Path(media).expanduser().absolute()
     depth_path = None if depth is None else Path(depth).expanduser().absolute()
     for path in (media_path, depth_path):
@@ -70,9 +73,9 @@ def add_camera(session: Session, take_id: str, camera: Camera, media: str | os.P
             "media_relative": None if media_path is None else _relative(media_path, session.folder),
             "depth": None if depth_path is None else str(depth_path),
             "depth_relative": None if depth_path is None else _relative(depth_path, session.folder),
-            "depth_unit_mm": None if depth_path is None else float(depth_unit_mm)}
+            "depth_unit_mm": unit_mm}
     session.update(lambda: session.take(entry_id).cameras.append(item))
-    return TakeCamera(name, named, media_path, depth_path, item["depth_unit_mm"])
+    return TakeCamera(name, named, media_path, depth_path, unit_mm)
 
 
 def save_take_camera(session: Session, take_id: str, camera: Camera) -> None:

@@ -21,6 +21,7 @@ from scipy.spatial.transform import Rotation
 from core.camera.intrinsics import BoardSpec, board_image
 from core.camera.model import Camera, CameraClock
 from core.camera.render import distort_image, render_mesh, shade
+from core.errors import InputError
 from core.model import load_template, skin_vertices
 from core.simulate.motion import WORKSPACE_CENTRE
 from core.simulate.take import SimulatedTake, simulate_take
@@ -120,7 +121,7 @@ def _draw_markers(camera: Camera, colour: np.ndarray, depth: np.ndarray, markers
 
 def finish_colour(camera: Camera, ideal: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """Lens distortion, optical blur and sensor noise of an ideal colour image → ``(H,W,3) uint8``."""
-    image = cv2.GaussianBlur(distort_image(ideal, camera), (0, 0), 0.6)
+    image: np.ndarray = cv2.GaussianBlur(distort_image(ideal, camera), (0, 0), 0.6)
     image = image + rng.normal(0.0, COLOUR_NOISE, image.shape).astype(np.float32)
     return np.clip(np.round(image), 0, 255).astype(np.uint8)
 
@@ -181,6 +182,8 @@ def render_scene(camera: Camera, vertices: np.ndarray | None, faces: np.ndarray 
     ``(M,3)`` mocap mm of ``radius`` mm over the background."""
     colour, depth = (array.copy() for array in _scene_background(camera))
     if vertices is not None:
+        if faces is None:
+            raise InputError("a rendered mesh needs its faces")
         mesh_depth, face_index = render_mesh(camera, vertices, faces)
         skin, mask = shade(camera, vertices, faces, face_index, SKIN_BGR)
         colour[mask] = skin[mask]
@@ -236,6 +239,7 @@ def calibration_object_views(camera: Camera, n_views: int = 8, seed: int = 0,
         centre = WORKSPACE_CENTRE + rng.uniform(-200, 200, 3) * [1, 1, 0.5]
         positions = (CALIBRATION_OBJECT - CALIBRATION_OBJECT.mean(axis=0)) @ rotation.T + centre
         colour, depth = render_scene(camera, None, None, positions, OBJECT_MARKER_RADIUS, rng)
+        assert depth is not None  # rendered with depth
         markers.append(positions + rng.normal(0, mocap_noise_mm, positions.shape))
         colours.append(colour)
         depths.append(depth)
@@ -263,7 +267,9 @@ def board_views(camera: Camera, spec: BoardSpec, n_views: int = 12, seed: int = 
     source = cv2.GaussianBlur(image.astype(np.float32), (0, 0), 1.0)
     width_mm, height_mm = spec.squares[0] * spec.square_mm, spec.squares[1] * spec.square_mm
     outline = np.array([[0, 0, 0], [width_mm, 0, 0], [0, height_mm, 0], [width_mm, height_mm, 0.0]])
-    images, rotations, translations = [], [], []
+    images: list[np.ndarray] = []
+    rotations: list[np.ndarray] = []
+    translations: list[np.ndarray] = []
     ideal_camera = Camera(camera.matrix, np.zeros(5), camera.size)
     while len(images) < n_views:
         tilt = Rotation.from_rotvec(_random_axis(rng) * np.radians(rng.uniform(5, max_tilt_deg)))
