@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from PySide6.QtCore import QElapsedTimer, Qt, QTimer
-from PySide6.QtGui import QIcon
+from PySide6.QtGui import QColor, QIcon, QPainter, QPixmap
 from PySide6.QtWidgets import QApplication, QSplashScreen
 
 from app.gui.palette import apply_dark_palette
@@ -17,7 +17,8 @@ from core.errors import InputError
 SCREENSHOT_TIMEOUT_MS = 120_000
 ICONS = Path(__file__).resolve().parents[2] / "resources" / "icons"
 ICON_SIZES = (16, 32, 48, 64, 128, 256, 512)   # pixels of the shipped PNGs (handmocap-<size>.png)
-SPLASH_SIZE = 256                                # pixels of the icon on the start-up splash
+SPLASH_SIZE = (480, 300)                         # pixels of the start-up splash: the icon, a line of text below
+SPLASH_ICON = 200                                # pixels of the icon on it
 MIN_SIZE = (640, 480)        # smaller windows cannot hold the 3D view and the docks
 MAX_SIDE = 16384             # larger than any screen (and than Qt's widget size limit)
 
@@ -44,7 +45,7 @@ def run_gui(files: list[str], screenshot: str | None = None, frame: int | None =
     app = QApplication.instance() or QApplication(sys.argv[:1])
     icon = application_icon()
     app.setWindowIcon(icon)
-    splash = QSplashScreen(icon.pixmap(SPLASH_SIZE, SPLASH_SIZE))
+    splash = QSplashScreen(_splash_picture(icon))
     splash.show()
     _tell(splash, "Starting Hand Mocap Studio…")
 
@@ -115,6 +116,16 @@ def application_icon() -> QIcon:
     for pixels in ICON_SIZES:
         icon.addFile(str(ICONS / f"handmocap-{pixels}.png"))
     return icon
+
+
+def _splash_picture(icon: QIcon) -> QPixmap:
+    """The splash: the icon centred near the top of a dark card, room for a message line below it."""
+    picture = QPixmap(*SPLASH_SIZE)
+    picture.fill(QColor(45, 47, 52))   # the dark palette's window colour
+    painter = QPainter(picture)
+    painter.drawPixmap((SPLASH_SIZE[0] - SPLASH_ICON) // 2, 30, icon.pixmap(SPLASH_ICON, SPLASH_ICON))
+    painter.end()
+    return picture
 
 
 def _tell(splash: QSplashScreen, message: str) -> None:
