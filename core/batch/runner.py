@@ -177,7 +177,8 @@ def run_batch(plan: BatchPlan, workers: int = 2, scheduler: str | None = None,
                                for take_id, reason in plan.failed.items()}
     if not plan.jobs:
         return progress
-    plan.output.mkdir(parents=True, exist_ok=True)
+    if plan.pipeline.runs("export"):
+        plan.output.mkdir(parents=True, exist_ok=True)
     progress.states |= {job.take_id: "queued" for job in plan.jobs}
     logging.getLogger("distributed").setLevel(logging.ERROR)
     started = time.perf_counter()
