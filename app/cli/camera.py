@@ -125,7 +125,7 @@ def command_simulate(args: argparse.Namespace) -> int:
     from core.io.durable import write_atomic
     from core.simulate.camera import board_views, simulate_camera_take
 
-    folder = Path(args.out)
+    folder = Path(args.out_folder)
     if folder.exists() and not folder.is_dir():
         raise InputError(f"{folder} exists and is not a folder")
     if folder.exists() and any(folder.iterdir()) and not args.overwrite:
@@ -200,7 +200,8 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     overlay.set_defaults(handler=command_overlay)
 
     simulate = actions.add_parser("simulate", help="write a synthetic camera take to try the workflow")
-    simulate.add_argument("--out", required=True, metavar="FOLDER")
+    simulate.add_argument("--out", dest="out_folder", required=True, metavar="FOLDER",
+                          help="a new or empty folder (its files are replaced only with --overwrite)")
     simulate.add_argument("--seed", type=int, default=0)
     simulate.add_argument("--frames", type=int, default=400, help="mocap frames (default 400)")
     simulate.add_argument("--mocap-rate", type=float, default=100.0, metavar="HZ")

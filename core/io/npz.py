@@ -8,6 +8,7 @@ loading needs at most about 1032 times the file's size, and for a sound file no 
 """
 
 import math
+import tokenize
 import zipfile
 import zlib
 from os import PathLike
@@ -40,7 +41,7 @@ def load_npz(path: str | PathLike[str], what: str) -> dict[str, np.ndarray]:
                 with archive.open(member) as stream:
                     arrays[member.filename[:-4]] = np.lib.format.read_array(stream, allow_pickle=False)
     except (OSError, EOFError, ValueError, TypeError, zipfile.BadZipFile, zlib.error, NotImplementedError,
-            RuntimeError) as error:
+            RuntimeError, SyntaxError, tokenize.TokenError) as error:  # numpy tokenizes and parses the header
         problem = " ".join(str(error).split())[:200]
         raise InputError(f"{name}: not {what} ({problem})") from None
     return arrays

@@ -19,6 +19,7 @@ import os
 import re
 import struct
 import time
+import tokenize
 import zipfile
 import zlib
 from dataclasses import asdict
@@ -84,7 +85,7 @@ def check_npy(stream: Any, available: int, name: str) -> None:
             shape, _, dtype = np.lib.format.read_array_header_2_0(stream)
         else:
             raise ValueError(f"unsupported .npy version {version}")
-    except (ValueError, EOFError, OSError, SyntaxError) as error:
+    except (ValueError, EOFError, OSError, SyntaxError, tokenize.TokenError) as error:  # numpy tokenizes the header
         raise InputError(f"{name}: not an array ({str(error).splitlines()[0][:80]})") from None
     finally:
         stream.seek(start)
