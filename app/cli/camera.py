@@ -19,27 +19,12 @@ def _squares(text: str) -> tuple[int, int]:
 
 
 def command_calibrate(args: argparse.Namespace) -> int:
-    import cv2
-    import numpy as np
-
     from core.camera.files import save_camera
-    from core.camera.frames import image_file_size
-    from core.camera.intrinsics import BoardSpec, calibrate_intrinsics, detect_board
+    from core.camera.intrinsics import BoardSpec, calibrate_intrinsics, detect_board_in_files
 
     check_outputs(args)
     spec = BoardSpec(args.board, args.squares, args.square_mm, args.marker_mm, args.dictionary)
-    detections, size = [], None
-    for name in args.images:
-        path = Path(name)
-        image_size = image_file_size(path)
-        if size is not None and image_size != size:
-            raise InputError(f"{path.name} is {image_size[0]}×{image_size[1]} px but the first image is "
-                             f"{size[0]}×{size[1]}")
-        size = image_size
-        image = cv2.imdecode(np.fromfile(path, dtype=np.uint8), cv2.IMREAD_COLOR)
-        if image is None:
-            raise InputError(f"{path.name}: OpenCV cannot decode this image")
-        detections.append(detect_board(image, spec))
+    detections, size = detect_board_in_files([Path(name) for name in args.images], spec)
     result = calibrate_intrinsics(detections, size, name=Path(args.out).stem)
     save_camera(result.camera, args.out, {"intrinsics": result.report()})
     camera = result.camera

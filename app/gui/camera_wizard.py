@@ -19,7 +19,6 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import cv2
 import numpy as np
 from PySide6.QtWidgets import (
     QComboBox,
@@ -43,8 +42,15 @@ from PySide6.QtWidgets import (
 from app.gui.workers import TaskRunner
 from core.camera.extrinsics import Blobs, Registration, detect_blobs, register_from_board
 from core.camera.files import save_camera
-from core.camera.frames import image_file_size, open_frames
-from core.camera.intrinsics import BOARD_KINDS, BoardSpec, IntrinsicCalibration, calibrate_intrinsics, detect_board
+from core.camera.frames import open_frames
+from core.camera.intrinsics import (
+    BOARD_KINDS,
+    BoardSpec,
+    IntrinsicCalibration,
+    calibrate_intrinsics,
+    detect_board,
+    detect_board_in_files,
+)
 from core.camera.model import Camera
 from core.camera.overlay import markers_at
 from core.camera.registration import TakeRegistration, register_take
@@ -72,20 +78,12 @@ def intrinsics_task(paths: list[Path], spec: BoardSpec, name: str) -> Callable:
     """Worker task: detect the board in every image, then calibrate (:class:`Intrinsics`)."""
 
     def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> Intrinsics:
-        detections, size = [], None
-        for index, path in enumerate(paths):
+        def before(index: int) -> None:
             if cancelled():
                 raise CancelledError("intrinsic calibration cancelled")
-            image_size = image_file_size(path)
-            if size is not None and image_size != size:
-                raise InputError(f"{path.name} is {image_size[0]}×{image_size[1]} px but the first image is "
-                                 f"{size[0]}×{size[1]}")
-            size = image_size
-            image = cv2.imdecode(np.fromfile(path, dtype=np.uint8), cv2.IMREAD_COLOR)
-            if image is None:
-                raise InputError(f"{path.name}: OpenCV cannot decode this image")
-            detections.append(detect_board(image, spec))
-            progress(0.9 * (index + 1) / len(paths))
+            progress(0.9 * index / len(paths))
+
+        detections, size = detect_board_in_files(paths, spec, before)
         result = calibrate_intrinsics(detections, size, name=name)
         progress(1.0)
         return Intrinsics(result, [0 if detection is None else len(detection.ids) for detection in detections])

@@ -8,11 +8,14 @@ inner corner is at (square, square), as OpenCV's ChArUco boards place it.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 
 import cv2
 import numpy as np
 
+from core.camera.frames import image_file_size
 from core.camera.model import Camera
 from core.errors import InputError
 
@@ -116,6 +119,29 @@ def detect_board(image: np.ndarray, spec: BoardSpec) -> Detection | None:
     corners = cv2.cornerSubPix(grey, np.asarray(corners, np.float32).reshape(-1, 1, 2), window, (-1, -1),
                                _SUBPIX_CRITERIA)
     return Detection(ids, corners.reshape(-1, 2).astype(float), spec.object_points()[ids])
+
+
+def detect_board_in_files(paths: list[Path], spec: BoardSpec, before: Callable[[int], None] | None = None
+                          ) -> tuple[list[Detection | None], tuple[int, int]]:
+    """The board in each image file (None where not found) and the images' common size (w, h) px; every
+    image must have the first one's size. ``before(k)`` is called before image k is read (a worker's
+    progress and cancellation)."""
+    if not paths:
+        raise InputError("no board images to calibrate from")
+    detections: list[Detection | None] = []
+    size = image_file_size(paths[0])
+    for index, path in enumerate(paths):
+        if before is not None:
+            before(index)
+        image_size = image_file_size(path)
+        if image_size != size:
+            raise InputError(f"{path.name} is {image_size[0]}×{image_size[1]} px but the first image is "
+                             f"{size[0]}×{size[1]}")
+        image = cv2.imdecode(np.fromfile(path, dtype=np.uint8), cv2.IMREAD_COLOR)
+        if image is None:
+            raise InputError(f"{path.name}: OpenCV cannot decode this image")
+        detections.append(detect_board(image, spec))
+    return detections, size
 
 
 @dataclass
