@@ -1,14 +1,17 @@
 """Screenshots of windows holding 3D views: Qt's ``grab()`` misses what VTK draws through OpenGL, so
-each view's own rendering is painted over its place in the grabbed image."""
+each view's own rendering is painted over its place in the grabbed image; saving one as a durable image file."""
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
+from pathlib import Path
 
 import numpy as np
 from PySide6.QtGui import QImage, QPainter
 from PySide6.QtWidgets import QWidget
 
+from core.errors import InputError
+from core.io.durable import durable_path
 from widgets.viewport import HandViewport
 
 
@@ -33,3 +36,16 @@ def window_image(window: QWidget, views: Iterable[HandViewport]) -> QImage:
         painter.drawImage(target, rendered.scaled(int(target.width() * ratio), int(target.height() * ratio)))
     painter.end()
     return image
+
+
+def save_screenshot(image: QImage, path: str | Path, show_error: Callable[[str, str], None]) -> bool:
+    """Write ``image`` to ``path`` (a durable write; Qt picks the format from the suffix); False after
+    ``show_error(title, message)`` when it cannot."""
+    try:
+        with durable_path(path) as temporary:  # same suffix as path
+            if not image.save(str(temporary)):
+                raise InputError(f"{path}: could not write the image")
+    except InputError as error:
+        show_error("Cannot save the screenshot", str(error))
+        return False
+    return True

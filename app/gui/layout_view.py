@@ -41,7 +41,6 @@ from PySide6.QtWidgets import (
 
 from app.gui.workers import TaskRunner
 from core.errors import HandMocapError, InputError
-from core.io.durable import durable_path
 from core.layout import PSOSettings, default_subspace_dims, evaluate_layout, motion_set
 from core.layout.placement_sheet import placement_sheet
 from core.layout.workflow import GENERIC_MOTIONS, error_against_markers, optimise_layout
@@ -49,7 +48,7 @@ from core.model import HandModel, MarkerLayout, layout_names, load_layout, load_
 from widgets.layout_compare import MAX_VIEWS, LayoutCompareView
 from widgets.layout_plots import EnergyPlot, ErrorPlot, LayoutMetricsTable
 from widgets.placement_sheet import save_placement_sheet
-from widgets.window_image import window_image
+from widgets.window_image import save_screenshot, window_image
 
 MOTION_CHOICES = (("Grasps (Cutkosky taxonomy)", "grasps"), ("Gestures", "gestures"), ("All motions", "all"),
                   ("Solved takes…", "results"))
@@ -629,14 +628,7 @@ class LayoutWindow(QMainWindow):
 
     def save_screenshot(self, path: str | Path) -> bool:
         """Save the window as a PNG; shows the reason and returns False when it cannot."""
-        try:
-            with durable_path(path) as temporary:  # same suffix: Qt picks the image format from it
-                if not self.window_image().save(str(temporary)):
-                    raise InputError(f"{path}: could not write the image")
-        except InputError as error:
-            self.show_error("Cannot save the screenshot", str(error))
-            return False
-        return True
+        return save_screenshot(self.window_image(), path, self.show_error)
 
     def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802 - Qt override
         """Cancel and wait for the workers, release the 3D views."""

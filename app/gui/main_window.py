@@ -55,10 +55,9 @@ from app.gui.plots_controller import PlotsController
 from app.gui.review_controller import ReviewController
 from app.gui.session_controller import SessionController
 from app.gui.workers import TaskRunner, one_line
-from core.errors import CancelledError, HandMocapError, InputError
+from core.errors import CancelledError, HandMocapError
 from core.ik import METHODS, IKResult
 from core.io import READ_SUFFIXES, TAKE_FILE_FILTER, Take, load_take
-from core.io.durable import durable_path
 from core.model import layout_names, load_layout, skin_vertices
 from core.review.events import ReviewChanged
 from core.workflows.resolve import check_layout_names, solve_labelled_take
@@ -67,7 +66,7 @@ from widgets.marker_panel import MarkerPanel
 from widgets.message_panel import MessagePanel, PanelLogHandler
 from widgets.timeline import TimelineWidget
 from widgets.viewport import HandViewport
-from widgets.window_image import window_image
+from widgets.window_image import save_screenshot, window_image
 
 HAND_SIDES = ("right", "left")
 APP_NAME = "Hand Mocap Studio"
@@ -820,14 +819,7 @@ class MainWindow(QMainWindow):
 
     def save_screenshot(self, path: str | Path) -> bool:
         """Save the whole window as a PNG; shows the reason and returns False when it cannot."""
-        try:
-            with durable_path(path) as temporary:  # same suffix: Qt picks the image format from it
-                if not self.window_image().save(str(temporary)):
-                    raise InputError(f"{path}: could not write the image")
-        except InputError as error:
-            self.show_error("Cannot save the screenshot", str(error))
-            return False
-        return True
+        return save_screenshot(self.window_image(), path, self.show_error)
 
     def choose_export(self) -> None:
         """Ask for a CSV path and write the current take's joint angles there."""
