@@ -93,23 +93,13 @@ def write_text_atomic(path: str | os.PathLike[str], text: str) -> None:
 def durable_stream(path: str | os.PathLike[str], verify: Verify | None = None) -> Iterator[BinaryIO]:
     """Yield a binary stream whose bytes replace ``path`` when the block ends without an error (module
     docstring); the size written is checked against the file, then ``verify`` runs on the temporary."""
-    target = check_target(path)
-    temporary = None
-    try:
-        temporary, descriptor = _create_temporary(target)
+    with _replacing(path) as (target, temporary, descriptor):
         with os.fdopen(descriptor, "wb") as stream:
             yield stream
             stream.flush()
             size = stream.tell()
             os.fsync(stream.fileno())
         _finish(temporary, target, size, verify)
-    except WriteError:
-        raise
-    except OSError as error:
-        raise _failure(target, error) from None
-    finally:
-        if temporary is not None:
-            _remove(temporary)
 
 
 @contextmanager
@@ -117,20 +107,10 @@ def durable_path(path: str | os.PathLike[str], verify: Verify | None = None) -> 
     """Yield the path of a new empty temporary file (named like ``path``, same suffix) for a writer that
     needs a file name; when the block ends without an error it is fsync'ed, checked by ``verify`` and
     renamed over ``path`` (module docstring)."""
-    target = check_target(path)
-    temporary = None
-    try:
-        temporary, descriptor = _create_temporary(target)
+    with _replacing(path) as (target, temporary, descriptor):
         os.close(descriptor)
         yield temporary
         _finish(temporary, target, None, verify)
-    except WriteError:
-        raise
-    except OSError as error:
-        raise _failure(target, error) from None
-    finally:
-        if temporary is not None:
-            _remove(temporary)
 
 
 def verify_zip(path: Path) -> None:
@@ -141,6 +121,25 @@ def verify_zip(path: Path) -> None:
             archive.infolist()
     except zipfile.BadZipFile as error:
         raise OSError(errno.EIO, f"the written file does not read back as a zip file ({error})") from None
+
+
+@contextmanager
+def _replacing(path: str | os.PathLike[str]) -> Iterator[tuple[Path, Path, int]]:
+    """Yield ``(target, temporary, descriptor)``: the checked target and a new temporary beside it, open
+    for writing. An OSError in the block is the one :class:`WriteError` of the target; the temporary is
+    removed however the block ends (after :func:`_finish` renamed it there is nothing left to remove)."""
+    target = check_target(path)
+    temporary = None
+    try:
+        temporary, descriptor = _create_temporary(target)
+        yield target, temporary, descriptor
+    except WriteError:
+        raise
+    except OSError as error:
+        raise _failure(target, error) from None
+    finally:
+        if temporary is not None:
+            _remove(temporary)
 
 
 def _create_temporary(target: Path) -> tuple[Path, int]:
