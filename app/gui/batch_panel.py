@@ -11,6 +11,7 @@ held by it, so the batch skips it and says so.
 from __future__ import annotations
 
 import threading
+from collections.abc import Iterable
 from pathlib import Path
 
 from PySide6.QtCore import Qt, Signal
@@ -85,19 +86,13 @@ class BatchPanel(QDialog):
 
     def _build(self) -> None:
         form = QFormLayout()
-        row = QHBoxLayout()
-        for box in self.steps.values():
-            row.addWidget(box)
-        form.addRow("Steps", row)
+        form.addRow("Steps", _side_by_side(self.steps.values()))
         form.addRow("Layout", self.layout_box)
         form.addRow("Hands", self.hands_box)
         form.addRow("Fill gaps up to (frames)", self.max_gap)
         form.addRow("Fill method", self.fill_box)
         form.addRow("Solve method", self.solve_box)
-        row = QHBoxLayout()
-        for box in self.exports.values():
-            row.addWidget(box)
-        form.addRow("Exports", row)
+        form.addRow("Exports", _side_by_side(self.exports.values()))
         form.addRow("Export folder", self.output)
         form.addRow("Worker processes", self.workers)
         buttons = QHBoxLayout()
@@ -244,3 +239,11 @@ class BatchPanel(QDialog):
             self._thread.join()
             self._thread = None
         super().closeEvent(event)
+
+
+def _side_by_side(widgets: Iterable[QWidget]) -> QHBoxLayout:
+    """A row holding ``widgets`` left to right."""
+    row = QHBoxLayout()
+    for widget in widgets:
+        row.addWidget(widget)
+    return row

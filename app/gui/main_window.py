@@ -382,15 +382,13 @@ class MainWindow(QMainWindow):
         """Show what the controllers tell, and pass on what one asks of the other."""
         review, sessions = self.review, self.sessions
         self.solve_menu.insertAction(self.cancel_action, self.fusion.fuse_action)
-        self.fusion.progress_started.connect(self.show_progress)
-        self.fusion.progressed.connect(self.set_progress)
-        self.fusion.progress_ended.connect(self.hide_progress)
         for controller in (review, sessions, self.fusion):
             controller.status_message.connect(self.statusBar().showMessage)
             controller.error_raised.connect(self.show_error)
-        review.progress_started.connect(self.show_progress)
-        review.progressed.connect(self.set_progress)
-        review.progress_ended.connect(self.hide_progress)
+        for worker in (review, self.fusion):
+            worker.progress_started.connect(self.show_progress)
+            worker.progressed.connect(self.set_progress)
+            worker.progress_ended.connect(self.hide_progress)
         review.auto_label_applied.connect(sessions.keep_labelling)
         review.exported.connect(sessions.export_done)
         sessions.auto_label_requested.connect(review.start_auto_label)
