@@ -287,63 +287,60 @@ class CameraWizard(QDialog):
         return page
 
     def _extrinsics_page(self) -> QWidget:
-        page = QWidget(self)
-        layout = QVBoxLayout(page)
-        text = QLabel("Registers the camera to the mocap space. From the take's markers: the bright marker blobs "
-                      "of every video frame are matched to the projected markers (P3P hypotheses, then PnP) and the "
-                      "clock offset is found with the pose; a registered camera is refined from its pose, an "
-                      "unregistered one is searched for around its current clock offset (nudge it close in the "
-                      "camera dock first). From a marked board: the board (step 1's) is found in the video frames, "
-                      "its markers' mocap positions at those frames (through the clock) place it in the mocap "
-                      "space, and one PnP over all its corners gives the pose.", page)
-        text.setWordWrap(True)
-        layout.addWidget(text)
         form = QFormLayout()
-        self.method_box = QComboBox(page)
+        self.method_box = QComboBox(self)
         self.method_box.addItems(list(METHODS))
         self.method_box.setToolTip("A marked board: a ChArUco board (step 1's board) carrying markers the mocap "
                                    "measures, filmed by the camera; its marker file gives their board positions")
         form.addRow("From", self.method_box)
-        self.register_window_box = self._window_box(page, 1.0)
+        self.register_window_box = self._window_box(self, 1.0)
         form.addRow("Offset search (± s)", self.register_window_box)
-        self.board_file_edit = QLineEdit(page)
+        self.board_file_edit = QLineEdit(self)
         self.board_file_edit.setPlaceholderText('{"markers": {"<take marker name>": [x, y, z] mm on the board}}')
-        board_button = QPushButton("Browse…", page)
+        board_button = QPushButton("Browse…", self)
         board_button.clicked.connect(self.choose_board_file)
         board_row = QHBoxLayout()
         board_row.addWidget(self.board_file_edit, 1)
         board_row.addWidget(board_button)
         form.addRow("Board marker file", board_row)
-        layout.addLayout(form)
-        self.register_button = QPushButton("Register", page)
-        self.register_button.clicked.connect(self.start_registration)
-        layout.addWidget(self.register_button)
-        self.register_label = QLabel("", page)
-        self.register_label.setWordWrap(True)
-        layout.addWidget(self.register_label)
-        layout.addStretch(1)
+        page, self.register_button, self.register_label = self._step_page(
+            "Registers the camera to the mocap space. From the take's markers: the bright marker blobs "
+            "of every video frame are matched to the projected markers (P3P hypotheses, then PnP) and the "
+            "clock offset is found with the pose; a registered camera is refined from its pose, an "
+            "unregistered one is searched for around its current clock offset (nudge it close in the "
+            "camera dock first). From a marked board: the board (step 1's) is found in the video frames, "
+            "its markers' mocap positions at those frames (through the clock) place it in the mocap "
+            "space, and one PnP over all its corners gives the pose.", form, "Register", self.start_registration)
         return page
 
     def _offset_page(self) -> QWidget:
+        form = QFormLayout()
+        self.offset_window_box = self._window_box(self, 0.5)
+        form.addRow("Search (± s)", self.offset_window_box)
+        page, self.offset_button, self.offset_label = self._step_page(
+            "Searches the clock offset of a registered camera around the current one: the projected "
+            "markers against the detected blobs of every video frame. The dock's nudge buttons move it by "
+            "hand.", form, "Estimate the offset", self.start_offset)
+        return page
+
+    def _step_page(self, intro: str, form: QFormLayout, action: str, start: Callable[[], None]
+                   ) -> tuple[QWidget, QPushButton, QLabel]:
+        """A step's tab: the ``intro`` text, the step's ``form``, its button (``action`` runs ``start``) and the
+        label its result is shown in."""
         page = QWidget(self)
         layout = QVBoxLayout(page)
-        text = QLabel("Searches the clock offset of a registered camera around the current one: the projected "
-                      "markers against the detected blobs of every video frame. The dock's nudge buttons move it by "
-                      "hand.", page)
+        text = QLabel(intro, page)
         text.setWordWrap(True)
         layout.addWidget(text)
-        form = QFormLayout()
-        self.offset_window_box = self._window_box(page, 0.5)
-        form.addRow("Search (± s)", self.offset_window_box)
         layout.addLayout(form)
-        self.offset_button = QPushButton("Estimate the offset", page)
-        self.offset_button.clicked.connect(self.start_offset)
-        layout.addWidget(self.offset_button)
-        self.offset_label = QLabel("", page)
-        self.offset_label.setWordWrap(True)
-        layout.addWidget(self.offset_label)
+        button = QPushButton(action, page)
+        button.clicked.connect(start)
+        layout.addWidget(button)
+        label = QLabel("", page)
+        label.setWordWrap(True)
+        layout.addWidget(label)
         layout.addStretch(1)
-        return page
+        return page, button, label
 
     @staticmethod
     def _window_box(parent: QWidget, value: float) -> QDoubleSpinBox:
