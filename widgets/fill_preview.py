@@ -97,7 +97,7 @@ class FillPreview(QWidget):
         if trajectory.ndim != 2 or trajectory.shape[1] != 3:
             raise ValueError(f"trajectory must be (frames, 3), got shape {trajectory.shape}")
         n_frames = len(trajectory)
-        if not (0 <= start and length >= 1 and start + length <= n_frames):
+        if not (start >= 0 and length >= 1 and start + length <= n_frames):
             raise ValueError(f"gap {start}+{length} is outside the take's {n_frames} frames")
         context = max(MIN_CONTEXT, int(CONTEXT_PER_LENGTH * length))
         low, high = max(0, start - context), min(n_frames, start + length + context)

@@ -555,8 +555,8 @@ class HandViewport(QWidget):
         offset = 0
         palette = (np.tile(SELECTED_MARKER_COLOUR, (len(trails), 1)) if colours is None
                    else np.asarray(colours, dtype=float).reshape(len(trails), 3))
-        for trail, colour in zip(trails, palette, strict=True):
-            trail = np.asarray(trail, dtype=float).reshape(-1, 3)
+        for given, colour in zip(trails, palette, strict=True):
+            trail = np.asarray(given, dtype=float).reshape(-1, 3)
             finite = np.isfinite(trail).all(axis=1)
             bounds = np.flatnonzero(np.diff(np.concatenate([[0], finite.astype(np.int8), [0]])))
             for start, end in zip(bounds[0::2], bounds[1::2], strict=True):

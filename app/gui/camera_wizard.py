@@ -220,7 +220,7 @@ class CameraWizard(QDialog):
         self.cancel_button = QPushButton("Cancel", self)
         self.cancel_button.clicked.connect(self.runner.cancel)
         self.save_button = QPushButton("Save camera", self)
-        self.save_button.clicked.connect(lambda: self.save())
+        self.save_button.clicked.connect(lambda: self.save())  # noqa: PLW0108 (drops Qt's `checked`, not a path)
         close_button = QPushButton("Close", self)
         close_button.clicked.connect(self.close)
         bottom = QHBoxLayout()

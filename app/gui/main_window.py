@@ -194,7 +194,9 @@ class MainWindow(QMainWindow):
         self.screenshot_action = self._action("Save &screenshot…", self.choose_screenshot, "Ctrl+Shift+S")
         self.export_action = self._action("&Export joint angles (CSV)…", self.choose_export, "Ctrl+E")
         quit_action = self._action("&Quit", self.close, QKeySequence.StandardKey.Quit)
-        self.solve_action = self._action("&Solve", lambda: self.solve(), "Ctrl+R", icon=pixmap.SP_BrowserReload)
+        # the lambda drops Qt's `checked` argument, which solve() would take as its document
+        self.solve_action = self._action("&Solve", lambda: self.solve(),  # noqa: PLW0108
+                                         "Ctrl+R", icon=pixmap.SP_BrowserReload)
         self.solve_action.setToolTip("Solve the take with inverse kinematics (Ctrl+R)")
         self.cancel_action = self._action("&Cancel", self.cancel_work, "Esc", icon=pixmap.SP_BrowserStop)
         self.labels_action = self._action("Marker &names", self.viewport.set_labels_visible, "N", True, False)

@@ -15,6 +15,7 @@ CLI, Cancel in the GUI) cancels what has not finished: finished takes are kept, 
 
 from __future__ import annotations
 
+import contextlib
 import fnmatch
 import logging
 import re
@@ -234,10 +235,8 @@ def _drive(client: Any, plan: BatchPlan, progress: BatchProgress, started: float
         while pending:
             if stop is not None and stop():
                 raise KeyboardInterrupt
-            try:
+            with contextlib.suppress(TimeoutError):
                 wait(list(pending), timeout=POLL_S, return_when="FIRST_COMPLETED")
-            except TimeoutError:
-                pass
             finished = {future for future in pending if future.done()}
             pending -= finished
             for future in finished:

@@ -322,10 +322,7 @@ def prepare_calibration(scan: Scan | str | Path, landmarks: dict[str, np.ndarray
     """Load and clean the scan, read and check the landmarks (:class:`InputError` when unusable)."""
     if not isinstance(template, HandModel):
         template = load_template_file(template)
-    if not isinstance(landmarks, dict):
-        landmarks = load_landmarks(landmarks)
-    else:
-        landmarks = validate_landmarks(landmarks)
+    landmarks = validate_landmarks(landmarks) if isinstance(landmarks, dict) else load_landmarks(landmarks)
     scan_name = Path(scan).stem if not isinstance(scan, Scan) else "scan"
     prepared, notes = prepare_scan(scan, clean=clean, strictness=strictness, max_points=max_points)
     landmarks = _landmarks_in_mm(landmarks, prepared, notes)

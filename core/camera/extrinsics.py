@@ -13,7 +13,7 @@ Reports the reprojection error (px) and the 3D residual (mm).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from itertools import combinations
+from itertools import combinations, permutations
 
 import cv2
 import numpy as np
@@ -293,7 +293,7 @@ def _p3p_hypotheses(camera: Camera, markers: np.ndarray, pixels: np.ndarray):
     ``pixels`` and all markers in front of the camera."""
     distortion = camera.distortion if len(camera.distortion) else None
     image = np.ascontiguousarray(pixels, dtype=np.float64)
-    for triple in _ordered_triples(len(markers)):
+    for triple in permutations(range(len(markers)), 3):
         objects = np.ascontiguousarray(markers[list(triple)])
         try:
             count, rvecs, tvecs = cv2.solveP3P(objects, image, camera.matrix, distortion, flags=cv2.SOLVEPNP_AP3P)
@@ -303,14 +303,6 @@ def _p3p_hypotheses(camera: Camera, markers: np.ndarray, pixels: np.ndarray):
             rotation = cv2.Rodrigues(rvec)[0]
             if ((markers @ rotation.T)[:, 2] + tvec[2, 0] > 0).all():
                 yield rotation, tvec.ravel()
-
-
-def _ordered_triples(count: int):
-    for a in range(count):
-        for b in range(count):
-            for c in range(count):
-                if a != b and b != c and a != c:
-                    yield a, b, c
 
 
 def _explained(camera: Camera, frames: list[MarkerFrame]) -> float:

@@ -314,10 +314,12 @@ def _read_points(
     data: bytes, offset: int, n_frames: int, n_points: int, words_per_frame: int, scale: float, processor: int
 ) -> tuple[np.ndarray, np.ndarray]:
     """(F, M, 3) float64 coordinates in file units and (F, M) bool invalid (residual < 0 or not finite)."""
-    if scale < 0:
-        dtype = "<u4" if processor == _DEC else _endian(processor) + "f4"
-    else:
+    if scale >= 0:
         dtype = _endian(processor) + "i2"
+    elif processor == _DEC:
+        dtype = "<u4"
+    else:
+        dtype = _endian(processor) + "f4"
     block = np.frombuffer(data, dtype=dtype, count=n_frames * words_per_frame, offset=offset)
     block = block.reshape(n_frames, words_per_frame)[:, : 4 * n_points]
     if scale < 0 and processor == _DEC:

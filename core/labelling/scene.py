@@ -43,6 +43,7 @@ points rearranged per marker.
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import partial
@@ -1084,11 +1085,11 @@ class _WindowDone(Exception):
 
 
 def _seed(run: _Run, tracks: list[Track], initial_states: dict[str, object] | None) -> None:
-    for name, state in (initial_states or {}).items():
+    for name, given in (initial_states or {}).items():
         number = next((i for i, track in enumerate(tracks) if track.name == name), None)
         if number is None:
             raise InputError(f"initial state for unknown model '{name}'")
-        state = np.asarray(state, dtype=float)
+        state = np.asarray(given, dtype=float)
         expected = (N_PARAMS,) if isinstance(tracks[number], HandTracker) else (4, 4)
         if state.shape != expected or not np.isfinite(state).all():
             raise InputError(f"the initial state of '{name}' must be finite with shape {expected}, got {state.shape}")
@@ -1134,10 +1135,8 @@ def _prepass(positions: np.ndarray, tracks: list[Track], settings: SceneSettings
             window_end = frame + 1
             raise _WindowDone
 
-    try:
+    with contextlib.suppress(_WindowDone):
         pre.forward(0, len(positions), report, stop_when_calibrated)
-    except _WindowDone:
-        pass
     pre.truncate(window_end)
     for number in hands:
         track = make_track(number)

@@ -117,7 +117,7 @@ def _location(model: HandModel, joint: int, vertex: int, point: np.ndarray) -> s
                    if abs(towards_thumb) >= 5 else "in line with the middle finger")
         return f"hand back: {proximal:.0f} mm proximal of the middle knuckle, {lateral}"
     origin = model.skeleton.rest_positions[joint]
-    children = np.flatnonzero(JOINT_PARENTS == joint)
+    children = np.flatnonzero(joint == JOINT_PARENTS)
     end = (model.skeleton.rest_positions[children[0]] if len(children)
            else model.skeleton.tip_positions[DIGITS.index(name.split("_")[0])])
     axis = end - origin

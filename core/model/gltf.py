@@ -396,14 +396,23 @@ def transfer_landmarks(vertices: np.ndarray, skeleton: Skeleton, skin_joints: np
     return found
 
 
-def load_gltf_hand(path: str | Path, side: str | None = None) -> HandModel:
-    """Import a rigged glTF 2.0 hand (``.glb``/``.gltf``) as a :class:`HandModel` (see module docstring)."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"glTF file not found: {path}")
-    document = _Document(path)
-    gltf = document.json
-    nodes = document.nodes
+@dataclass(frozen=True)
+class _SkinnedMesh:
+    """The first skinned triangle mesh of a glTF file, in file units: ``vertices (V, 3)``, ``faces (T, 3)``,
+    ``joints_of``/``weights_of (V, 4)`` skin joint indices and weights, ``bind (J, 4, 4)`` the joints' bind
+    matrices (world, column vectors) and ``names`` the J joint names."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    joints_of: np.ndarray
+    weights_of: np.ndarray
+    bind: np.ndarray
+    names: list[str]
+
+
+def _read_skinned_mesh(document: _Document) -> _SkinnedMesh:
+    """The first mesh primitive with a skin, checked (:class:`InputError` when unusable)."""
+    path, nodes = document.path, document.nodes
     holder = next((i for i, node in enumerate(nodes) if "mesh" in node and "skin" in node), None)
     if holder is None:
         raise InputError(f"{path.name}: no skinned mesh in the glTF file")
@@ -421,7 +430,6 @@ def load_gltf_hand(path: str | Path, side: str | None = None) -> HandModel:
              else np.arange(len(vertices)))
     if len(faces) % 3 or faces.min() < 0 or faces.max() >= len(vertices):
         raise document.error("the triangle indices are not triples of vertex indices")
-    faces = faces.reshape(-1, 3)
     joints_of = document.accessor(attributes["JOINTS_0"], ("VEC4",)).astype(np.int64)
     weights_of = document.accessor(attributes["WEIGHTS_0"], ("VEC4",))
     if len(joints_of) != len(vertices) or len(weights_of) != len(vertices):
@@ -433,50 +441,59 @@ def load_gltf_hand(path: str | Path, side: str | None = None) -> HandModel:
         document.item("nodes", node)
     if joints_of.min() < 0 or joints_of.max() >= len(joint_nodes):
         raise document.error("JOINTS_0 refers to a joint the skin does not have")
-    if "inverseBindMatrices" in skin:
-        inverse_bind = document.accessor(skin["inverseBindMatrices"], ("MAT4",)).reshape(-1, 4, 4).transpose(0, 2, 1)
-        if len(inverse_bind) < len(joint_nodes):
-            raise document.error("the skin has fewer inverse bind matrices than joints")
-        try:
-            bind = np.linalg.inv(inverse_bind[:len(joint_nodes)])
-        except np.linalg.LinAlgError:
-            raise document.error("an inverse bind matrix is singular") from None
-    else:
-        worlds = _world_matrices(document)
-        bind = np.array([worlds[node] for node in joint_nodes])
+    bind = _bind_matrices(document, skin, joint_nodes)
     if not (np.isfinite(vertices).all() and np.isfinite(weights_of).all() and np.isfinite(bind).all()):
         raise document.error("the skinned mesh has non-finite positions, weights or bind matrices")
     names = [nodes[node].get("name", f"joint{i}") for i, node in enumerate(joint_nodes)]
-    extras = gltf.get("extras", {}).get("handmocap") if isinstance(gltf.get("extras"), dict) else None
-    if extras is not None and len(names) == N_JOINTS + 5:
-        return _from_own_export(document, vertices, faces, joints_of, weights_of, bind, extras)
+    return _SkinnedMesh(vertices, faces.reshape(-1, 3), joints_of, weights_of, bind, names)
 
-    scale = 1000.0 if np.linalg.norm(np.ptp(vertices, axis=0)) < 2.0 else 1.0
-    vertices, bind_positions = vertices * scale, bind[:, :3, 3] * scale
-    wrist, digits, named_side = map_joints(names, bind_positions)
-    side = side or named_side or _side_from_names(gltf, path) or "right"
+
+def _bind_matrices(document: _Document, skin: dict, joint_nodes: list) -> np.ndarray:
+    """``(J, 4, 4)`` bind matrices of the skin's joints: the inverted inverse bind matrices, or the joints'
+    world matrices when the skin has none."""
+    if "inverseBindMatrices" not in skin:
+        worlds = _world_matrices(document)
+        return np.array([worlds[node] for node in joint_nodes])
+    inverse_bind = document.accessor(skin["inverseBindMatrices"], ("MAT4",)).reshape(-1, 4, 4).transpose(0, 2, 1)
+    if len(inverse_bind) < len(joint_nodes):
+        raise document.error("the skin has fewer inverse bind matrices than joints")
+    try:
+        return np.linalg.inv(inverse_bind[:len(joint_nodes)])
+    except np.linalg.LinAlgError:
+        raise document.error("an inverse bind matrix is singular") from None
+
+
+def _finger_chains(digits: dict[int, list[int]], path: Path) -> dict[int, list[int]]:
+    """Per digit, its 3 or 4 glTF joints from the base (a finger's metacarpal dropped, extra joints cut)."""
     chains = {}
     for digit, chain in digits.items():
-        if digit > 0 and len(chain) >= 5:
-            chain = chain[1:]                     # metacarpal: carried by our wrist
-        if len(chain) < 3:
-            raise InputError(f"{path.name}: the {DIGITS[digit]} has only {len(chain)} joints (3 needed)")
-        chains[digit] = chain[:4]
-    # canonical frame: origin at the wrist, Y towards the middle finger's base, X from index to little
+        kept = chain[1:] if digit > 0 and len(chain) >= 5 else chain   # metacarpal: carried by our wrist
+        if len(kept) < 3:
+            raise InputError(f"{path.name}: the {DIGITS[digit]} has only {len(kept)} joints (3 needed)")
+        chains[digit] = kept[:4]
+    return chains
+
+
+def _canonical_axes(bind_positions: np.ndarray, wrist: int, chains: dict[int, list[int]]) -> np.ndarray:
+    """``(3, 3)`` columns x, y, z of the hand's frame: Y towards the middle finger's base, X from index to
+    little finger (orthogonalised), Z = X × Y."""
     origin = bind_positions[wrist]
     y_axis = bind_positions[chains[2][0]] - origin
     y_axis /= np.linalg.norm(y_axis)
     x_axis = bind_positions[chains[4][0]] - bind_positions[chains[1][0]]
     x_axis -= (x_axis @ y_axis) * y_axis
     x_axis /= np.linalg.norm(x_axis)
-    axes = np.column_stack([x_axis, y_axis, np.cross(x_axis, y_axis)])
-    flip = np.array([1.0, 1.0, -1.0 if side == "left" else 1.0])   # a left hand becomes its right mirror image
-    rest_vertices = ((vertices - origin) @ axes) * flip
-    joints = ((bind_positions - origin) @ axes) * flip
+    return np.column_stack([x_axis, y_axis, np.cross(x_axis, y_axis)])
 
+
+def _rest_skeleton(joints: np.ndarray, chains: dict[int, list[int]], rest_vertices: np.ndarray
+                   ) -> tuple[Skeleton, np.ndarray]:
+    """The right-hand rest skeleton from the glTF ``joints (J, 3)`` (mm, canonical frame), and for each
+    glTF joint our joint that takes its skin weights ``(J,)`` (the wrist when unmapped, the distal joint
+    for a tip). A missing tip is placed on ``rest_vertices (V, 3)`` along the last bone."""
     positions = np.zeros((N_JOINTS, 3))
     tips = np.zeros((5, 3))
-    owner = np.zeros(len(names), dtype=np.int64)        # our joint for each glTF joint (default: wrist)
+    owner = np.zeros(len(joints), dtype=np.int64)        # our joint for each glTF joint (default: wrist)
     for digit, chain in chains.items():
         for segment in range(3):
             positions[1 + 3 * digit + segment] = joints[chain[segment]]
@@ -495,14 +512,22 @@ def load_gltf_hand(path: str | Path, side: str | None = None) -> HandModel:
         child = positions[joint + 1] if segment < 2 else tips[digit]
         hint = THUMB_PALMAR_HINT if digit == 0 else np.array([0.0, 0.0, -1.0])
         rotations[joint] = _frame(child - positions[joint], hint)
-    skeleton = Skeleton(positions, rotations, tips, "right")
+    return Skeleton(positions, rotations, tips, "right"), owner
 
-    dense = np.zeros((len(vertices), N_JOINTS))
+
+def _dense_weights(joints_of: np.ndarray, weights_of: np.ndarray, owner: np.ndarray) -> np.ndarray:
+    """``(V, 16)`` weight of each vertex on each of our joints, glTF joints summed through ``owner (J,)``."""
+    dense = np.zeros((len(joints_of), N_JOINTS))
     for k in range(joints_of.shape[1]):
-        np.add.at(dense, (np.arange(len(vertices)), owner[np.clip(joints_of[:, k], 0, len(owner) - 1)]),
+        np.add.at(dense, (np.arange(len(joints_of)), owner[np.clip(joints_of[:, k], 0, len(owner) - 1)]),
                   weights_of[:, k])
-    rest_vertices, faces, kept = _weld(rest_vertices, faces, tolerance=1e-3)
-    dense = dense[kept]
+    return dense
+
+
+def _top_influences(dense: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The ``MAX_INFLUENCES`` largest of ``dense (V, 16)`` weights per vertex, normalised: skin joints and
+    weights ``(V, MAX_INFLUENCES)``; weights under 1e-4 are dropped (slot on the vertex's first joint) and a
+    vertex without any goes wholly to the wrist."""
     order = np.argsort(-dense, axis=1, kind="stable")[:, :MAX_INFLUENCES]
     top = np.take_along_axis(dense, order, axis=1)
     top = np.where(top > 1e-4, top, 0.0)
@@ -510,14 +535,43 @@ def load_gltf_hand(path: str | Path, side: str | None = None) -> HandModel:
     top[empty, 0] = 1.0
     order[empty, 0] = 0
     top /= top.sum(axis=1, keepdims=True)
-    skin_joints = np.where(top > 0, order, order[:, :1]).astype(np.int64)
+    return np.where(top > 0, order, order[:, :1]).astype(np.int64), top
+
+
+def load_gltf_hand(path: str | Path, side: str | None = None) -> HandModel:
+    """Import a rigged glTF 2.0 hand (``.glb``/``.gltf``) as a :class:`HandModel` (see module docstring)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"glTF file not found: {path}")
+    document = _Document(path)
+    mesh = _read_skinned_mesh(document)
+    gltf = document.json
+    extras = gltf.get("extras", {}).get("handmocap") if isinstance(gltf.get("extras"), dict) else None
+    if extras is not None and len(mesh.names) == N_JOINTS + 5:
+        return _from_own_export(document, mesh.vertices, mesh.faces, mesh.joints_of, mesh.weights_of, mesh.bind,
+                                extras)
+
+    scale = 1000.0 if np.linalg.norm(np.ptp(mesh.vertices, axis=0)) < 2.0 else 1.0
+    vertices, bind_positions = mesh.vertices * scale, mesh.bind[:, :3, 3] * scale
+    wrist, digits, named_side = map_joints(mesh.names, bind_positions)
+    side = side or named_side or _side_from_names(gltf, path) or "right"
+    chains = _finger_chains(digits, path)
+    # canonical frame: origin at the wrist; a left hand becomes its right mirror image
+    origin, axes = bind_positions[wrist], _canonical_axes(bind_positions, wrist, chains)
+    flip = np.array([1.0, 1.0, -1.0 if side == "left" else 1.0])
+    rest_vertices = ((vertices - origin) @ axes) * flip
+    skeleton, owner = _rest_skeleton(((bind_positions - origin) @ axes) * flip, chains, rest_vertices)
+    dense = _dense_weights(mesh.joints_of, mesh.weights_of, owner)
+    rest_vertices, faces, kept = _weld(rest_vertices, mesh.faces, tolerance=1e-3)
+    skin_joints, skin_weights = _top_influences(dense[kept])
     if _signed_volume(rest_vertices, faces) < 0:
         faces = faces[:, ::-1].copy()
-    back = -rotations[7][:, 2]
+    back = -skeleton.rest_rotations[7][:, 2]
+    hand_length = float(np.linalg.norm(skeleton.tip_positions[2] - skeleton.rest_positions[0]))
     model = HandModel(skeleton=skeleton, vertices=rest_vertices, faces=faces, skin_joints=skin_joints,
-                      skin_weights=top, landmarks=transfer_landmarks(rest_vertices, skeleton, skin_joints, top),
-                      back_direction=back / np.linalg.norm(back),
-                      hand_length=float(np.linalg.norm(tips[2] - positions[0])), name=path.stem)
+                      skin_weights=skin_weights,
+                      landmarks=transfer_landmarks(rest_vertices, skeleton, skin_joints, skin_weights),
+                      back_direction=back / np.linalg.norm(back), hand_length=hand_length, name=path.stem)
     model.validate()
     return model.mirrored() if side == "left" else model
 

@@ -547,7 +547,7 @@ class ReviewTake:
                      forward: bool = True, label: int | None = None) -> Problem | None:
         """The first problem starting after ``frame`` (before it when ``forward`` is False), optionally
         of one ``label`` only; wraps around the take; None when there is none."""
-        candidates = [p for p in self.problems(kinds) if label is None or p.label == label or p.other == label]
+        candidates = [p for p in self.problems(kinds) if label is None or label in (p.label, p.other)]
         if not candidates:
             return None
         if forward:
@@ -570,8 +570,7 @@ class ReviewTake:
             jumped = jumps > settings.swap_jump_mm
         close = self._close_other(low)
         suspect = jumped | (close >= 0)
-        for column, start, stop in zip(*runs(suspect), strict=True):
-            column, start, stop = int(column), int(start), int(stop)
+        for column, start, stop in zip(*(part.tolist() for part in runs(suspect)), strict=True):
             partners = [int(p) for p in np.flatnonzero(jumped[start:stop].any(axis=0)) if p != column]
             others = close[start:stop, column]
             other = partners[0] if partners else (int(others[others >= 0][0]) if (others >= 0).any() else -1)

@@ -20,6 +20,7 @@ snapshot and starts an empty journal (:meth:`Journal.rotate`); entries at or bel
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import logging
@@ -159,10 +160,8 @@ class Journal:
 
     def close(self) -> None:
         if self._handle is not None:
-            try:
+            with contextlib.suppress(OSError):
                 self._handle.close()
-            except OSError:
-                pass
             self._handle = None
 
     def rotate(self, end_seq: int) -> None:

@@ -12,6 +12,7 @@ nobody else locks). Lock files are opened without following links (:mod:`core.se
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import getpass
 import json
@@ -82,10 +83,8 @@ class FileLock:
         descriptor, self._descriptor = self._descriptor, None
         if descriptor is None:
             return
-        try:
+        with contextlib.suppress(OSError):
             os.ftruncate(descriptor, 0)
-        except OSError:
-            pass
         try:
             fcntl.flock(descriptor, fcntl.LOCK_UN)
         finally:

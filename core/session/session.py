@@ -205,10 +205,11 @@ class Session:
         self.takes = []
         for fresh in takes:
             entry = known.get(fresh.id)
-            if entry is not None:
+            if entry is None:
+                self.takes.append(fresh)
+            else:
                 entry.__dict__.update(fresh.__dict__)
-                fresh = entry
-            self.takes.append(fresh)
+                self.takes.append(entry)
 
     # --- creating and opening -----------------------------------------------------------------------
 
