@@ -20,6 +20,8 @@ import multiprocessing
 import sys
 import tempfile
 import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
@@ -32,6 +34,7 @@ from core.session import Session  # noqa: E402
 
 NAMES = ["thumb_tip", "index_tip", "middle_tip", "ring_tip", "little_tip"]
 WAIT_S = 120.0  # a barrier not reached in this time means a worker hung: the run fails instead of hanging
+_SPAWN = multiprocessing.get_context("spawn")
 
 
 def make_session(folder: Path, takes: int = 1, frames: int = 400) -> Path:
@@ -85,20 +88,34 @@ def _recorder(worker: int, tasks, results, ready) -> None:
         results.put(worker)
 
 
-def lock_trials(trials: int, processes: int, edits: int, folder: Path) -> dict[str, float]:
-    """Run the simultaneous-open trials in ``folder``; returns the figures (module docstring)."""
-    context = multiprocessing.get_context("spawn")
-    tasks = [context.Queue() for _ in range(processes)]
-    results = context.Queue()
-    ready, opened_all = context.Barrier(processes), context.Barrier(processes)
-    workers = [context.Process(target=_editor, args=(index, tasks[index], results, ready, opened_all))
+@contextmanager
+def _workers(target: Callable, processes: int, *shared: object) -> Iterator[tuple[list, object]]:
+    """Start ``processes`` spawned ``target(index, tasks, results, *shared)`` workers; yields (their task
+    queues, the results queue). At the end each is sent None and joined (killed after 30 s)."""
+    tasks = [_SPAWN.Queue() for _ in range(processes)]
+    results = _SPAWN.Queue()
+    workers = [_SPAWN.Process(target=target, args=(index, tasks[index], results, *shared))
                for index in range(processes)]
     for worker in workers:
         worker.start()
+    try:
+        yield tasks, results
+    finally:
+        for queue in tasks:
+            queue.put(None)
+        for worker in workers:
+            worker.join(timeout=30)
+            if worker.is_alive():
+                worker.kill()
+
+
+def lock_trials(trials: int, processes: int, edits: int, folder: Path) -> dict[str, float]:
+    """Run the simultaneous-open trials in ``folder``; returns the figures (module docstring)."""
+    barriers = (_SPAWN.Barrier(processes), _SPAWN.Barrier(processes))
     figures = {"trials": trials, "processes": processes, "not_one_writer": 0, "acknowledged": 0, "lost": 0,
                "accepted_read_only": 0, "readers_told_holder": 0, "readers": 0}
     started = time.perf_counter()
-    try:
+    with _workers(_editor, processes, *barriers) as (tasks, results):
         for trial in range(trials):
             session_folder = make_session(folder / f"trial{trial}", frames=processes * edits)
             for queue in tasks:
@@ -114,27 +131,14 @@ def lock_trials(trials: int, processes: int, edits: int, folder: Path) -> dict[s
                 figures["acknowledged"] += len(acknowledged)
                 figures["accepted_read_only"] += accepted_read_only
                 figures["lost"] += sum(int(review.assignment[frame, label]) != -1 for frame, label in acknowledged)
-    finally:
-        for queue in tasks:
-            queue.put(None)
-        for worker in workers:
-            worker.join(timeout=30)
-            if worker.is_alive():
-                worker.kill()
     figures["seconds"] = round(time.perf_counter() - started, 1)
     return figures
 
 
 def manifest_rounds(rounds: int, updates: int, folder: Path) -> dict[str, float]:
     """Two processes record exports of their own take at once, ``rounds`` times; returns the figures."""
-    context = multiprocessing.get_context("spawn")
-    tasks = [context.Queue() for _ in range(2)]
-    results, ready = context.Queue(), context.Barrier(2)
-    workers = [context.Process(target=_recorder, args=(index, tasks[index], results, ready)) for index in range(2)]
-    for worker in workers:
-        worker.start()
     figures = {"rounds": rounds, "updates": 2 * rounds * updates, "lost": 0, "rounds_losing": 0}
-    try:
+    with _workers(_recorder, 2, _SPAWN.Barrier(2)) as (tasks, results):
         for number in range(rounds):
             session_folder = make_session(folder / f"round{number}", takes=2, frames=30)
             for queue in tasks:
@@ -146,13 +150,6 @@ def manifest_rounds(rounds: int, updates: int, folder: Path) -> dict[str, float]
                        for w in range(2) for n in range(updates))
             figures["lost"] += lost
             figures["rounds_losing"] += lost > 0
-    finally:
-        for queue in tasks:
-            queue.put(None)
-        for worker in workers:
-            worker.join(timeout=30)
-            if worker.is_alive():
-                worker.kill()
     return figures
 
 
