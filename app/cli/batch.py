@@ -55,6 +55,8 @@ class _ProgressLine:
 
 
 def command_batch(args: argparse.Namespace) -> int:
+    """``handmocap batch``: run the pipeline on the session's takes that need it and write the study report;
+    exit 1 when a take failed, 2 on bad input or an interruption."""
     from core.batch.pipeline import load_pipeline
     from core.batch.report import write_study_report
     from core.batch.runner import open_study, plan_batch, run_batch

@@ -10,6 +10,8 @@ from app.cli.common import add_json_flag, add_outputs, print_figures, print_summ
 
 
 def command_calibrate(args: argparse.Namespace) -> int:
+    """``handmocap calibrate``: fit the template to a hand scan, write the model (report, glTF), print the fit;
+    exit 2 on bad input."""
     from core.calibration.pipeline import calibrate_scan, load_template_file
 
     template = load_template_file(args.template, side=args.side)
@@ -34,6 +36,7 @@ def command_calibrate(args: argparse.Namespace) -> int:
 
 
 def command_bench_calibrate(args: argparse.Namespace) -> int:
+    """``handmocap bench calibrate``: print the seconds of the whole calibration of a synthetic scan."""
     from core.evaluation.calibration import bench_calibrate
 
     figures = bench_calibrate(n_points=args.points)
@@ -43,6 +46,7 @@ def command_bench_calibrate(args: argparse.Namespace) -> int:
 
 
 def command_evaluate_calibration(args: argparse.Namespace) -> int:
+    """``handmocap evaluate calibration``: print the calibration accuracy on synthetic re-proportioned subjects."""
     from core.evaluation.calibration import SUBJECTS, evaluate_calibration
 
     subjects = min(args.subjects or len(SUBJECTS), len(SUBJECTS))

@@ -19,6 +19,7 @@ def _squares(text: str) -> tuple[int, int]:
 
 
 def command_calibrate(args: argparse.Namespace) -> int:
+    """``handmocap camera calibrate``: write a camera's intrinsics from board images; exit 2 on bad input."""
     from core.camera.files import save_camera
     from core.camera.intrinsics import BoardSpec, calibrate_intrinsics, detect_board_in_files
 
@@ -51,6 +52,8 @@ def _blobs(args: argparse.Namespace, camera):
 
 
 def command_register(args: argparse.Namespace) -> int:
+    """``handmocap camera register``: write the camera's extrinsics and clock from the take's markers in its
+    video; exit 2 on bad input."""
     from core.camera.files import load_camera, save_camera
     from core.camera.model import CameraClock
     from core.camera.registration import register_take
@@ -78,6 +81,7 @@ def command_register(args: argparse.Namespace) -> int:
 
 
 def command_overlay(args: argparse.Namespace) -> int:
+    """``handmocap camera overlay``: write the video with the take's markers drawn on it; exit 2 on bad input."""
     from core.camera.files import load_camera
     from core.camera.frames import open_frames
     from core.camera.overlay import draw_overlay, project_take
@@ -103,6 +107,8 @@ def command_overlay(args: argparse.Namespace) -> int:
 
 
 def command_simulate(args: argparse.Namespace) -> int:
+    """``handmocap camera simulate``: write a synthetic take, its camera video, board images and true camera
+    to a folder; exit 2 on bad input."""
     from core.camera.files import save_camera
     from core.camera.intrinsics import BoardSpec
     from core.camera.writers import write_depth_frames, write_video
@@ -138,6 +144,7 @@ def command_simulate(args: argparse.Namespace) -> int:
 
 
 def command_evaluate_camera(args: argparse.Namespace) -> int:
+    """``handmocap evaluate camera``: print the camera calibration accuracy on synthetic cameras."""
     from core.evaluation.camera import HELD_OUT_SEEDS, evaluate_camera
 
     seeds = tuple(args.seeds) if args.seeds else HELD_OUT_SEEDS

@@ -60,6 +60,7 @@ def _solve_missing_hands(review, models: dict, marker_sets: dict, quiet: bool) -
 
 
 def command_export(args: argparse.Namespace) -> int:
+    """``handmocap export``: write a labelled take or a session's take in the chosen format; exit 2 on bad input."""
     from core.model import load_template
     from core.review.export import EXPORT_FORMATS, export_review
     from core.session import Session

@@ -48,6 +48,7 @@ def _recording(folder: Path, depth_unit: float, rate: float, background: str | N
 
 
 def command_fuse(args: argparse.Namespace) -> int:
+    """``handmocap fuse``: write a take solved with its markers and an RGB-D recording; exit 2 on bad input."""
     from core.camera.files import load_camera
     from core.fusion import FusionSettings, fuse_take
     from core.fusion.pso import SwarmSettings
@@ -78,6 +79,7 @@ def command_fuse(args: argparse.Namespace) -> int:
 
 
 def command_evaluate_fusion(args: argparse.Namespace) -> int:
+    """``handmocap evaluate fusion``: print fusion against markers-only IK on synthetic RGB-D takes."""
     from core.evaluation.fusion import HELD_OUT_SEEDS, evaluate_fusion
     from core.fusion import FusionSettings
 

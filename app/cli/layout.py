@@ -13,6 +13,7 @@ def _motions(values: list[str]) -> str | list[str]:
 
 
 def command_layout_optimise(args: argparse.Namespace) -> int:
+    """``handmocap layout optimise``: write a reduced marker layout optimised for a motion set; exit 2 on bad input."""
     from core.layout import PSOSettings
     from core.layout.workflow import optimise_layout
     from core.model import load_template, save_layout
@@ -30,6 +31,7 @@ def command_layout_optimise(args: argparse.Namespace) -> int:
 
 
 def command_layout_evaluate(args: argparse.Namespace) -> int:
+    """``handmocap layout evaluate``: print a layout's metrics and held-out reconstruction error."""
     from core.layout import default_subspace_dims, evaluate_layout, motion_set
     from core.model import load_layout, load_template
 
@@ -48,6 +50,7 @@ def command_layout_evaluate(args: argparse.Namespace) -> int:
 
 
 def command_layout_fit(args: argparse.Namespace) -> int:
+    """``handmocap layout fit``: write a layout refitted to where its markers sit in a take; exit 2 on bad input."""
     from core.calibration.marker_placement import fit_marker_placement
     from core.io import load_take
     from core.model import load_layout, load_template, save_layout
@@ -62,6 +65,7 @@ def command_layout_fit(args: argparse.Namespace) -> int:
 
 
 def command_layout_sheet(args: argparse.Namespace) -> int:
+    """``handmocap layout sheet``: write the placement sheet (PNG or PDF) of a layout; exit 2 on bad input."""
     from core.layout.placement_sheet import placement_sheet
     from core.model import load_layout, load_template
     from widgets.placement_sheet import save_placement_sheet
@@ -73,12 +77,15 @@ def command_layout_sheet(args: argparse.Namespace) -> int:
 
 
 def command_layout_view(args: argparse.Namespace) -> int:
+    """``handmocap layout view``: run the layout view; with --screenshot, exit 1 when it is not saved."""
     from app.gui.layout_view import run_layout_view
 
     return run_layout_view(args.screenshot, args.compare, args.frame)
 
 
 def command_layout_table(args: argparse.Namespace) -> int:
+    """``handmocap layout table``: print the held-out grasp error against the number of markers, grasp-specific
+    against generic layouts."""
     from core.layout import PSOSettings
     from core.layout.workflow import error_against_markers
     from core.model import load_template
@@ -102,6 +109,7 @@ def command_layout_table(args: argparse.Namespace) -> int:
 
 
 def command_bench_pso(args: argparse.Namespace) -> int:
+    """``handmocap bench pso``: print the time and energy of PSO against greedy layout optimisation."""
     from core.layout.workflow import bench_pso
 
     figures = bench_pso(n_markers=args.markers, seeds=args.seeds)

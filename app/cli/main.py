@@ -46,6 +46,7 @@ def _version() -> str:
 
 
 def command_gui(args: argparse.Namespace) -> int:
+    """``handmocap gui``: run the application on the given takes; with --screenshot, exit 1 when it is not saved."""
     from app.gui.launch import run_gui
 
     return run_gui(args.files, screenshot=args.screenshot, frame=args.frame, solve=args.solve, demo=args.demo,
@@ -53,6 +54,7 @@ def command_gui(args: argparse.Namespace) -> int:
 
 
 def command_info(args: argparse.Namespace) -> int:
+    """``handmocap info``: print a take's frames, rate, units, markers, vendor, missing share; exit 2 on bad input."""
     from core.io import load_take
 
     take = load_take(args.file)
@@ -77,6 +79,7 @@ def command_info(args: argparse.Namespace) -> int:
 
 
 def command_simulate(args: argparse.Namespace) -> int:
+    """``handmocap simulate``: write a synthetic take and its ground truth; exit 2 on bad input."""
     from core.io import save_take
     from core.simulate import save_truth, simulate_take
 
@@ -93,6 +96,7 @@ def command_simulate(args: argparse.Namespace) -> int:
 
 
 def command_solve(args: argparse.Namespace) -> int:
+    """``handmocap solve``: write the inverse kinematics of a labelled take (result, CSV); exit 2 on bad input."""
     from core.io import load_take
     from core.io.labelled_c3d import subject_calibrations
     from core.model import load_layout, load_template, resolve_layout
@@ -124,6 +128,7 @@ def command_solve(args: argparse.Namespace) -> int:
 
 
 def command_bench_ik(args: argparse.Namespace) -> int:
+    """``handmocap bench ik``: print the layered IK frames per second on a simulated take."""
     from core.evaluation.ik import bench_ik
 
     figures = bench_ik(frames=args.frames or 3000)
@@ -133,6 +138,7 @@ def command_bench_ik(args: argparse.Namespace) -> int:
 
 
 def command_bench_load(args: argparse.Namespace) -> int:
+    """``handmocap bench load``: print the seconds to read a generated 40-marker C3D."""
     from core.io.generate import bench_load
 
     figures = bench_load(n_frames=args.frames or 100_000)
@@ -142,6 +148,7 @@ def command_bench_load(args: argparse.Namespace) -> int:
 
 
 def command_evaluate_ik(args: argparse.Namespace) -> int:
+    """``handmocap evaluate ik``: print layered against standard IK (grasp-4) and dense accuracy."""
     from core.evaluation.ik import evaluate_ik
 
     print_figures(evaluate_ik(frames=args.frames or 1500), args.json)
@@ -149,6 +156,7 @@ def command_evaluate_ik(args: argparse.Namespace) -> int:
 
 
 def command_template(args: argparse.Namespace) -> int:
+    """``handmocap template build``: write the template hand mesh (default: the shipped file)."""
     from core.model.template_mesh import DEFAULT_TEMPLATE_PATH, write_default_template
 
     path = check_output(args.out or DEFAULT_TEMPLATE_PATH, args.overwrite)
@@ -158,6 +166,7 @@ def command_template(args: argparse.Namespace) -> int:
 
 
 def command_prior(args: argparse.Namespace) -> int:
+    """``handmocap prior build``: write a posture prior from solved takes or the canonical postures, and describe it."""
     from core.prior import DEFAULT_PRIOR_PATH, build_default_prior, build_prior_from_results, describe_prior
 
     if args.results:
@@ -173,6 +182,7 @@ def command_prior(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``handmocap`` argument parser with every subcommand."""
     parser = argparse.ArgumentParser(prog="handmocap", description="Hand Mocap Studio: optical hand motion "
                                      "capture review, labelling, gap filling and calibration.")
     parser.add_argument("--version", action="version", version=f"handmocap {_version()}")
@@ -260,6 +270,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the ``handmocap`` command ``argv`` names (the GUI when none): its exit code, or 2 after one error line."""
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.command is None:

@@ -35,6 +35,7 @@ def _subject_hands(parameters: dict, source: str) -> tuple[dict, dict]:
 
 
 def command_label(args: argparse.Namespace) -> int:
+    """``handmocap label``: write the auto-labelled take (and report) and print the outcome; exit 2 on bad input."""
     from core.io import load_take, looks_unlabelled
     from core.io.durable import write_text_atomic
     from core.model import load_layout, marker_columns
@@ -87,6 +88,7 @@ def command_label(args: argparse.Namespace) -> int:
 
 
 def command_fill(args: argparse.Namespace) -> int:
+    """``handmocap fill``: write the labelled take with its short gaps filled, print the counts; exit 2 on bad input."""
     from core.io import looks_unlabelled
     from core.review import PROVENANCE_NAMES, export_labelled_c3d
     from core.workflows import fill_review_gaps, find_review_gaps, gap_groups
@@ -119,6 +121,7 @@ def command_fill(args: argparse.Namespace) -> int:
 
 
 def command_bench_label(args: argparse.Namespace) -> int:
+    """``handmocap bench label``: print the labelling + IK frames per second (one hand; scene)."""
     from core.evaluation.labelling_bench import bench_label
 
     figures = bench_label(frames=args.frames) if args.frames else bench_label()
@@ -166,6 +169,7 @@ def _evaluate_conditions(args: argparse.Namespace) -> int:
 
 
 def command_evaluate_label(args: argparse.Namespace) -> int:
+    """``handmocap evaluate label``: print the labelling accuracy on simulated takes and the real recording."""
     from core.evaluation.labelling import evaluate_labelling, evaluate_real_recording
 
     if args.sweep or args.full or args.noise is not None or args.occlude or args.mirror or args.hands:
@@ -194,6 +198,7 @@ def command_evaluate_label(args: argparse.Namespace) -> int:
 
 
 def command_evaluate_gaps(args: argparse.Namespace) -> int:
+    """``handmocap evaluate gaps``: print the gap-fill error per method on hidden stretches of a take."""
     from core.evaluation.gaps import evaluate_gap_fill, evaluate_hidden_gaps, format_gap_fill_table
     from core.evaluation.labelling import REAL_RECORDING
     from core.io import Take, load_take

@@ -32,6 +32,8 @@ REFINE_FRAMES = 60
 
 @dataclass
 class TakeRegistration:
+    """A camera registered to a take: its pose (``registration``) and the clock of the synchronisation (``sync``)."""
+
     registration: Registration
     sync: SyncResult
 

@@ -202,6 +202,7 @@ class MarkerSet:
 
 
 def joint_rest_point(model: HandModel, joint: str) -> np.ndarray:
+    """Rest position ``(3,)`` mm of the skeleton joint named ``joint``, or of a digit tip (``"<digit>_tip"``)."""
     if joint.endswith("_tip"):
         return model.skeleton.tip_positions[DIGITS.index(joint[:-4])]
     return model.skeleton.rest_positions[JOINT_NAMES.index(joint)]
