@@ -17,7 +17,7 @@ import json
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 from PySide6.QtWidgets import (
@@ -64,6 +64,7 @@ IMAGE_FILTER = "Board images (*.png *.jpg *.jpeg)"
 #: video frames searched for the marked board (evenly spread over the video)
 BOARD_FRAMES = 60
 METHODS = ("the take's markers", "a marked board")
+T = TypeVar("T")
 
 
 @dataclass
@@ -120,9 +121,15 @@ def registration_task(camera: Camera, media: Path, positions: np.ndarray, mocap_
     """Worker task: pose and clock of ``camera`` from its video ``media`` against the take's ``positions
     (F,M,3)`` mm (:class:`TakeRegistration`)."""
 
-    def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> TakeRegistration:
-        found = _video_blobs(camera, media, progress, cancelled, 0.7)
-        result = register_take(camera, found.blobs, found.times, positions, mocap_rate, window_s)
+    return _blobs_then(camera, media, 0.7, lambda found: register_take(camera, found.blobs, found.times, positions,
+                                                                      mocap_rate, window_s))
+
+
+def _blobs_then(camera: Camera, media: Path, share: float, solve: Callable[[VideoBlobs], T]) -> Callable:
+    """Worker task: the blobs of every frame of ``media`` (progress up to ``share``), then ``solve(blobs)``."""
+
+    def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> T:
+        result = solve(_video_blobs(camera, media, progress, cancelled, share))
         progress(1.0)
         return result
 
@@ -178,13 +185,8 @@ def board_task(camera: Camera, media: Path, spec: BoardSpec, columns: np.ndarray
 def offset_task(camera: Camera, media: Path, positions: np.ndarray, mocap_rate: float, window_s: float) -> Callable:
     """Worker task: the clock of the registered ``camera`` searched within ±``window_s`` (:class:`SyncResult`)."""
 
-    def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> SyncResult:
-        found = _video_blobs(camera, media, progress, cancelled, 0.9)
-        result = sync_markers(camera, found.blobs, found.times, positions, mocap_rate, window_s)
-        progress(1.0)
-        return result
-
-    return task
+    return _blobs_then(camera, media, 0.9, lambda found: sync_markers(camera, found.blobs, found.times, positions,
+                                                                     mocap_rate, window_s))
 
 
 class CameraWizard(QDialog):
