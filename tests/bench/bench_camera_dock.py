@@ -34,7 +34,7 @@ from core.session import Session  # noqa: E402
 from core.session.cameras import add_camera  # noqa: E402
 from core.simulate.camera import random_camera, simulate_camera_take  # noqa: E402
 
-MOCAP_FRAMES = int(os.environ.get("BENCH_MOCAP_FRAMES", 400))
+MOCAP_FRAMES = int(os.environ.get("BENCH_MOCAP_FRAMES", "400"))
 RANDOM_JUMPS = 60
 
 

@@ -96,9 +96,8 @@ def scrub(app: QApplication, window: MainWindow, counter: ScreenCounter, steps: 
     n_frames = window.document.take.n_frames
     frames = rng.integers(0, n_frames, steps + 5)
     times, cpu = [], []
-    for number, frame in enumerate(frames):
-        if frame == window.app.frame:
-            frame = (frame + 1) % n_frames
+    for number, drawn in enumerate(frames):
+        frame = (drawn + 1) % n_frames if drawn == window.app.frame else drawn
         shown = counter.shown
         start, start_cpu = time.perf_counter(), time.process_time()
         window.timeline.set_frame(int(frame))

@@ -402,7 +402,7 @@ def test_fill_all_counts_sorting_and_filters(qtbot):
     widget.max_length_box.setValue(20)
     assert widget.fill_all_candidates(20) == 1 and widget.fill_all_count.text() == "(1 open gap)"
     widget.max_length_box.setValue(200)
-    assert "(2 open gaps)" == widget.fill_all_count.text()
+    assert widget.fill_all_count.text() == "(2 open gaps)"
     with qtbot.waitSignal(widget.fill_all_requested, timeout=1000) as fill_all:
         widget.fill_all_button.click()
     assert fill_all.args == [200]

@@ -173,9 +173,9 @@ def test_failed_verification_keeps_the_old_file(tmp_path: Path) -> None:
     def refuse(path: Path) -> None:
         raise InputError("does not open")
 
-    with pytest.raises(WriteError, match="does not read back") as raised:
-        with durable_stream(target, verify=refuse) as stream:
-            stream.write(b"new bytes")
+    with (pytest.raises(WriteError, match="does not read back") as raised,
+          durable_stream(target, verify=refuse) as stream):
+        stream.write(b"new bytes")
     _assert_one_line_naming(str(raised.value), target)
     assert target.read_bytes() == OLD_BYTES
     assert [path.name for path in tmp_path.iterdir()] == ["out.c3d"]

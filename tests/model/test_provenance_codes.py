@@ -6,10 +6,10 @@ from core.model.provenance import FILL_CODES, MEASURED, MISSING, PROVENANCE_NAME
 
 
 def test_the_code_table_names_every_code_once():
-    assert (MEASURED, MISSING) == (0, -1)
+    assert MEASURED == 0 and MISSING == -1
     assert sorted(FILL_CODES.values()) == list(range(1, len(FILL_CODES) + 1))     # 1..6, none shared
-    assert PROVENANCE_NAMES == {MISSING: "missing", MEASURED: "measured",
-                                **{code: name for name, code in FILL_CODES.items()}}
+    expected = {MISSING: "missing", MEASURED: "measured", **{code: name for name, code in FILL_CODES.items()}}
+    assert expected == PROVENANCE_NAMES
     assert tuple(FILL_CODES) == gaps.FILL_METHODS                               # every fill method has a code
 
 

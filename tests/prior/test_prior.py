@@ -141,7 +141,7 @@ def test_subspace_dimension_is_checked(prior):
 
 def test_default_prior_file_loads_and_is_up_to_date(prior):
     repo = Path(__file__).resolve().parents[2]
-    assert DEFAULT_PRIOR_PATH == repo / "resources" / "priors" / "default_prior.npz"
+    assert repo / "resources" / "priors" / "default_prior.npz" == DEFAULT_PRIOR_PATH
     shipped = load_default_prior()
     assert shipped is load_default_prior()
     assert shipped.cumulative_variance()[5] >= 0.85

@@ -239,9 +239,6 @@ def test_real_recording_exports_its_measured_coordinates_unchanged(tmp_path):
     assert np.array_equal(stored, take.marker_positions[present].astype(np.float32).astype(np.float64))
 
 
-VENDOR_C3D = VENDOR_C3D
-
-
 @pytest.mark.skipif(not VENDOR_C3D.is_dir(), reason="shared data absent")
 @pytest.mark.parametrize("name", ["sample_00__Motion_Analysis_Corporation__Walk1.c3d", "sample_01__Eb015pi.c3d",
                                   "sample_02__dec_int.c3d", "sample_37__ART-Human_hands_real_no6dof.c3d"])
