@@ -64,16 +64,21 @@ def view_to_widget(lanes: MarkerLanes, frame_number: float, lane: float) -> QPoi
     return lanes.plot.mapFromScene(scene)
 
 
+def shown(qtbot, widget, width: int, height: int):
+    """``widget`` kept by ``qtbot``, resized to ``width`` × ``height`` px and shown."""
+    qtbot.addWidget(widget)
+    widget.resize(width, height)
+    widget.show()
+    return widget
+
+
 def click_lane(qtbot, lanes: MarkerLanes, frame_number: float, lane: float) -> None:
     qtbot.mouseClick(lanes.plot.viewport(), Qt.MouseButton.LeftButton, pos=view_to_widget(lanes, frame_number, lane))
 
 
 @pytest.fixture
 def lanes(qtbot):
-    widget = MarkerLanes()
-    qtbot.addWidget(widget)
-    widget.resize(900, 360)
-    widget.show()
+    widget = shown(qtbot, MarkerLanes(), 900, 360)
     qtbot.waitExposed(widget)
     return widget
 
@@ -319,10 +324,7 @@ def checked_rows(gap_take):
 
 @pytest.fixture
 def gaps(qtbot, gap_take, checked_rows):
-    widget = GapList()
-    qtbot.addWidget(widget)
-    widget.resize(700, 650)
-    widget.show()
+    widget = shown(qtbot, GapList(), 700, 650)
     widget.set_gaps(checked_rows, gap_take.marker_names, gap_take.first_frame)
     return widget
 
@@ -441,10 +443,7 @@ def test_gap_rows_of_a_review_show_filled_open_and_rejected_gaps(gap_take):
 
 # ---------------------------------------------------------------------------------------- fill preview
 def test_fill_preview_draws_each_candidate_through_the_gap(qtbot, gap_take):
-    widget = FillPreview()
-    qtbot.addWidget(widget)
-    widget.resize(600, 400)
-    widget.show()
+    widget = shown(qtbot, FillPreview(), 600, 400)
     start, length = 150, 20
     candidates = {method: fill_gap(gap_take.marker_positions, 1, start, length, method)
                   for method in ("linear", "spline", "pattern", "rigid")}
@@ -471,10 +470,7 @@ def test_fill_preview_draws_each_candidate_through_the_gap(qtbot, gap_take):
 # -------------------------------------------------------------------------------------- session browser
 @pytest.fixture
 def browser(qtbot):
-    widget = SessionBrowser()
-    qtbot.addWidget(widget)
-    widget.resize(600, 300)
-    widget.show()
+    widget = shown(qtbot, SessionBrowser(), 600, 300)
     widget.set_takes([
         TakeRow("t1", "grasp_01.c3d", "reviewed", "S01", "dense", 12000),
         TakeRow("t2", "grasp_02.c3d", "raw", "S01", "dense", 900),
