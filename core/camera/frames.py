@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import re
 import struct
+from abc import ABC, abstractmethod
 from collections import OrderedDict
 from pathlib import Path
 
@@ -32,7 +33,7 @@ COLOUR_SUFFIXES = (".png", ".jpg", ".jpeg")
 DEFAULT_FRAME_RATE = 30.0
 
 
-class FrameSource:
+class FrameSource(ABC):
     """Frames ``0..count-1`` of one camera stream: colour ``(H,W,3) uint8`` BGR or depth ``(H,W) float32``
     mm (0 = no depth); frame ``k`` at :meth:`time` ``k / frame_rate`` s unless timestamps were given."""
 
@@ -85,8 +86,9 @@ class FrameSource:
             self._cache.popitem(last=False)
         return image
 
+    @abstractmethod
     def _decode(self, index: int) -> np.ndarray:
-        raise NotImplementedError
+        """Frame ``index`` decoded from the file (no cache)."""
 
     def close(self) -> None:
         self._cache.clear()

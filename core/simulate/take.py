@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -329,7 +330,8 @@ def simulate_take(layout: str | MarkerLayout = "dense", n_frames: int = 600, see
 def save_truth(truth: dict[str, np.ndarray], path: str | Path) -> None:
     """Store a truth dictionary as ``.npz`` through :mod:`core.io.durable` (WriteError naming the file)."""
     with durable_stream(path, verify=verify_zip) as stream:
-        np.savez_compressed(stream, **truth)  # type: ignore[arg-type]  # numpy's stub checks **kwds against allow_pickle
+        arrays: dict[str, Any] = dict(truth)  # numpy's stub would match ndarray values against allow_pickle
+        np.savez_compressed(stream, **arrays)
 
 
 def load_truth(path: str | Path) -> dict[str, np.ndarray]:
