@@ -330,7 +330,7 @@ def simulate_take(layout: str | MarkerLayout = "dense", n_frames: int = 600, see
 def save_truth(truth: dict[str, np.ndarray], path: str | Path) -> None:
     """Store a truth dictionary as ``.npz`` through :mod:`core.io.durable` (WriteError naming the file)."""
     with durable_stream(path, verify=verify_zip) as stream:
-        arrays: dict[str, Any] = dict(truth)  # numpy's stub would match ndarray values against allow_pickle
+        arrays: dict[str, Any] = dict(truth)  # typed Any: numpy's annotations match ndarray values against allow_pickle
         np.savez_compressed(stream, **arrays)
 
 
