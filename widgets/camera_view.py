@@ -68,7 +68,7 @@ class FrameCanvas(QWidget):
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Expanding)
-        self.setMinimumSize(160, 120)
+        self.setMinimumSize(160, 60)    # the dock shares the right column with the tables, even at 1366×768
         self._image: QImage | None = None
         self._pixels = np.zeros((0, 2))
         self._colours = np.zeros((0, 3), dtype=np.uint8)
@@ -184,7 +184,7 @@ class CameraView(QWidget):
         self.camera_box = QComboBox(self)
         self.camera_box.setToolTip("Cameras of the shown take (File ▸ Add camera…)")
         self.camera_box.setSizeAdjustPolicy(QComboBox.SizeAdjustPolicy.AdjustToContents)
-        self.camera_box.setMinimumContentsLength(10)
+        self.camera_box.setMinimumContentsLength(6)
         self.camera_box.currentIndexChanged.connect(self.camera_chosen)
         self.stream_box = QComboBox(self)
         self.stream_box.addItems(["colour", "depth"])
@@ -207,8 +207,9 @@ class CameraView(QWidget):
             bar.addWidget(button)
             self.nudge_buttons[step] = button
         self.offset_label = QLabel("", self)
-        bar.addWidget(self.offset_label)
-        bar.addStretch(1)
+        # the offset text gives way on a narrow window (the full text stays in its tooltip)
+        self.offset_label.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
+        bar.addWidget(self.offset_label, 1)
         self.silhouette_box = QCheckBox("Silhouette", self)
         self.silhouette_box.setToolTip("Outline the solved hand as the camera sees it (rendered from the model)")
         self.silhouette_box.toggled.connect(self.silhouette_toggled)
@@ -252,3 +253,4 @@ class CameraView(QWidget):
 
     def set_offset_text(self, text: str) -> None:
         self.offset_label.setText(text)
+        self.offset_label.setToolTip(text)

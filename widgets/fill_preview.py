@@ -63,7 +63,7 @@ class FillPreview(QWidget):
         for plot, region, measured in zip(self.plots, self._regions, self._measured, strict=True):
             plot.addItem(region)
             plot.addItem(measured)
-        self.graphics.setMinimumSize(220, 150)   # beside the gap list in the Gaps dock, even at 1366×768
+        self.graphics.setMinimumSize(220, 110)   # beside the gap list in the Gaps dock, even at 1366×768
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
         layout.setSpacing(0)

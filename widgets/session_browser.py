@@ -213,9 +213,8 @@ class SessionBrowser(QWidget):
         self.tree.setTextElideMode(Qt.TextElideMode.ElideMiddle)   # take names differ at their ends
         header = self.tree.header()
         header.setStretchLastSection(False)
-        header.setSectionResizeMode(TAKE_COLUMN, QHeaderView.ResizeMode.Stretch)
-        for column in (STATE_COLUMN, SUBJECT_COLUMN, LAYOUT_COLUMN, FRAMES_COLUMN):
-            header.setSectionResizeMode(column, QHeaderView.ResizeMode.ResizeToContents)
+        header.setSectionResizeMode(QHeaderView.ResizeMode.Interactive)
+        self.tree.viewport().installEventFilter(self)   # a resize fits the columns again (_fit_columns)
         for column, tip in enumerate(("Take name (tooltip: its source file)", "raw → labelled → reviewed → exported",
                                       "Subject whose hand the take shows", "Marker layout of the take",
                                       "Number of frames")):
@@ -343,7 +342,10 @@ class SessionBrowser(QWidget):
             self.add_requested.emit(paths)
 
     def eventFilter(self, watched: QObject, event: QEvent) -> bool:
-        """Delete (or Backspace) on the take list asks to remove the selected take."""
+        """Delete (or Backspace) on the take list asks to remove the selected take; a resized list fits its
+        columns again."""
+        if watched is self.tree.viewport() and event.type() == QEvent.Type.Resize:
+            self._fit_columns()
         if (watched is self.tree and event.type() == QEvent.Type.KeyPress
                 and event.key() in (Qt.Key.Key_Delete, Qt.Key.Key_Backspace) and self.selected_take()):
             self._remove_selected()
@@ -420,7 +422,26 @@ class SessionBrowser(QWidget):
         if selected:
             self.select_take(selected)
         self.stack.setCurrentWidget(self.tree if self._rows else self.empty_label)
+        self._fit_columns()
         self._update_summary()
+
+    def _fit_columns(self) -> None:
+        """Take names get what the other columns leave, and at least half of a narrow list; the state badge
+        and the frame count keep their width, subject and layout share the rest (elided when it is too little)."""
+        header = self.tree.header()
+        width = self.tree.viewport().width()
+        wanted = {column: max(self.tree.sizeHintForColumn(column), header.sectionSizeHint(column))
+                  for column in range(len(COLUMNS)) if column != TAKE_COLUMN}
+        fixed = (STATE_COLUMN, FRAMES_COLUMN)
+        take = max(width - sum(wanted.values()), min(width // 2, width - sum(wanted[column] for column in fixed)))
+        header.resizeSection(TAKE_COLUMN, take)
+        for column in fixed:
+            header.resizeSection(column, wanted[column])
+        shared = (SUBJECT_COLUMN, LAYOUT_COLUMN)
+        spare = max(width - take - sum(wanted[column] for column in fixed), 0)
+        total = max(sum(wanted[column] for column in shared), 1)
+        for column in shared:
+            header.resizeSection(column, wanted[column] if total <= spare else wanted[column] * spare // total)
 
     def _apply_filter(self) -> None:
         text = self.filter_edit.text().strip().lower()
