@@ -744,4 +744,19 @@ class HandViewport(QWidget):
         """Release the render window (call when the owning window closes)."""
         self._render_timer.stop()
         self._idle_timer.stop()
-        self._plotter.close()
+        close_plotter(self._plotter)
+
+
+def close_plotter(plotter: QtInteractor) -> None:
+    """Close a Qt 3D view and drop its Python handles on Qt's GL context and surface.
+
+    pyvistaqt keeps wrappers of the widget's QOpenGLContext and QSurface; when Qt destroys them while the
+    wrappers live on, a later QObject can get the same address and PySide hands out the stale QSurface
+    wrapper for it (seen as "'QSurface' object has no attribute 'children'" when pyqtgraph walks a new
+    plot's widgets). pyvistaqt drops them itself when the context announces its end, which Qt does not
+    always deliver (e.g. when the parent window goes first); its ``_forget_context`` does the same now.
+    """
+    plotter.close()
+    forget = getattr(plotter, "_forget_context", None)
+    if forget is not None:
+        forget()
