@@ -20,6 +20,7 @@ import numpy as np
 
 from core.camera.model import Camera
 from core.errors import InputError
+from core.ik import kabsch
 
 #: a blob is a component brighter than the midpoint of ``level`` (the image's 99th percentile: scene content,
 #: markers cover far less than 1 % of it) and the peak; its centre weighs the pixels within
@@ -204,16 +205,6 @@ def _pnp_fit(camera: Camera, pairs: tuple[np.ndarray, np.ndarray, np.ndarray], g
     inliers = inliers.ravel()
     rvec, tvec = cv2.solvePnPRefineLM(markers[inliers], pixels[inliers], camera.matrix, distortion, rvec, tvec)
     return cv2.Rodrigues(rvec)[0], tvec.ravel()
-
-
-def kabsch(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Least-squares rigid ``(rotation (3,3), translation (3,))`` with ``target ≈ rotation @ source + t``
-    for corresponding points ``(N,3)``."""
-    source_centre, target_centre = source.mean(axis=0), target.mean(axis=0)
-    u, _, vt = np.linalg.svd((source - source_centre).T @ (target - target_centre))
-    sign = np.sign(np.linalg.det(vt.T @ u.T))
-    rotation = vt.T @ np.diag([1.0, 1.0, sign]) @ u.T
-    return rotation, target_centre - rotation @ source_centre
 
 
 def _rigid_fit(camera: Camera, pairs: tuple[np.ndarray, np.ndarray, np.ndarray], gate_mm: float | None
