@@ -42,7 +42,7 @@ from app.gui.application import (
     SelectionChanged,
 )
 from app.gui.document import TakeDocument
-from app.gui.review_controller import GHOST_COLOUR, UNLABELLED_COLOUR, label_colours
+from app.gui.review_controller import point_colours
 from core.camera.files import load_camera
 from core.camera.frames import FrameSource, open_frames
 from core.camera.model import Camera, CameraClock
@@ -351,12 +351,7 @@ class CameraController(QObject):
         review = document.review
         if review is None or not (document.has_labels() or document.is_raw):
             return np.tile(RAW_COLOUR, (document.take.n_markers, 1))
-        labels = review.assignment[frame]
-        colours = np.tile(UNLABELLED_COLOUR, (review.n_points, 1))
-        colours[review.ghost[frame]] = GHOST_COLOUR
-        taken = labels >= 0
-        colours[labels[taken]] = label_colours(review.n_labels)[np.flatnonzero(taken)]
-        return colours
+        return point_colours(review, frame)
 
     def point_clicked(self, column: int) -> None:
         """Select the raw point ``column`` clicked in the video (-1: nothing near the click clears it)."""

@@ -65,6 +65,7 @@ from core.review import (
     GapFill,
     MarkGhost,
     RejectFills,
+    ReviewTake,
     SwapLabels,
     Unlabel,
     export_bvh,
@@ -110,6 +111,17 @@ PALETTE = np.array([                # Tableau-like qualitative colours, distinct
 def label_colours(count: int) -> np.ndarray:
     """A distinct colour per label ``(count, 3)`` in [0, 1]."""
     return PALETTE[np.arange(count) % len(PALETTE)]
+
+
+def point_colours(review: ReviewTake, frame: int) -> np.ndarray:
+    """``(P, 3)`` colours of the raw points at ``frame`` as the 3D view and the camera dock draw them: the
+    colour of the label a point holds, grey when unlabelled, dark red for ghosts."""
+    labels = review.assignment[frame]
+    colours = np.tile(UNLABELLED_COLOUR, (review.n_points, 1))
+    colours[review.ghost[frame]] = GHOST_COLOUR
+    taken = labels >= 0
+    colours[labels[taken]] = label_colours(review.n_labels)[np.flatnonzero(taken)]
+    return colours
 
 
 @dataclass
@@ -444,11 +456,9 @@ class ReviewController(QObject):
         point_label = np.full(review.n_points, -1, dtype=np.int64)
         taken = labels >= 0
         point_label[labels[taken]] = np.flatnonzero(taken)
-        colours = np.tile(UNLABELLED_COLOUR, (review.n_points, 1))
-        colours[review.ghost[frame]] = GHOST_COLOUR
-        palette = label_colours(review.n_labels)
-        colours[point_label >= 0] = palette[point_label[point_label >= 0]]
+        colours = point_colours(review, frame)
         colours[self.selection.rigid_points] = RIGID_SELECTION_COLOUR
+        palette = label_colours(review.n_labels)
         names = [review.label_names[label] if label >= 0 else f"*{column}"
                  for column, label in enumerate(point_label)]
         viewport.set_marker_names(names)
