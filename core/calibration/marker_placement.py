@@ -70,7 +70,7 @@ def fit_marker_placement(positions: np.ndarray, marker_names: list[str], model: 
         specs = []
         for index, spec in enumerate(layout.markers):
             carrier = _carrier_joint(spec)
-            rest = _rest_positions_of_targets(model, result.joint_angles, targets[:, index], carrier)
+            rest = rest_positions_of_targets(model, result.joint_angles, targets[:, index], carrier)
             if len(rest) < 5:
                 specs.append(spec)
                 continue
@@ -90,7 +90,7 @@ def _carrier_joint(spec: MarkerSpec) -> int:
     return JOINT_NAMES.index(joint)
 
 
-def _rest_positions_of_targets(model: HandModel, thetas: np.ndarray, targets: np.ndarray,
+def rest_positions_of_targets(model: HandModel, thetas: np.ndarray, targets: np.ndarray,
                                joint: int) -> np.ndarray:
     """Measured positions (F,3) carried into the rest pose rigidly with ``joint``; finite rows only."""
     rest_rotation = model.skeleton.rest_rotations[joint]
@@ -111,7 +111,7 @@ def _with_fitted_offsets(model: HandModel, layout: MarkerLayout, targets: np.nda
     markers = resolve_layout(model, layout)
     specs = []
     for index, spec in enumerate(layout.markers):
-        rest = _rest_positions_of_targets(model, thetas, targets[:, index], _carrier_joint(spec))
+        rest = rest_positions_of_targets(model, thetas, targets[:, index], _carrier_joint(spec))
         if len(rest) < 5:
             specs.append(spec)
             continue

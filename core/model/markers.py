@@ -131,13 +131,13 @@ def remove_layout_folder(folder: str | Path) -> None:
         _EXTRA_LAYOUT_DIRS.remove(Path(folder))
 
 
-def _layout_folders() -> list[Path]:
+def layout_folders() -> list[Path]:
     return [*_EXTRA_LAYOUT_DIRS, LAYOUT_DIR]
 
 
 def layout_names() -> list[str]:
     """Names of the layouts shipped in ``resources/layouts`` and in the added folders."""
-    return sorted({path.stem for folder in _layout_folders() for path in folder.glob("*.json")})
+    return sorted({path.stem for folder in layout_folders() for path in folder.glob("*.json")})
 
 
 def marker_columns(available: list[str], wanted: list[str]) -> np.ndarray:
@@ -160,7 +160,7 @@ def load_layout(name_or_path: str | Path) -> MarkerLayout:
     """A shipped layout by name (``dense``, ``glove-13``, ``grasp-4``) or a layout JSON file."""
     path = Path(name_or_path)
     if not path.suffix:
-        path = next((folder / f"{name_or_path}.json" for folder in _layout_folders()
+        path = next((folder / f"{name_or_path}.json" for folder in layout_folders()
                      if (folder / f"{name_or_path}.json").exists()), LAYOUT_DIR / f"{name_or_path}.json")
         if not path.exists():
             raise InputError(f"unknown layout '{name_or_path}' (available: {', '.join(layout_names())})")
