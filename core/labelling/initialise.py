@@ -75,15 +75,42 @@ def model_points(track: Track) -> np.ndarray:
     return track.local
 
 
+def own_gap(track: Track) -> float:
+    """The largest single-linkage gap (mm) between the model's own markers (0 for fewer than 2)."""
+    points = model_points(track)
+    return float(linkage(points, method="single")[:, 2].max()) if len(points) >= 2 else 0.0
+
+
 def cluster_cut(tracks: list[Track], settings: SceneSettings) -> float:
-    """Single-linkage cut (mm): the settings' floor or the largest own gap of a model × margin (so each
-    model is one cluster; models must stand farther apart than this in the initialisation frame)."""
+    """Single-linkage cut (mm): the settings' floor or the largest own gap of a hand × margin (so each hand
+    is one cluster; models must stand farther apart than this in the initialisation frame). Objects do not
+    widen it: an object wider than the cut (:func:`is_spread_object`, e.g. a guitar with markers on its
+    body and its head) is found by its own geometry among all points (:func:`find_spread_object`), a
+    compact one as a cluster of its own, so a large prop never merges the hands into one cluster."""
     cut = settings.cluster_cut_mm
     for track in tracks:
-        points = model_points(track)
-        if len(points) >= 2:
-            cut = max(cut, LINK_MARGIN * linkage(points, method="single")[:, 2].max())
+        if isinstance(track, HandTracker):
+            cut = max(cut, LINK_MARGIN * own_gap(track))
     return float(cut)
+
+
+def is_spread_object(track: Track, cut_mm: float) -> bool:
+    """True for a rigid object whose own markers stand farther apart than the clustering cut."""
+    return isinstance(track, RigidTrack) and LINK_MARGIN * own_gap(track) > cut_mm
+
+
+def find_spread_object(track: RigidTrack, points: np.ndarray, settings: SceneSettings) -> Candidate | None:
+    """A spread object's fit among all ``points (N,3)`` by its distance matrix (:func:`best_correspondence`),
+    as an initial candidate (cluster index -1), or None when it is not there or is ambiguous."""
+    least = max(3, int(np.ceil(settings.init_min_share * track.count)))
+    found = best_correspondence(track, points, np.arange(len(points)), np.eye(4), settings, least)
+    if found is None:
+        return None
+    index, pose, residuals = found
+    observed = index >= 0
+    residual = float(residuals[observed].mean())
+    score, _, matched = _score(track.effectors(pose), points, index, settings.alpha, cluster_size=0)
+    return Candidate(-1, -1, score, pose, matched, residual, index)
 
 
 def clusters_of(points: np.ndarray, cut_mm: float) -> list[np.ndarray]:
@@ -384,10 +411,8 @@ def rigid_correspondences(local: np.ndarray, points: np.ndarray, tolerance_mm: f
 def reacquire_object(track: RigidTrack, points: np.ndarray, start: np.ndarray, settings: SceneSettings
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Re-acquire a rigid object from ``points (N,3)`` (the frame's points it may take) near its pose
-    ``start (4,4)``: the correspondence of most markers, then least RMS residual, whose rigid fit
-    reaches each matched point within ``reacquire_fit_mm`` (:func:`rigid_correspondences`). Returns the
-    point index per marker (K,), the pose and the residuals (K,) mm; None when nothing fits or two
-    different correspondences fit about equally well (a symmetric marker set)."""
+    ``start (4,4)``: the :data:`REACQUIRE_POINTS` points nearest it, then :func:`best_correspondence`.
+    Returns the point index per marker (K,), the pose and the residuals (K,) mm, or None."""
     if len(points) < 3 or track.count < 3:
         return None
     centre = start[:3, :3] @ track.local.mean(axis=0) + start[:3, 3]
@@ -396,9 +421,20 @@ def reacquire_object(track: RigidTrack, points: np.ndarray, start: np.ndarray, s
     if len(near) < 3:
         return None
     near = near[np.argsort(distance[near])[:REACQUIRE_POINTS]]
+    return best_correspondence(track, points, near, start, settings)
+
+
+def best_correspondence(track: RigidTrack, points: np.ndarray, near: np.ndarray, start: np.ndarray,
+                        settings: SceneSettings, min_matched: int = 3
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Of the points ``near`` (indices into ``points (N,3)``), the correspondence of most markers, then least
+    RMS residual, whose rigid fit reaches each matched point within ``reacquire_fit_mm``
+    (:func:`rigid_correspondences`): the point index per marker (K,) into ``points``, the pose (4,4) and the
+    residuals (K,) mm; None when nothing fits or two different correspondences fit about equally well (a
+    symmetric marker set)."""
     candidates = points[near]
     fits = []
-    for index in rigid_correspondences(track.local, candidates, 2.0 * settings.reacquire_fit_mm):
+    for index in rigid_correspondences(track.local, candidates, 2.0 * settings.reacquire_fit_mm, min_matched):
         observed = index >= 0
         targets = np.where(observed[:, None], candidates[np.maximum(index, 0)], np.nan)
         pose, effectors = track.solve(targets, observed, start)
@@ -423,14 +459,28 @@ def initialise_frame(tracks: list[Track], candidates_for: list[int], points: np.
                      settings: SceneSettings, cut_mm: float) -> list[Candidate]:
     """Fit the tracks ``candidates_for`` (indices into ``tracks``) to the clusters of ``points (N,3)``;
     returns the accepted fits, at most one per track and per cluster (greedy on eq. 2)."""
-    clusters = clusters_of(points, cut_mm)
-    in_cluster = np.zeros(len(points), dtype=bool)
+    candidates: list[Candidate] = []
+    free = np.ones(len(points), dtype=bool)
+    for track_index in candidates_for:
+        track = tracks[track_index]
+        if not is_spread_object(track, cut_mm):
+            continue
+        assert isinstance(track, RigidTrack)
+        found = find_spread_object(track, points, settings)
+        if found is not None:
+            found.track_index, found.cluster_index = track_index, -1 - len(candidates)
+            free[found.point_index[found.point_index >= 0]] = False
+            candidates.append(found)
+    remaining = np.flatnonzero(free)
+    clusters = [remaining[members] for members in clusters_of(points[remaining], cut_mm)]
+    in_cluster = ~free
     for members in clusters:
         in_cluster[members] = True
     strays = np.flatnonzero(~in_cluster)
-    candidates: list[Candidate] = []
     for track_index in candidates_for:
         track = tracks[track_index]
+        if is_spread_object(track, cut_mm):
+            continue
         for cluster_index, members in enumerate(clusters):
             cluster = points[members]
             if len(cluster) < max(3, int(np.ceil(settings.init_min_share * track.count))):

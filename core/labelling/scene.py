@@ -69,6 +69,7 @@ from core.labelling.sides import SideDecision, decide_sides
 from core.labelling.swaps import neighbour_pairs, point_tracklets, repair_swaps, unify_tracklets
 from core.labelling.take_statistics import measure_take
 from core.model import N_PARAMS, HandModel, MarkerLayout, MarkerSet, load_layout, load_template, resolve_layout
+from core.model.lab_template import LabTemplate, load_lab_template
 from core.model.objects import ObjectSpec, check_unique_names, load_scene_spec
 
 HANDS = ("auto", "right", "left", "both")
@@ -839,7 +840,7 @@ _Refreshed = dict[int, list[tuple[int, HandModel, MarkerSet]]]
 """Calibrations of single windows: {first frame of the window: [(hand track number, model, marker set)]}."""
 
 
-def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout = "dense",
+def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout | LabTemplate = "dense",
                 objects: Sequence[ObjectSpec] | str | Path | None = None, online: bool = False,
                 settings: SceneSettings | None = None,
                 progress: Callable[[float], None] | None = None,
@@ -849,7 +850,9 @@ def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout = "d
     """Label the unlabelled points of ``take`` (``marker_positions (F,P,3)`` mm, NaN = no point) with
     the markers of ``hands`` ("auto": decided from the markers, see :mod:`core.labelling.sides`; "right",
     "left" or "both") wearing ``layout`` and of rigid ``objects``
-    (specs, or the path of a scene spec JSON file; see :mod:`core.model.objects`).
+    (specs, or the path of a scene spec JSON file; see :mod:`core.model.objects`). A lab template
+    (:mod:`core.model.lab_template`, given or named as ``layout``) gives each side its own placement and the
+    lab's own marker names (written as they are, unprefixed), and its rigid objects join ``objects``.
 
     ``online``: causal tracking only (no backward pass, calibration applied from the end of its
     window on); ``models``: hand models per side to use instead of the shipped template (they are
@@ -897,7 +900,7 @@ class _Scene:
     objects ``specs``; ``decision`` how ``hands="auto"`` decided the sides (None when given)."""
 
     settings: SceneSettings
-    layout: MarkerLayout
+    layouts: dict[str, MarkerLayout]
     sides: list[str]
     specs: list[ObjectSpec]
     hand_names: dict[str, list[str]]
@@ -922,30 +925,56 @@ class _Scene:
         """Subject calibration of hand ``number`` from its labels in ``windows`` (:func:`_calibrate`);
         when it succeeds the hand's model and marker set are replaced. Returns whether it succeeded."""
         side = self.sides[number]
-        calibrated = _calibrate(windows, number, self.hand_models[side], self.marker_sets[side], self.layout)
+        calibrated = _calibrate(windows, number, self.hand_models[side], self.marker_sets[side])
         if calibrated is None:
             return False
         self.hand_models[side], self.marker_sets[side], self.calibrations[side] = calibrated
         return True
 
 
-def _scene(positions: np.ndarray, hands: str, layout: str | MarkerLayout,
+def _scene(positions: np.ndarray, hands: str, layout: str | MarkerLayout | LabTemplate,
            objects: Sequence[ObjectSpec] | str | Path | None, settings: SceneSettings,
            models: dict[str, HandModel] | None) -> _Scene:
     """The hands (``hands="auto"``: decided from ``positions (F,P,3)`` mm) and objects to track, with the
-    given hand models or the shipped templates; the hands' marker names prefixed ``R_``/``L_`` when
-    both are tracked. Raises :class:`InputError` for unknown ``hands``, a bad spec or clashing names."""
-    layout = load_layout(layout) if isinstance(layout, str) else layout
+    given hand models or the shipped templates; with a plain layout the hands' marker names are prefixed
+    ``R_``/``L_`` when both are tracked, with a lab template each side has its own names (a side the template
+    lacks borrows the other's placement, prefixed). Raises :class:`InputError` for unknown ``hands``, a bad
+    spec or clashing names."""
+    template = _lab_template(layout)
+    layouts = _side_layouts(layout, template)
     specs = _objects(objects)
+    if template is not None:
+        given_names = {spec.name for spec in specs}
+        specs += [spec for spec in template.objects if spec.name not in given_names]
     given = dict(models or {})
-    decision = _decide_sides(positions, layout, settings, given, specs) if hands == "auto" else None
+    decision = _decide_sides(positions, layouts, settings, given, specs) if hands == "auto" else None
     sides = decision.sides if decision is not None else _hand_sides(hands)
     hand_models = {side: given.get(side) or load_template(side) for side in sides}
-    prefix = len(sides) > 1
-    hand_names = {side: [(HAND_PREFIX[side] if prefix else "") + name for name in layout.names] for side in sides}
+    hand_names = {}
+    for side in sides:
+        own = template is not None and side in template.hands
+        prefix = "" if own or len(sides) == 1 else HAND_PREFIX[side]
+        hand_names[side] = [prefix + name for name in layouts[side].names]
     check_unique_names(specs, "scene", [name for names in hand_names.values() for name in names])
-    marker_sets = {side: resolve_layout(hand_models[side], layout) for side in sides}
-    return _Scene(settings, layout, sides, specs, hand_names, hand_models, marker_sets, decision)
+    marker_sets = {side: resolve_layout(hand_models[side], layouts[side]) for side in sides}
+    return _Scene(settings, {side: layouts[side] for side in sides}, sides, specs, hand_names, hand_models,
+                  marker_sets, decision)
+
+
+def _lab_template(layout: str | MarkerLayout | LabTemplate) -> LabTemplate | None:
+    """The lab template ``layout`` is or names (None for a plain layout)."""
+    if isinstance(layout, LabTemplate):
+        return layout
+    return load_lab_template(layout) if isinstance(layout, str) else None
+
+
+def _side_layouts(layout: str | MarkerLayout | LabTemplate, template: LabTemplate | None) -> dict[str, MarkerLayout]:
+    """The layout each side wears: the template's per side, else the one layout for both."""
+    if template is not None:
+        return {side: template.layout_for(side) for side in ("right", "left")}
+    plain = load_layout(layout) if isinstance(layout, str) else layout
+    assert isinstance(plain, MarkerLayout)
+    return {"right": plain, "left": plain}
 
 
 class _Progress:
@@ -986,8 +1015,7 @@ def _calibrate_offline(scene: _Scene, positions: np.ndarray, initial_states: dic
     template_models = dict(scene.hand_models)
     for number in range(len(scene.sides)):
         scene.calibrate(number, [(run, len(run.positions)) for run in prepasses])
-    refreshed = _refreshed_calibrations(prepasses, windows, scene.tracks(), template_models, scene.marker_sets,
-                                        scene.layout)
+    refreshed = _refreshed_calibrations(prepasses, windows, scene.tracks(), template_models, scene.layouts)
     return prepasses[0], refreshed
 
 
@@ -1065,11 +1093,12 @@ def _link_and_rescue(run: _Run, scene: _Scene, online: bool) -> None:
                 run.repair_swaps(number, track)
 
 
-def _decide_sides(positions: np.ndarray, layout: MarkerLayout, settings: SceneSettings,
+def _decide_sides(positions: np.ndarray, layouts: dict[str, MarkerLayout], settings: SceneSettings,
                   models: dict[str, HandModel], specs: list[ObjectSpec]) -> SideDecision:
-    """``hands="auto"``: which hands the take shows (:func:`core.labelling.sides.decide_sides`)."""
+    """``hands="auto"``: which hands the take shows (:func:`core.labelling.sides.decide_sides`), each side
+    tried with the layout it wears."""
     hand_models = {side: models.get(side) or load_template(side) for side in ("right", "left")}
-    marker_sets = {side: resolve_layout(model, layout) for side, model in hand_models.items()}
+    marker_sets = {side: resolve_layout(model, layouts[side]) for side, model in hand_models.items()}
 
     def make_track(side: str) -> HandTracker:
         return HandTracker(side, side, hand_models[side], marker_sets[side], settings)
@@ -1149,8 +1178,7 @@ def _prepass(positions: np.ndarray, tracks: list[Track], settings: SceneSettings
 
 
 def _refreshed_calibrations(prepasses: list[_Run], windows: list[int], tracks: list[Track],
-                            template_models: dict[str, HandModel], marker_sets: dict[str, MarkerSet],
-                            layout: MarkerLayout) -> _Refreshed:
+                            template_models: dict[str, HandModel], layouts: dict[str, MarkerLayout]) -> _Refreshed:
     """Per later calibration window whose frames the pooled subject model fits clearly worse than the
     first window's (mean residual above :data:`REFRESH_RATIO` × the first's: the markers moved on the
     skin, a glove slipped), a calibration of that window alone, to track with from the window's first
@@ -1164,7 +1192,7 @@ def _refreshed_calibrations(prepasses: list[_Run], windows: list[int], tracks: l
             if not (np.isfinite(fit) and fit > REFRESH_RATIO * fits[0]):
                 continue
             calibrated = _calibrate([(run, len(run.positions))], number, template_models[track.kind],
-                                    resolve_layout(template_models[track.kind], layout), layout)
+                                    resolve_layout(template_models[track.kind], layouts[track.kind]))
             if calibrated is not None:
                 refreshed.setdefault(offset, []).append((number, calibrated[0], calibrated[1]))
     return refreshed
@@ -1193,8 +1221,8 @@ CALIBRATION_SPACING = 10
 MAX_CALIBRATION_WINDOWS = 6
 
 
-def _calibrate(windows: list[tuple[_Run, int]], number: int, model: HandModel, markers: MarkerSet,
-               layout: MarkerLayout) -> tuple[HandModel, MarkerSet, dict] | None:
+def _calibrate(windows: list[tuple[_Run, int]], number: int, model: HandModel, markers: MarkerSet
+               ) -> tuple[HandModel, MarkerSet, dict] | None:
     """Subject calibration of hand track ``number`` from its labelled frames in ``windows``: (run, the
     frame before which its labels are used), pooled."""
     from core.calibration.subject import calibrate_subject
