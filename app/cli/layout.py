@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from app.cli.common import add_json_flag, add_outputs, print_figures, print_json, progress_printer
+from core.errors import InputError
 
 
 def _motions(values: list[str]) -> str | list[str]:
@@ -54,13 +56,57 @@ def command_layout_fit(args: argparse.Namespace) -> int:
     from core.calibration.marker_placement import fit_marker_placement
     from core.io import load_take
     from core.model import load_layout, load_template, save_layout
+    from core.model.hand_columns import name_side
 
-    take = load_take(args.take)
-    layout, residuals = fit_marker_placement(take.marker_positions, take.marker_names, load_template(args.side),
+    take = load_take(args.take, frame_rate=args.rate)
+    names = list(take.marker_names)
+    sided = [name_side(name) for name in names]
+    if any(side is not None for side, _ in sided):
+        # a two-hand take (R_/L_, R-/L-, Subject:Marker): the side's own columns, named without the side token
+        columns = [index for index, (side, _) in enumerate(sided) if side == args.side]
+        if not columns:
+            raise InputError(f"{args.take}: no marker of the {args.side} hand (names say the side of "
+                             f"{sum(side is not None for side, _ in sided)} markers, none {args.side})")
+        names = [sided[index][1] for index in columns]
+        positions = take.marker_positions[:, columns]
+    else:
+        positions = take.marker_positions
+    layout, residuals = fit_marker_placement(positions, names, load_template(args.side),
                                              load_layout(args.layout), iterations=args.iterations)
     save_layout(layout, args.out)
     steps = " -> ".join(f"{value:.2f}" for value in residuals)
     print(f"mean IK residual per iteration (mm): {steps}; wrote {args.out}")
+    return 0
+
+
+def command_layout_learn(args: argparse.Namespace) -> int:
+    """``handmocap layout learn``: learn a lab's labelling template from labelled takes, write it, print what was
+    found (per hand: each marker's digit and segment, the placement residual; the objects); exit 2 on bad input."""
+    from core.io import load_take
+    from core.labelling.templates import learn_template
+    from core.model.lab_template import save_lab_template
+
+    takes = [load_take(path, frame_rate=args.rate) for path in args.takes]
+    name = args.name or Path(args.out).stem
+    learned = learn_template(takes, name=name, progress=None if args.quiet else progress_printer())
+    save_lab_template(learned.template, args.out)
+    report = learned.report
+    print(f"template '{name}' from {len(takes)} take(s), {report['frames']} frames, marker noise σ "
+          f"{report['noise_mm']:.2f} mm -> {args.out}")
+    for side, hand in report["hands"].items():
+        print(f"  {side} hand: {hand['markers']} markers, placement residual {hand['residual_mm']:.2f} mm")
+        by_digit: dict[str, list[str]] = {}
+        for marker, where in hand["digits"].items():
+            by_digit.setdefault(where.split()[0], []).append(f"{marker} ({where.split()[1]})"
+                                                              if where.split()[0] != "palm" else marker)
+        for digit, markers in by_digit.items():
+            print(f"    {digit:<7} {', '.join(markers)}")
+    for obj, markers in report["objects"].items():
+        print(f"  object '{obj}': {', '.join(markers)}")
+    if report["ignored_markers"]:
+        print(f"  not used: {', '.join(report['ignored_markers'])} (neither a hand nor a rigid object)")
+    if args.json:
+        print_json(report)
     return 0
 
 
@@ -133,11 +179,25 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     fit = layout_commands.add_parser("fit", help="fit where a layout's markers sit from a labelled take")
     fit.add_argument("take", help="labelled take (C3D, TSV, TRC, CSV)")
     fit.add_argument("--layout", required=True, help="layout to refit (name or JSON file)")
-    fit.add_argument("--side", choices=["right", "left"], default="right")
+    fit.add_argument("--side", choices=["right", "left"], default="right",
+                     help="the hand to fit (of a two-hand take: the markers whose names say this side)")
+    fit.add_argument("--rate", type=float, metavar="HZ", help="frame rate when the file states none")
     fit.add_argument("--iterations", type=int, default=3)
     fit.add_argument("--out", required=True, metavar="LAYOUT.json")
     add_outputs(fit, "out")
     fit.set_defaults(handler=command_layout_fit)
+
+    learn = layout_commands.add_parser(
+        "learn", help="learn a lab's labelling template (marker set per hand, names, statistics, objects) from "
+        "takes the lab labelled")
+    learn.add_argument("takes", nargs="+", metavar="TAKE", help="labelled takes (C3D, TSV, TRC, CSV of any vendor)")
+    learn.add_argument("--out", required=True, metavar="LAB.json", help="the template to write (a layout file)")
+    learn.add_argument("--name", help="the template's name (default: the output file's name)")
+    learn.add_argument("--rate", type=float, metavar="HZ", help="frame rate of takes whose file states none")
+    learn.add_argument("--quiet", action="store_true", help="no progress output")
+    add_outputs(learn, "out")
+    add_json_flag(learn)
+    learn.set_defaults(handler=command_layout_learn)
 
     optimise = layout_commands.add_parser("optimise", aliases=["optimize"],
                                           help="optimise a reduced marker layout for a motion set")

@@ -26,11 +26,19 @@ def _subject_hands(parameters: dict, source: str) -> tuple[dict, dict]:
     C3D (its ``HAND_SUBJECT`` group), for the model fill; empty when the take has none."""
     from core.io.labelled_c3d import subject_calibrations
     from core.model import load_layout
+    from core.model.lab_template import load_lab_template
     from core.workflows.labelling import subject_model
 
     models, marker_sets = {}, {}
     for subject in subject_calibrations(parameters, source):
-        models[subject.side], marker_sets[subject.side] = subject_model(subject, load_layout(subject.layout))
+        try:
+            template = load_lab_template(subject.layout)
+            layout = template.layout_for(subject.side) if template is not None else load_layout(subject.layout)
+            models[subject.side], marker_sets[subject.side] = subject_model(subject, layout)
+        except InputError as error:
+            # a layout or template not found here: the model fill uses the template hand instead
+            print(f"handmocap: note: the subject calibration of the {subject.side} hand is not used ({error})",
+                  file=sys.stderr)
     return models, marker_sets
 
 
@@ -39,11 +47,12 @@ def command_label(args: argparse.Namespace) -> int:
     from core.io import load_take, looks_unlabelled
     from core.io.durable import write_text_atomic
     from core.model import load_layout, marker_columns
+    from core.model.lab_template import LabTemplate, load_lab_template
     from core.review import ReviewTake, export_labelled_c3d
     from core.workflows.labelling import auto_label
 
     take = load_take(args.raw)
-    layout = load_layout(args.layout)
+    layout = load_lab_template(args.layout) or load_layout(args.layout)
     outcome = auto_label(take, layout, args.hands, args.objects, args.online, relabel=args.relabel,
                          progress=None if args.quiet else progress_printer())
     review = ReviewTake.unlabelled(take)
@@ -75,10 +84,11 @@ def command_label(args: argparse.Namespace) -> int:
               f"({figures['kept_samples']} samples); {figures['file_label_samples']} samples labelled with the "
               f"layout's names, {figures['disagreed_samples']} of them labelled differently by auto-label"
               f"{' (auto-label used)' if args.relabel else ' (the file kept)'}")
+    label_names = layout.marker_names if isinstance(layout, LabTemplate) else layout.names
     if not looks_unlabelled(take.marker_names):
-        matched = int((marker_columns(take.marker_names, layout.names) >= 0).sum())
-        if matched < 0.5 * len(layout.names):
-            print(f"handmocap: warning: the take is labelled but only {matched} of the {len(layout.names)} "
+        matched = int((marker_columns(take.marker_names, label_names) >= 0).sum())
+        if matched < 0.5 * len(label_names):
+            print(f"handmocap: warning: the take is labelled but only {matched} of the {len(label_names)} "
                   f"markers of layout '{layout.name}' are among its names: is it the layout the take uses?",
                   file=sys.stderr)
     for warning in health:
@@ -168,9 +178,47 @@ def _evaluate_conditions(args: argparse.Namespace) -> int:
     return 0
 
 
+def _evaluate_lab_take(args: argparse.Namespace) -> int:
+    """``evaluate label --take``: strip, shuffle and relabel a lab's labelled take; print the figures per hand
+    and object (correct / wrong / missed %, longest wrong run and its marker)."""
+    from core.evaluation.take_labelling import evaluate_take_labelling
+    from core.io import load_take
+
+    take = load_take(args.take, frame_rate=getattr(args, "rate", None))
+    figures = evaluate_take_labelling(take, args.layout, args.learn_on, hands=args.hands or "auto",
+                                      seed=args.seed, ghost_rate=args.ghosts, online=args.online,
+                                      progress=None if args.json else progress_printer())
+    learned = "" if figures["frames_learned_on"] == 0 else (
+        f", {'template learned on' if args.layout is None else 'after'} the first {figures['frames_learned_on']} "
+        "frames")
+    print(f"{args.take}: {figures['frames']} frames relabelled ({figures['frames_per_second']:.0f} frames/s)"
+          f"{learned}")
+    print(f"  {'group':<16} {'markers':>7} {'correct %':>10} {'wrong %':>8} {'missed %':>9}  longest wrong run")
+    for name, group in figures["groups"].items():
+        run = (f"{group['longest_wrong_frames']} frames ({group['longest_wrong_marker']})"
+               if group["longest_wrong_frames"] else "none")
+        extra = f"; taken as hand {group['taken_as_hand_pct']:.2f} %" if "taken_as_hand_pct" in group else ""
+        print(f"  {name:<16} {group['markers']:>7} {group['correct_pct']:>10.3f} {group['wrong_pct']:>8.3f} "
+              f"{group['missed_pct']:>9.3f}  {run}{extra}")
+    overall = figures["overall"]
+    print(f"  {'all':<16} {figures['labelled_markers']:>7} {overall['correct_pct']:>10.3f} "
+          f"{overall['wrong_pct']:>8.3f} {overall['missed_pct']:>9.3f}")
+    if figures["labels_not_in_take"]:
+        print(f"  labels the take does not have (not scored): {', '.join(figures['labels_not_in_take'][:8])}")
+    if args.json:
+        print_json(figures)
+    return 0
+
+
 def command_evaluate_label(args: argparse.Namespace) -> int:
-    """``handmocap evaluate label``: print the labelling accuracy on simulated takes and the real recording."""
+    """``handmocap evaluate label``: print the labelling accuracy on simulated takes and the real recording, or
+    (``--take``) on a lab's own labelled take."""
     from core.evaluation.labelling import evaluate_labelling, evaluate_real_recording
+
+    if args.take:
+        return _evaluate_lab_take(args)
+    if args.layout or args.learn_on is not None:
+        raise InputError("--layout and --learn-on apply with --take LABELLED")
 
     if args.sweep or args.full or args.noise is not None or args.occlude or args.mirror or args.hands:
         if args.online:
@@ -235,7 +283,8 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     """Add ``label``, ``fill`` and ``bench label`` to the ``handmocap`` parser."""
     label = commands.add_parser("label", help="automatically label the raw points of a take (hands and objects)")
     label.add_argument("raw", help="raw take: C3D with unlabelled points or fragments, Qualisys TSV, TRC")
-    label.add_argument("--layout", required=True, help="marker layout of the hands (name or JSON file)")
+    label.add_argument("--layout", required=True, help="marker layout of the hands, or a lab template from "
+                       "'handmocap layout learn' (name or JSON file)")
     label.add_argument("--hands", choices=["auto", "right", "left", "both"], default="auto",
                        help="auto (default): the labeller decides which hands the take shows")
     label.add_argument("--objects", metavar="SPEC.json", help="rigid objects in the scene (see docs)")
@@ -282,6 +331,15 @@ def register(commands, bench_commands, evaluate_commands) -> None:
                                 help="the whole real recording against its two halves labelled alone")
     evaluate_label.add_argument("--synthetic-only", action="store_true",
                                 help="conditions: simulated takes only (not the real recording)")
+    evaluate_label.add_argument("--take", metavar="LABELLED", help="measure on a lab's own labelled take: its labels "
+                                "are stripped, its points shuffled, labelled again and compared")
+    evaluate_label.add_argument("--layout", metavar="LAB.json", help="with --take: the layout or template to label "
+                                "with (default: a template learned from the take's first frames)")
+    evaluate_label.add_argument("--learn-on", type=int, metavar="FRAMES", help="with --take: learn the template on "
+                                "the first FRAMES frames and label the rest (default: half the take)")
+    evaluate_label.add_argument("--seed", type=int, default=0, help="with --take: the shuffle's seed (default 0)")
+    evaluate_label.add_argument("--ghosts", type=float, default=0.0, metavar="SHARE",
+                                help="with --take: add ghost points in this share of the frames")
     add_json_flag(evaluate_label)
     evaluate_label.set_defaults(handler=command_evaluate_label)
 

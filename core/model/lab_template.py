@@ -31,7 +31,7 @@ fields, so every reader of layouts still reads it (its ``markers`` are those of 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -59,7 +59,8 @@ class PairStatistics:
         for a in range(len(self.names)):
             for b in range(a + 1, len(self.names)):
                 if np.isfinite(self.mean_mm[a, b]):
-                    pairs.append({"a": self.names[a], "b": self.names[b], "mean_mm": round(float(self.mean_mm[a, b]), 3),
+                    pairs.append({"a": self.names[a], "b": self.names[b],
+                                  "mean_mm": round(float(self.mean_mm[a, b]), 3),
                                   "sd_mm": round(float(self.sd_mm[a, b]), 3)})
         return {"pairs": pairs}
 
@@ -131,10 +132,9 @@ class LabTemplate:
 
     def layout_for(self, side: str) -> MarkerLayout:
         """The layout of ``side``; a side the template lacks gets the other side's placement (mirrored by the
-        model) under the same names."""
-        if side in self.hands:
-            return self.hands[side].layout
-        return self.hands[self.sides[0]].layout
+        model) under the same names. The layout carries the template's name (what a labelled C3D records)."""
+        hand = self.hands[side] if side in self.hands else self.hands[self.sides[0]]
+        return replace(hand.layout, name=self.name)
 
     def to_json(self) -> dict:
         first = self.hands[self.sides[0]]

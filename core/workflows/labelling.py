@@ -30,6 +30,7 @@ from core.io.labelled_c3d import SubjectCalibration
 from core.labelling.health import HealthWarning
 from core.labelling.scene import HAND_PREFIX, SceneLabelling, label_scene
 from core.model import HandModel, MarkerLayout, MarkerSet, load_layout, load_template, resolve_layout
+from core.model.lab_template import LabTemplate, load_lab_template
 from core.model.objects import ObjectSpec, load_scene_spec
 from core.review import ApplyLabelling, HandTrack, LabellingArrays
 
@@ -81,9 +82,11 @@ def hand_tracks(result: SceneLabelling, layout_name: str | None) -> list[HandTra
     return tracks
 
 
-def scene_label_names(layout: MarkerLayout, specs: list[ObjectSpec]) -> set[str]:
-    """Lower-case names a scene's labels may have: the layout's, ``r_``/``l_`` prefixed, and the objects'."""
-    names = {name.strip().lower() for name in layout.names}
+def scene_label_names(layout: MarkerLayout | LabTemplate, specs: list[ObjectSpec]) -> set[str]:
+    """Lower-case names a scene's labels may have: the layout's (a template's: both hands' and its objects'),
+    ``r_``/``l_`` prefixed, and the objects'."""
+    names = {name.strip().lower() for name in layout.marker_names} if isinstance(layout, LabTemplate) else {
+        name.strip().lower() for name in layout.names}
     names |= {prefix.lower() + name for prefix in HAND_PREFIX.values() for name in set(names)}
     return names | {name.strip().lower() for spec in specs for name in spec.marker_names}
 
@@ -246,7 +249,7 @@ def subject_model(calibration: SubjectCalibration, layout: MarkerLayout) -> tupl
     return calibrated_model(template, resolve_layout(template, layout), calibration.scales, calibration.offsets_mm)
 
 
-def auto_label(take: Take, layout: str | MarkerLayout = "dense", hands: str = "auto",
+def auto_label(take: Take, layout: str | MarkerLayout | LabTemplate = "dense", hands: str = "auto",
                objects: str | Path | list | None = None, online: bool = False,
                models: dict[str, HandModel] | None = None, relabel: bool = False,
                progress: Callable[[float], None] | None = None,
@@ -254,8 +257,11 @@ def auto_label(take: Take, layout: str | MarkerLayout = "dense", hands: str = "a
     """Label the raw points of ``take`` (see :func:`core.labelling.scene.label_scene`; ``hands`` "auto",
     "right", "left" or "both"), keep what its point names already say (module docstring; ``relabel``:
     label from scratch, ignoring them) and wrap the result as an undoable :class:`ApplyLabelling` for a review of
-    this take. Raises InputError (e.g. every point is labelled outside the scene) or CancelledError."""
-    layout = load_layout(layout) if isinstance(layout, str) else layout
+    this take. ``layout`` may be a lab template (or name one): its hands' own placements and names and its
+    objects are used. Raises InputError (e.g. every point is labelled outside the scene) or CancelledError."""
+    template = load_lab_template(layout) if isinstance(layout, str) else None
+    layout = template or (load_layout(layout) if isinstance(layout, str) else layout)
+    label_count = len(layout.marker_names) if isinstance(layout, LabTemplate) else len(layout.names)
     specs = load_scene_spec(objects) if isinstance(objects, str | Path) else list(objects or [])
     known = file_labels(take, scene_label_names(layout, specs))
     offered = take
@@ -263,7 +269,7 @@ def auto_label(take: Take, layout: str | MarkerLayout = "dense", hands: str = "a
         positions = take.marker_positions.copy()
         positions[:, known.kept_columns] = np.nan
         left = int(np.isfinite(positions).all(axis=2).any(axis=0).sum())
-        if left < MIN_OFFERED_SHARE * len(layout.names):
+        if left < MIN_OFFERED_SHARE * label_count:
             examples = ", ".join(known.kept_names[:3])
             raise InputError(f"only {left} point columns of the take are left to label: the other "
                              f"{len(known.kept_names)} are labelled with names outside layout '{layout.name}' "
@@ -293,7 +299,8 @@ def auto_label(take: Take, layout: str | MarkerLayout = "dense", hands: str = "a
     if no_hand:
         report["labelled_share"] = 0.0
         report["mean_residual_mm"] = None
-    subjects = [subject for subject in (subject_calibration(model.kind, layout, model.calibration)
+    side_layout = layout.layout_for if isinstance(layout, LabTemplate) else (lambda _side: layout)
+    subjects = [subject for subject in (subject_calibration(model.kind, side_layout(model.kind), model.calibration)
                                         for model in found if models is None or model.kind not in models)
                 if subject is not None]
     return AutoLabelOutcome(command, result,
