@@ -184,7 +184,7 @@ def _evaluate_lab_take(args: argparse.Namespace) -> int:
     from core.evaluation.take_labelling import evaluate_take_labelling
     from core.io import load_take
 
-    take = load_take(args.take, frame_rate=getattr(args, "rate", None))
+    take = load_take(args.take, frame_rate=args.rate)
     figures = evaluate_take_labelling(take, args.layout, args.learn_on, hands=args.hands or "auto",
                                       seed=args.seed, ghost_rate=args.ghosts, online=args.online,
                                       progress=None if args.json else progress_printer())
@@ -338,6 +338,8 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     evaluate_label.add_argument("--learn-on", type=int, metavar="FRAMES", help="with --take: learn the template on "
                                 "the first FRAMES frames and label the rest (default: half the take)")
     evaluate_label.add_argument("--seed", type=int, default=0, help="with --take: the shuffle's seed (default 0)")
+    evaluate_label.add_argument("--rate", type=float, metavar="HZ", help="with --take: its frame rate when the "
+                                "file states none")
     evaluate_label.add_argument("--ghosts", type=float, default=0.0, metavar="SHARE",
                                 help="with --take: add ghost points in this share of the frames")
     add_json_flag(evaluate_label)

@@ -56,6 +56,7 @@ from core.errors import CancelledError, InputError
 from core.io import Take
 from core.labelling.fragments import extend_trajectories, free_fragments
 from core.labelling.health import HealthWarning, assess_labelling
+from core.labelling.hypotheses import check_whole_take
 from core.labelling.initialise import (
     Candidate,
     cluster_cut,
@@ -852,7 +853,8 @@ def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout | La
     "left" or "both") wearing ``layout`` and of rigid ``objects``
     (specs, or the path of a scene spec JSON file; see :mod:`core.model.objects`). A lab template
     (:mod:`core.model.lab_template`, given or named as ``layout``) gives each side its own placement and the
-    lab's own marker names (written as they are, unprefixed), and its rigid objects join ``objects``.
+    lab's own marker names (written as they are, unprefixed), its rigid objects join ``objects``, and each
+    hand's labelling is judged against the whole-take hypotheses (:mod:`core.labelling.hypotheses`).
 
     ``online``: causal tracking only (no backward pass, calibration applied from the end of its
     window on); ``models``: hand models per side to use instead of the shipped template (they are
@@ -890,6 +892,8 @@ def label_scene(take: Take, hands: str = "auto", layout: str | MarkerLayout | La
     result.noise_mm = statistics.noise_mm if statistics.measured else None
     result.side_decision = scene.decision
     result.health = assess_labelling(result, take.frame_rate)
+    if scene.template is not None:
+        result.health += check_whole_take(result, scene.template, result.noise_mm)
     return result
 
 
@@ -908,6 +912,7 @@ class _Scene:
     marker_sets: dict[str, MarkerSet]
     decision: SideDecision | None
     calibrations: dict[str, dict] = field(default_factory=dict)
+    template: LabTemplate | None = None
 
     def track(self, number: int) -> Track:
         """A fresh track ``number``: the hands first (with their current models), then the objects."""
@@ -958,7 +963,7 @@ def _scene(positions: np.ndarray, hands: str, layout: str | MarkerLayout | LabTe
     check_unique_names(specs, "scene", [name for names in hand_names.values() for name in names])
     marker_sets = {side: resolve_layout(hand_models[side], layouts[side]) for side in sides}
     return _Scene(settings, {side: layouts[side] for side in sides}, sides, specs, hand_names, hand_models,
-                  marker_sets, decision)
+                  marker_sets, decision, template=template)
 
 
 def _lab_template(layout: str | MarkerLayout | LabTemplate) -> LabTemplate | None:
