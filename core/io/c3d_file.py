@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from core.io.errors import TakeFormatError
-from core.io.take import Take, mm_per_unit, unique_marker_names, zeros_to_nan
+from core.io.take import Take, chosen_frame_rate, mm_per_unit, unique_marker_names, zeros_to_nan
 
 _log = logging.getLogger(__name__)
 
@@ -78,8 +78,9 @@ class _C3DFile:
     group_descriptions: list[str]
 
 
-def read_c3d(path: str | PathLike[str]) -> Take:
-    """Read a C3D file into a Take (mm, NaN for missing); raises TakeFormatError with a one-line reason."""
+def read_c3d(path: str | PathLike[str], frame_rate: float | None = None) -> Take:
+    """Read a C3D file into a Take (mm, NaN for missing) at POINT:RATE, or at ``frame_rate`` (Hz) when given;
+    raises TakeFormatError with a one-line reason."""
     data = Path(path).read_bytes()
     c3d = _parse(data, path)
 
@@ -157,13 +158,14 @@ def read_c3d(path: str | PathLike[str]) -> Take:
     rate = _number(value("POINT", "RATE"))
     if rate is None or not (math.isfinite(rate) and rate > 0):
         rate = c3d.frame_rate
-    if not (math.isfinite(rate) and rate > 0):
-        raise TakeFormatError.at(path, f"no valid point frame rate (POINT:RATE {rate})")
+    in_file = float(str(np.float32(rate))) if math.isfinite(rate) and rate > 0 else None  # shortest decimal
+    # of the stored float32 (e.g. 25.000002)
 
     return Take(
         marker_names=_labels(c3d, n_points, path),
         marker_positions=positions,
-        frame_rate=float(str(np.float32(rate))),  # shortest decimal of the stored float32 (e.g. 25.000002)
+        frame_rate=chosen_frame_rate(path, in_file, frame_rate, f"no valid point frame rate (POINT:RATE {rate})"),
+        frame_rate_given=frame_rate is not None,
         first_frame=first,
         vendor=_vendor(c3d, value("MANUFACTURER", "COMPANY")),
         source_units=units,

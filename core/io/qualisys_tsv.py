@@ -17,15 +17,24 @@ from os import PathLike
 from pathlib import Path
 
 from core.io.errors import TakeFormatError
-from core.io.take import Take, open_text_lines, read_number_rows, unique_marker_names, zeros_to_nan
+from core.io.take import (
+    Take,
+    chosen_frame_rate,
+    open_text_lines,
+    positive_number,
+    read_number_rows,
+    unique_marker_names,
+    zeros_to_nan,
+)
 
 _log = logging.getLogger(__name__)
 
 _HEADER_KEY = re.compile(r"[A-Z][A-Z0-9_]*")
 
 
-def read_tsv(path: str | PathLike[str]) -> Take:
-    """Read a Qualisys TSV file into a Take (mm, NaN for missing); raises TakeFormatError."""
+def read_tsv(path: str | PathLike[str], frame_rate: float | None = None) -> Take:
+    """Read a Qualisys TSV file into a Take (mm, NaN for missing) at its FREQUENCY, or at ``frame_rate`` (Hz)
+    when given; raises TakeFormatError."""
     with open_text_lines(path) as lines:
         header: dict[str, list[str]] = {}
         current = next(lines, None)
@@ -42,7 +51,9 @@ def read_tsv(path: str | PathLike[str]) -> Take:
             raise TakeFormatError.at(path, f"contains '{included[:40]}' data; only 3D marker data can be read")
         file_names = [name.strip() for name in _trim(header["MARKER_NAMES"])]
         names = unique_marker_names(file_names)
-        frame_rate = _header_number(header, "FREQUENCY", path)
+        text = (header.get("FREQUENCY") or [""])[0]
+        rate = chosen_frame_rate(path, positive_number(text), frame_rate,
+                                 f"missing or invalid FREQUENCY header ('{text[:20]}')")
 
         columns = [cell.strip() for cell in current[1].split("\t")] if current is not None else []
         if current is not None and ("Frame" in columns or any(f"{name} X" in columns for name in names[:1])):
@@ -70,11 +81,12 @@ def read_tsv(path: str | PathLike[str]) -> Take:
     return Take(
         marker_names=names,
         marker_positions=positions,
-        frame_rate=frame_rate,
+        frame_rate=rate,
         first_frame=first_frame,
         vendor="Qualisys",
         source_units="mm",
         source_path=str(path),
+        frame_rate_given=frame_rate is not None,
     )
 
 
@@ -92,18 +104,6 @@ def _marker_columns(columns: list[str], file_names: list[str], line: int, path: 
                 raise TakeFormatError.at(path, f"line {line}: no column '{label[:80]}'")
             marker_columns.append(free[label].popleft())
     return marker_columns
-
-
-def _header_number(header: dict[str, list[str]], key: str, path: str | PathLike[str]) -> float:
-    """A positive number from header line `key`."""
-    text = (header.get(key) or [""])[0]
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and value > 0):
-        raise TakeFormatError.at(path, f"missing or invalid {key} header ('{text}')")
-    return value
 
 
 def _trim(cells: list[str]) -> list[str]:

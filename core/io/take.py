@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.io.errors import TakeFormatError
+from core.io.errors import FrameRateMissingError, TakeFormatError
 
 _MM_PER_UNIT = {
     "mm": 1.0,
@@ -42,8 +42,10 @@ class Take:
 
     `marker_positions` is (F, M, 3) float64 in mm with NaN for missing samples; `marker_names` has
     M unique names; `frame_rate` is in Hz; `first_frame` is the file's number of frame 0;
-    `parameters` holds extra C3D parameter groups `{"GROUP": {"NAME": value}}` (str, list[str],
-    int, float or ndarray values) that the C3D writer writes back.
+    `frame_rate_given` is True when the rate came from the user (``--rate``, the open dialog, the
+    pipeline) rather than from the file; `parameters` holds extra C3D parameter groups
+    `{"GROUP": {"NAME": value}}` (str, list[str], int, float or ndarray values) that the C3D writer
+    writes back.
     """
 
     marker_names: list[str]
@@ -54,6 +56,7 @@ class Take:
     source_units: str = "mm"
     source_path: str | None = None
     parameters: dict[str, dict] = field(default_factory=dict)
+    frame_rate_given: bool = False
 
     def __post_init__(self) -> None:
         self.marker_names = list(self.marker_names)
@@ -130,6 +133,38 @@ def mm_per_unit(units: str, path: str | PathLike[str] | None) -> float:
     return factor
 
 
+def chosen_frame_rate(path: str | PathLike[str] | None, in_file: float | None, given: float | None,
+                      why_missing: str = "the file has no frame rate") -> float:
+    """The rate (Hz) a take is read with: ``given`` (the user's, it overrides the file's) when not None,
+    else ``in_file``; FrameRateMissingError (``why_missing``) when neither is there, TakeFormatError when
+    the given one is not a positive number."""
+    if given is not None:
+        return check_frame_rate(given, path)
+    if in_file is None:
+        raise FrameRateMissingError.at_file(path, why_missing)
+    return in_file
+
+
+def check_frame_rate(rate: float, path: str | PathLike[str] | None = None) -> float:
+    """``rate`` (Hz) as a float once it is a finite positive number; TakeFormatError otherwise."""
+    try:
+        value = float(rate)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise TakeFormatError.at(path, f"the frame rate must be a positive number of Hz, not {rate!r:.40}")
+    return value
+
+
+def positive_number(text: str) -> float | None:
+    """The finite positive number ``text`` holds (a rate, a scale), None when it holds none."""
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        return None
+    return value if math.isfinite(value) and value > 0 else None
+
+
 def zeros_to_nan(positions: np.ndarray) -> np.ndarray:
     """Mark vendor "missing" samples, exactly (0, 0, 0), as NaN in place; (F, M, 3) in and out."""
     positions[(positions == 0.0).all(axis=2)] = np.nan
@@ -137,7 +172,8 @@ def zeros_to_nan(positions: np.ndarray) -> np.ndarray:
 
 
 def unique_marker_names(names: list[str]) -> list[str]:
-    """Strip names, name blank ones `M<i>` (1-based column) and suffix repeats `_2`, `_3`... .
+    """Strip names, name blank ones `*<i>` (1-based column; the C3D convention of an unlabelled point, so
+    :func:`is_marker_label` keeps them unlabelled) and suffix repeats `_2`, `_3`... .
 
     Linear time: the next free suffix of each name is remembered, so each taken name is passed over at
     most once (a name "A_3" can only be the third copy of "A").
@@ -146,7 +182,7 @@ def unique_marker_names(names: list[str]) -> list[str]:
     taken: set[str] = set()
     last_copy: dict[str, int] = {}
     for index, raw in enumerate(names):
-        base = raw.strip() or f"M{index + 1}"
+        base = raw.strip() or f"*{index + 1}"
         name = base
         if name in taken:
             copy = last_copy.get(base, 1)
@@ -259,16 +295,22 @@ def format_number_rows(first_frame: int, frame_rate: float, positions: np.ndarra
     return "".join(row_format % tuple(row) for row in table.tolist()).replace("nan", "")
 
 
-#: point names that carry no label: "*12" (Vicon), "Unlabeled 3" (Motive), "point_004", "M7", "2003", and
-#: their repeats suffixed "_2" by :func:`unique_marker_names`
-UNLABELLED_NAME = re.compile(r"^(\*|point[_ ]?|unlabell?ed[_ ]?|unidentified[_ ]?|unnamed[_ ]?|uname\*?|marker[_ ]?|m|"
-                             r"channel|ghost[_ ]?)?\d*(_\d+)?$", re.IGNORECASE)
+#: point names that carry no label: the vendors' own names of unlabelled points, our simulator's, and their
+#: repeats suffixed "_2" by :func:`unique_marker_names`. Every other name a file gives is a label
+#: (``Marker1``, ``M7``, ``2003``, ``Channel103``, ``New 0001``).
+UNLABELLED_NAME = re.compile(
+    r"""^(\*\d+                         # C3D (Vicon Nexus): *12; also a point the file gives no name
+       |uname\*\d+                      # BTK / Mokka: uname*3
+       |unlabell?ed[ _:]?\d+             # OptiTrack Motive: Unlabeled 1003, Unlabeled_1003, Unlabeled:108
+       |unidentified[ _]?\d+             # Qualisys QTM: Unidentified 7
+       |(point|ghost)_\d{3,}             # our simulator: point_004 (raw takes), ghost_012 (ghosts)
+      )(_\d+)?$""", re.IGNORECASE | re.VERBOSE)
 
 
 def is_marker_label(name: str) -> bool:
-    """True when a point ``name`` is a label someone gave a marker (``hand_top``, ``pillow_left``, ``LASI``);
-    False for the placeholders of unlabelled points: empty, ``*12`` (C3D/Vicon), ``Unlabeled 3``
-    (Motive), ``point_004``, ``M001`` (an unnamed column), bare numbers (see :data:`UNLABELLED_NAME`)."""
+    """True when a point ``name`` is a label the file gives a marker (``hand_top``, ``Marker1``, ``LASI``,
+    ``M7``); False for an empty name and the placeholders of unlabelled points in :data:`UNLABELLED_NAME`
+    (``*12``, ``Unlabeled 1003``, ``Unidentified 7``, ``point_004``)."""
     stripped = name.strip()
     return bool(stripped) and not UNLABELLED_NAME.match(stripped)
 

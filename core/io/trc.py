@@ -31,6 +31,7 @@ from core.io.durable import write_text_atomic
 from core.io.errors import TakeFormatError
 from core.io.take import (
     Take,
+    chosen_frame_rate,
     format_number_rows,
     mm_per_unit,
     open_text_lines,
@@ -53,8 +54,9 @@ _HEADER_KEYS = (
 )
 
 
-def read_trc(path: str | PathLike[str]) -> Take:
-    """Read a TRC file into a Take (mm, NaN for missing); raises TakeFormatError."""
+def read_trc(path: str | PathLike[str], frame_rate: float | None = None) -> Take:
+    """Read a TRC file into a Take (mm, NaN for missing) at its DataRate, or at ``frame_rate`` (Hz) when
+    given; raises TakeFormatError."""
     with open_text_lines(path) as lines:
         head = [line for _, line in itertools.islice(lines, 5)]
         if len(head) < 5 or not head[0].startswith("PathFileType"):
@@ -66,9 +68,8 @@ def read_trc(path: str | PathLike[str]) -> Take:
                 strict=False,
             )
         )
-        frame_rate = _positive_number(header, "DataRate") or _positive_number(header, "CameraRate")
-        if frame_rate is None:
-            raise TakeFormatError.at(path, f"line 3: invalid DataRate '{header.get('DataRate', '')[:40]}'")
+        rate = chosen_frame_rate(path, _positive_number(header, "DataRate") or _positive_number(header, "CameraRate"),
+                                 frame_rate, f"line 3: invalid DataRate '{header.get('DataRate', '')[:40]}'")
         units = header.get("Units") or "mm"
         scale = mm_per_unit(units, path)
         names = unique_marker_names([cell for cell in head[3].split("\t")[2:] if cell.strip()])
@@ -83,10 +84,11 @@ def read_trc(path: str | PathLike[str]) -> Take:
     return Take(
         marker_names=names,
         marker_positions=positions,
-        frame_rate=frame_rate,
+        frame_rate=rate,
         first_frame=first_frame,
         source_units=units,
         source_path=str(path),
+        frame_rate_given=frame_rate is not None,
     )
 
 

@@ -1,4 +1,5 @@
-"""Fuzz every file reader: seeded mutations of C3D, TSV, TRC, CSV, PLY, OBJ, glTF, GLB and .npz files.
+"""Fuzz every file reader: seeded mutations of C3D, TSV, TRC, CSV (ours and the Vicon Nexus, Motive and NOKOV
+exports of ``tests/io/fixtures``), PLY, OBJ, glTF, GLB and .npz files.
 
 Each case must load or raise :class:`core.errors.InputError`. Cases run in a worker process limited to
 ``--memory-gb`` of address space; a case that takes longer than ``--timeout`` seconds is a hang, a worker
@@ -31,6 +32,8 @@ import numpy as np  # noqa: E402
 from core.evaluation.data import SHARED_DATA  # noqa: E402
 
 FORMATS = ("c3d", "tsv", "trc", "csv", "ply", "obj", "gltf", "glb", "npz")
+#: the vendor text exports (Vicon Nexus, OptiTrack Motive, NOKOV) the CSV cases also start from
+VENDOR_FIXTURES = Path(__file__).resolve().parents[1] / "io" / "fixtures"
 INTERESTING_TEXT = ["", "0", "-1", "1e308", "-1e308", "nan", "inf", "9" * 30, "18446744073709551616",
                     "9223372036854775808", "x", "\t\t\t", "1e-320", "2147483648", "65535", " "]
 INTERESTING_JSON = [-1, 0, 1, 3, 255, 2 ** 31, 2 ** 63, -2 ** 63, 1e308, -4, 0.5, "x", "", None, True, [], {},
@@ -112,6 +115,10 @@ def write_seeds(folder: Path) -> dict[str, list[Path]]:
                 add("c3d", "vendor_" + vendor.name, vendor.read_bytes())
     write_trc(take, add("trc", "own.trc"))
     write_csv(take, add("csv", "own.csv"))
+    for fixture in sorted(VENDOR_FIXTURES.glob("*.csv")):
+        add("csv", "vendor_" + fixture.name, fixture.read_bytes())
+    if (VENDOR_FIXTURES / "vicon_nexus.csv").is_file():
+        add("csv", "vendor_vicon_nexus.txt", (VENDOR_FIXTURES / "vicon_nexus.csv").read_bytes())
     rows = "\n".join("\t".join([str(f + 1), f"{f / 120:.4f}"] + [f"{v:.3f}" for v in row.ravel()])
                      for f, row in enumerate(np.nan_to_num(positions)))
     header = (f"NO_OF_FRAMES\t6\nNO_OF_CAMERAS\t8\nNO_OF_MARKERS\t{len(names)}\nFREQUENCY\t120\n"
@@ -332,8 +339,8 @@ def read_case(path: Path) -> None:
     from core.simulate.take import load_truth
 
     suffix = path.suffix.lower()
-    if suffix in (".c3d", ".tsv", ".trc", ".csv"):
-        load_take(path)
+    if suffix in (".c3d", ".tsv", ".trc", ".csv", ".txt"):
+        load_take(path, frame_rate=100.0 if "nokov" in path.name else None)   # a NOKOV export has no rate
     elif suffix in (".ply", ".obj"):
         load_scan(path)
     elif suffix in (".glb", ".gltf"):

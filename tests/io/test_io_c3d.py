@@ -27,7 +27,7 @@ RECOVERED = {
     "sample_13__golfswing": "POINT:DATA_START is 0 (header pointer used); ezc3d rejects ANALOG:OFFSET",
     "sample_16__basketball": "every residual is -1 although coordinates are present; no POINT:UNITS (metres)",
     "sample_18__bad_parameter_section": "parameter section runs into the data; stops at EVENT:LABELS",
-    "sample_20__phasespace_sample": "empty parameter section: header only, markers named M1..M40",
+    "sample_20__phasespace_sample": "empty parameter section: header only, unnamed points named *1..*40",
 }
 
 
@@ -68,7 +68,7 @@ def test_recovered_and_vendor_details() -> None:
     assert takes["sample_37__ART-Human_hands_real_no6dof"].vendor == "ART"
     assert takes["sample_16__basketball"].source_units == "m"
     assert takes["sample_16__basketball"].missing_fraction == 0.0
-    assert takes["sample_20__phasespace_sample"].marker_names[:2] == ["M1", "M2"]
+    assert takes["sample_20__phasespace_sample"].marker_names[:2] == ["*1", "*2"]
     assert takes["sample_18__bad_parameter_section"].marker_names[:2] == ["P1", "P2"]
     assert takes["sample_13__golfswing"].frame_rate == pytest.approx(107.52688)
     # One recording stored as Intel int, Intel float, MIPS int and DEC float must read the same.

@@ -29,15 +29,16 @@ OTHER = ["right_elbow", "back_top", "back_left", "back_right", "right_shoulder",
 
 
 @pytest.mark.parametrize("name", ["hand_top", "pillow_left", "LASI", "R_thumb_tip", "marker_top", "M1_base",
-                                  "Point of interest", "elbow2"])
-def test_real_labels(name):
+                                  "Point of interest", "elbow2", "Marker1", "M7", "m7", "2003", "Channel103",
+                                  "L-Wan-nei", "New 0001", "point 12", "ghost_1", "unnamed"])
+def test_names_the_file_gives_are_labels(name):
     assert is_marker_label(name)
 
 
-@pytest.mark.parametrize("name", ["", "  ", "point_000", "point 12", "*12", "*3_2", "M001", "m7", "12", "2003",
-                                  "Unlabeled 3", "unlabelled_4", "Marker_5", "marker12", "uname*2", "ghost_1",
-                                  "Unidentified 7", "unnamed", "channel4"])
-def test_placeholders_are_not_labels(name):
+@pytest.mark.parametrize("name", ["", "  ", "point_000", "point_1204", "ghost_012", "*12", "*3_2", "uname*2",
+                                  "Unlabeled 3", "Unlabeled 1003", "Unlabeled_1003", "Unlabeled:108",
+                                  "unlabelled_4", "Unidentified 7"])
+def test_vendor_placeholders_of_unlabelled_points_are_not_labels(name):
     assert not is_marker_label(name)
 
 
