@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from app.cli.common import add_json_flag, add_outputs, check_outputs, print_figures
+from app.cli.common import add_json_flag, add_outputs, add_rate_argument, check_outputs, print_figures
 from core.errors import InputError
 
 
@@ -63,7 +63,7 @@ def command_register(args: argparse.Namespace) -> int:
     camera = load_camera(args.camera)
     if args.offset is not None:
         camera = camera.with_clock(CameraClock(args.offset, camera.clock.rate_ratio))
-    take = load_take(args.take)
+    take = load_take(args.take, frame_rate=args.rate)
     blobs, times = _blobs(args, camera)
     result = register_take(camera, blobs, times, take.marker_positions, take.frame_rate, args.window)
     save_camera(result.camera, args.out, {"registration": result.report()})
@@ -92,7 +92,7 @@ def command_overlay(args: argparse.Namespace) -> int:
     camera = load_camera(args.camera)
     if not camera.registered:
         raise InputError(f"{args.camera} has no extrinsics; run 'handmocap camera register' first")
-    take = load_take(args.take)
+    take = load_take(args.take, frame_rate=args.rate)
     labelled = [is_marker_label(name) for name in take.marker_names]
     import numpy as np
 
@@ -171,6 +171,7 @@ def register(commands, bench_commands, evaluate_commands) -> None:
 
     registration = actions.add_parser("register", help="extrinsics and time offset from the take's markers")
     registration.add_argument("take", help="labelled take (C3D, TSV, TRC, CSV)")
+    add_rate_argument(registration)
     registration.add_argument("video", help="the camera's video (MP4/AVI) or folder of frames")
     registration.add_argument("--camera", required=True, metavar="CAMERA.json", help="intrinsics (JSON/YAML/XML)")
     registration.add_argument("--depth", metavar="FOLDER", help="registered 16-bit depth frames (RGB-D)")
@@ -185,6 +186,7 @@ def register(commands, bench_commands, evaluate_commands) -> None:
 
     overlay = actions.add_parser("overlay", help="write the video with the take's markers drawn on it")
     overlay.add_argument("take")
+    add_rate_argument(overlay)
     overlay.add_argument("video")
     overlay.add_argument("--camera", required=True, metavar="CAMERA.json")
     overlay.add_argument("--out", required=True, metavar="OVERLAY.mp4|.avi")

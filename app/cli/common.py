@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 from collections.abc import Callable
@@ -78,3 +79,21 @@ def progress_printer() -> Callable[[float], None]:
 def add_json_flag(parser: argparse.ArgumentParser) -> None:
     """The ``--json`` flag of benchmarks and evaluations."""
     parser.add_argument("--json", action="store_true", help="print one JSON object as the last line")
+
+
+def frame_rate_hz(text: str) -> float:
+    """The argparse type of ``--rate``: a positive number of Hz."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"the frame rate must be a positive number of Hz, not '{text}'")
+    return value
+
+
+def add_rate_argument(parser: argparse.ArgumentParser) -> None:
+    """The ``--rate HZ`` option of a command that reads a take (``args.rate``, None when not given)."""
+    parser.add_argument("--rate", type=frame_rate_hz, metavar="HZ",
+                        help="the take's frame rate in Hz: needed when its file states none (NOKOV CSV, a CSV "
+                             "without a time column); it overrides the file's rate")

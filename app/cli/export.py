@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.cli.common import add_outputs
+from app.cli.common import add_outputs, add_rate_argument
 from core.errors import InputError
 
 
@@ -34,14 +34,15 @@ def _session_take(argument: str, take: str | None) -> tuple[Path, str] | None:
     return None
 
 
-def _file_review(path: str):
-    """The review of a labelled take file and the subject's hand models and marker sets it holds."""
+def _file_review(path: str, frame_rate: float | None = None):
+    """The review of a labelled take file (at ``frame_rate`` Hz when given) and the subject's hand models and
+    marker sets it holds."""
     from app.cli.review import _load_review, _subject_hands
     from core.io.labelled_c3d import subject_calibrations
 
     if not Path(path).is_file():
         raise InputError(f"{path}: no such take file")
-    review = _load_review(path)
+    review = _load_review(path, frame_rate)
     models, marker_sets = _subject_hands(review.take.parameters, path)
     return review, models, marker_sets, subject_calibrations(review.take.parameters, path)
 
@@ -69,7 +70,7 @@ def command_export(args: argparse.Namespace) -> int:
     with ExitStack() as cleanup:
         session_take = _session_take(args.take, args.take_name)
         if session_take is None:
-            review, models, marker_sets, subjects = _file_review(args.take)
+            review, models, marker_sets, subjects = _file_review(args.take, args.rate)
             where = args.take
         else:
             folder, take_id = session_take
@@ -102,6 +103,7 @@ def register(commands, bench_commands, evaluate_commands) -> None:
         "--up y), gltf (.glb/.gltf skinned hand with its animation; always metres, Y up).")
     export.add_argument("take", metavar="TAKE", help="labelled take file, or SESSION_FOLDER:TAKE (id or name), or "
                         "SESSION_FOLDER with --take")
+    add_rate_argument(export)
     export.add_argument("--take", dest="take_name", metavar="NAME", help="the take (id or name) of the session")
     export.add_argument("--format", required=True, choices=["c3d", "trc", "csv", "bvh", "gltf"])
     export.add_argument("--out", required=True, metavar="FILE")

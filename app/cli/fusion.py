@@ -7,7 +7,14 @@ import argparse
 import sys
 from pathlib import Path
 
-from app.cli.common import add_json_flag, add_outputs, check_outputs, print_figures, progress_printer
+from app.cli.common import (
+    add_json_flag,
+    add_outputs,
+    add_rate_argument,
+    check_outputs,
+    print_figures,
+    progress_printer,
+)
 from core.errors import InputError
 
 COLOUR_NAMES = ("colour", "color", "rgb")
@@ -56,7 +63,7 @@ def command_fuse(args: argparse.Namespace) -> int:
     from core.model import best_layout_for
 
     check_outputs(args)
-    take = load_take(args.take)
+    take = load_take(args.take, frame_rate=args.rate)
     camera = load_camera(args.camera)
     frames = _recording(Path(args.rgbd), args.depth_unit, args.rgbd_rate, args.background, args.wristband_hue)
     if frames.depth.size != camera.size:
@@ -92,6 +99,7 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     """Add ``fuse`` and ``evaluate fusion`` to the ``handmocap`` parser."""
     fuse = commands.add_parser("fuse", help="solve a take with markers and an RGB-D camera (Zhao et al. 2012)")
     fuse.add_argument("take", help="labelled take (C3D, TSV, TRC, CSV)")
+    add_rate_argument(fuse)
     fuse.add_argument("--camera", required=True, metavar="CAMERA.json", help="the registered RGB-D camera")
     fuse.add_argument("--rgbd", required=True, metavar="FOLDER",
                       help="depth PNGs in FOLDER/depth (or FOLDER), colour in FOLDER/colour or FOLDER/video.*")

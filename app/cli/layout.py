@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from app.cli.common import add_json_flag, add_outputs, print_figures, print_json, progress_printer
+from app.cli.common import add_json_flag, add_outputs, add_rate_argument, print_figures, print_json, progress_printer
 from core.errors import InputError
 
 
@@ -181,7 +181,7 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     fit.add_argument("--layout", required=True, help="layout to refit (name or JSON file)")
     fit.add_argument("--side", choices=["right", "left"], default="right",
                      help="the hand to fit (of a two-hand take: the markers whose names say this side)")
-    fit.add_argument("--rate", type=float, metavar="HZ", help="frame rate when the file states none")
+    add_rate_argument(fit)
     fit.add_argument("--iterations", type=int, default=3)
     fit.add_argument("--out", required=True, metavar="LAYOUT.json")
     add_outputs(fit, "out")
@@ -193,7 +193,7 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     learn.add_argument("takes", nargs="+", metavar="TAKE", help="labelled takes (C3D, TSV, TRC, CSV of any vendor)")
     learn.add_argument("--out", required=True, metavar="LAB.json", help="the template to write (a layout file)")
     learn.add_argument("--name", help="the template's name (default: the output file's name)")
-    learn.add_argument("--rate", type=float, metavar="HZ", help="frame rate of takes whose file states none")
+    add_rate_argument(learn)
     learn.add_argument("--quiet", action="store_true", help="no progress output")
     add_outputs(learn, "out")
     add_json_flag(learn)

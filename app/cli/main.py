@@ -20,6 +20,7 @@ from app.cli import review as review_commands
 from app.cli.common import (
     add_json_flag,
     add_outputs,
+    add_rate_argument,
     check_output,
     check_outputs,
     print_figures,
@@ -57,7 +58,7 @@ def command_info(args: argparse.Namespace) -> int:
     """``handmocap info``: print a take's frames, rate, units, markers, vendor, missing share; exit 2 on bad input."""
     from core.io import load_take
 
-    take = load_take(args.file)
+    take = load_take(args.file, frame_rate=args.rate)
     missing = take.missing_fraction
     info = {
         "file": str(args.file), "vendor": take.vendor, "frames": take.n_frames,
@@ -104,7 +105,7 @@ def command_solve(args: argparse.Namespace) -> int:
     from core.workflows.labelling import subject_model
     from core.workflows.resolve import check_layout_names, solve_labelled_take
 
-    take = load_take(args.take)
+    take = load_take(args.take, frame_rate=args.rate)
     layout = load_layout(args.layout)
     check_layout_names(take.marker_names, layout)
     prior = PosturePrior.load(args.prior) if args.prior else None
@@ -181,7 +182,7 @@ def command_prior(args: argparse.Namespace) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:  # noqa: PLR0915 - a statement per option of each command
     """The ``handmocap`` argument parser with every subcommand."""
     parser = argparse.ArgumentParser(prog="handmocap", description="Hand Mocap Studio: optical hand motion "
                                      "capture review, labelling, gap filling and calibration.")
@@ -200,6 +201,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     info = commands.add_parser("info", help="frames, rate, units, markers, vendor and missing share of a take")
     info.add_argument("file")
+    add_rate_argument(info)
     info.add_argument("--json", action="store_true", help="print one JSON object")
     info.set_defaults(handler=command_info)
 
@@ -219,6 +221,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     solve = commands.add_parser("solve", help="inverse kinematics of a labelled take")
     solve.add_argument("take")
+    add_rate_argument(solve)
     solve.add_argument("--layout", required=True, help="marker layout name or JSON file")
     solve.add_argument("--prior", help="posture prior .npz (default: the shipped prior)")
     solve.add_argument("--method", choices=["layered", "subspace", "full"], default="layered")

@@ -7,18 +7,30 @@ import json
 import sys
 from pathlib import Path
 
-from app.cli.common import add_json_flag, add_outputs, print_figures, print_json, print_summary, progress_printer
+from app.cli.common import (
+    add_json_flag,
+    add_outputs,
+    add_rate_argument,
+    print_figures,
+    print_json,
+    print_summary,
+    progress_printer,
+)
 from core.errors import InputError
 
 
-def _load_review(path: str):
-    """A review of a labelled take: our labelled C3D (labels, fills, edits) or any labelled file."""
+def _load_review(path: str, frame_rate: float | None = None):
+    """A review of a labelled take: our labelled C3D (labels, fills, edits) or any labelled file; at
+    ``frame_rate`` (Hz, ``--rate``) when given."""
     from core.io import load_take
     from core.review import ReviewTake, review_from_labelled_c3d
 
     if Path(path).suffix.lower() == ".c3d":
-        return review_from_labelled_c3d(path)
-    return ReviewTake.from_labelled_take(load_take(path))
+        review = review_from_labelled_c3d(path)
+        if frame_rate is not None:
+            review.take.frame_rate, review.take.frame_rate_given = frame_rate, True
+        return review
+    return ReviewTake.from_labelled_take(load_take(path, frame_rate=frame_rate))
 
 
 def _subject_hands(parameters: dict, source: str) -> tuple[dict, dict]:
@@ -51,7 +63,7 @@ def command_label(args: argparse.Namespace) -> int:
     from core.review import ReviewTake, export_labelled_c3d
     from core.workflows.labelling import auto_label
 
-    take = load_take(args.raw)
+    take = load_take(args.raw, frame_rate=args.rate)
     layout = load_lab_template(args.layout) or load_layout(args.layout)
     outcome = auto_label(take, layout, args.hands, args.objects, args.online, relabel=args.relabel,
                          progress=None if args.quiet else progress_printer())
@@ -103,7 +115,7 @@ def command_fill(args: argparse.Namespace) -> int:
     from core.review import PROVENANCE_NAMES, export_labelled_c3d
     from core.workflows import fill_review_gaps, find_review_gaps, gap_groups
 
-    review = _load_review(args.labelled)
+    review = _load_review(args.labelled, args.rate)
     if not review.n_labels:
         raise InputError(f"{args.labelled} has no labelled points; label it first (handmocap label)")
     if looks_unlabelled(review.label_names):
@@ -255,7 +267,7 @@ def command_evaluate_gaps(args: argparse.Namespace) -> int:
     path = Path(args.take) if args.take else REAL_RECORDING
     if not path.exists():
         raise InputError(f"{path}: no take to evaluate gap filling on (give one)")
-    take = load_take(path)
+    take = load_take(path, frame_rate=args.rate)
     if not args.whole:
         take = Take(marker_names=list(take.marker_names), marker_positions=take.marker_positions[:take.n_frames // 2],
                     frame_rate=take.frame_rate, first_frame=take.first_frame, vendor=take.vendor)
@@ -282,7 +294,9 @@ def command_evaluate_gaps(args: argparse.Namespace) -> int:
 def register(commands, bench_commands, evaluate_commands) -> None:
     """Add ``label``, ``fill`` and ``bench label`` to the ``handmocap`` parser."""
     label = commands.add_parser("label", help="automatically label the raw points of a take (hands and objects)")
-    label.add_argument("raw", help="raw take: C3D with unlabelled points or fragments, Qualisys TSV, TRC")
+    label.add_argument("raw", help="raw take: C3D with unlabelled points or fragments, Qualisys TSV, TRC, the CSV "
+                       "exports of Vicon Nexus, Motive or NOKOV")
+    add_rate_argument(label)
     label.add_argument("--layout", required=True, help="marker layout of the hands, or a lab template from "
                        "'handmocap layout learn' (name or JSON file)")
     label.add_argument("--hands", choices=["auto", "right", "left", "both"], default="auto",
@@ -299,6 +313,7 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     label.set_defaults(handler=command_label)
 
     fill = commands.add_parser("fill", help="fill the short gaps of a labelled take")
+    add_rate_argument(fill)
     fill.add_argument("labelled", metavar="LABELLED.c3d", help="labelled take (our labelled C3D, or any "
                       "labelled C3D/TSV/TRC/CSV)")
     fill.add_argument("--max-gap", type=int, required=True, metavar="FRAMES", help="longest gap to fill")
@@ -349,6 +364,7 @@ def register(commands, bench_commands, evaluate_commands) -> None:
         "gaps", help="gap-fill error (mean and worst frame) per method on hidden stretches of finger markers, "
         "one at a time and many at once through 'fill'")
     evaluate_gaps.add_argument("take", nargs="?", help="labelled take (default: the real glove recording)")
+    add_rate_argument(evaluate_gaps)
     evaluate_gaps.add_argument("--layout", default="glove-13")
     evaluate_gaps.add_argument("--lengths", type=int, nargs="+", default=[10, 20, 40, 80], metavar="FRAMES",
                                help="gap lengths (default 10 20 40 80)")
