@@ -20,6 +20,7 @@ from app.gui.document import TakeDocument
 from core.errors import HandMocapError
 from core.io import Take
 from core.model import HandModel, MarkerLayout, add_layout_folder, best_layout_for, remove_layout_folder
+from core.model.lab_template import LabTemplate
 from core.review.events import ReviewChanged
 from core.session import Session, TakeEntry
 
@@ -309,8 +310,9 @@ class Application:
                 self._announce(SessionFolderChanged(SessionPart.TAKE_STATE, document.session_take_id))
         return problems
 
-    def save_layout(self, layout: MarkerLayout) -> Path:
-        """Store a layout in the session (listed with the shipped ones, labelling can use it)."""
+    def save_layout(self, layout: MarkerLayout | LabTemplate) -> Path:
+        """Store a layout or a lab's labelling template in the session (listed with the shipped layouts,
+        labelling can use it)."""
         path = self._open_session().save_layout(layout)
         self._announce(SessionFolderChanged(SessionPart.LAYOUTS))
         return path

@@ -235,6 +235,7 @@ class MainWindow(QMainWindow):
         tools_menu = self.tools_menu = menus.addMenu("&Tools")
         tools_menu.addAction(self._action("&Calibrate a hand scan…", self.open_calibration, "Ctrl+Shift+K"))
         tools_menu.addAction(self._action("Marker &layouts…", self.open_layout_tools, "Ctrl+Shift+L"))
+        tools_menu.addAction(self._action("Learn a labelling &template…", self.open_learn_template))
         solve_menu = self.solve_menu = menus.addMenu("&Solve")
         solve_menu.addAction(self.solve_action)
         solve_menu.addAction(self.cancel_action)
@@ -787,6 +788,12 @@ class MainWindow(QMainWindow):
         session = self.sessions.session
         self._layout_window = open_layout_view(self, session=session,
                                                save_to_session=self.sessions.save_layout if session else None)
+
+    def open_learn_template(self) -> None:
+        """Learn a lab's labelling template from labelled takes; it is saved into the session's layouts."""
+        from app.gui.learn_template import open_learn_template
+
+        self._learn_template_dialog = open_learn_template(self, self.app, self.sessions.browser.selected_take())
 
     def open_calibration(self) -> None:
         """The scan calibration wizard; the subject model it saves goes into the open session."""

@@ -55,6 +55,7 @@ import numpy as np
 from core.errors import InputError
 from core.io import Take, load_take, looks_unlabelled
 from core.model import HandModel, MarkerLayout, best_layout_for, load_layout, marker_columns
+from core.model.lab_template import LabTemplate, save_lab_template
 from core.review.commands import Command, FrameSpan, UndoStack
 from core.review.take import HandTrack, ReviewTake
 from core.session.files import (
@@ -504,8 +505,9 @@ class Session:
 
     # --- subjects, models, layouts ------------------------------------------------------------------
 
-    def save_layout(self, layout: MarkerLayout) -> Path:
-        """Store ``layout`` as ``layouts/<name>.json`` (replacing one of the same name)."""
+    def save_layout(self, layout: MarkerLayout | LabTemplate) -> Path:
+        """Store ``layout`` (a marker layout or a lab's labelling template, which is a layout file too) as
+        ``layouts/<name>.json`` (replacing one of the same name)."""
         from core.model import save_layout
 
         self._check_writable_session()
@@ -514,7 +516,10 @@ class Session:
         try:
             make_folder(self.folder, folder)
             refuse_links(self.folder, path)
-            save_layout(layout, path)
+            if isinstance(layout, LabTemplate):
+                save_lab_template(layout, path)
+            else:
+                save_layout(layout, path)
         except OSError as error:
             raise InputError(f"cannot save layout '{layout.name}' ({error.strerror or error})") from None
         relative = str(path.relative_to(self.folder))
