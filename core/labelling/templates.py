@@ -33,6 +33,7 @@ from core.ik import IKSettings, solve_positions
 from core.io import Take, is_marker_label
 from core.labelling.take_statistics import measure_take
 from core.model import HandModel, MarkerLayout, MarkerSpec, load_template, resolve_layout
+from core.model.hand_columns import name_side  # re-exported: the side a marker name says
 from core.model.lab_template import LabTemplate, PairStatistics, TemplateHand
 from core.model.markers import SIDE_DIRECTIONS
 from core.model.objects import ObjectSpec, rigid_body_from_points
@@ -43,34 +44,9 @@ MIN_HAND_MARKERS = 5
 #: frames sampled per take for the placement fit (IK cost) and for the distance statistics (all frames)
 PLACEMENT_FRAMES = 300
 
-_SIDE_WORDS = {"r": "right", "l": "left", "right": "right", "left": "left", "rh": "right", "lh": "left",
-               "rgt": "right", "lft": "left"}
-_PREFIX = re.compile(r"^(right|left|rh|lh|rgt|lft|r|l)(?:hand)?[-_:. ]+(.+)$", re.IGNORECASE)
-_SUFFIX = re.compile(r"^(.+?)[-_. ](right|left|rh|lh|r|l)$", re.IGNORECASE)
-_SUBJECT = re.compile(r"^([^:]+):(.+)$")
 _STEM = re.compile(r"^(.*?)[-_ ]?(\d+)$")
-_PALM_WORDS = ("wrist", "wan", "hand", "back", "palm", "meta", "carp", "top", "radi", "ulna", "styl", "wr", "mc")
-
-
-def name_side(name: str) -> tuple[str | None, str]:
-    """The hand side a marker name says (``"right"``, ``"left"`` or None) and the name without it:
-    ``R_index_tip``, ``L-A1``, ``Right:thumb``, ``LeftHand:IF3``, ``index_tip_l``."""
-    stripped = name.strip()
-    subject = _SUBJECT.match(stripped)
-    if subject:
-        words = subject.group(1).lower()
-        side = "left" if "left" in words or words.endswith(("_l", "-l", " l", "lh")) else (
-            "right" if "right" in words or words.endswith(("_r", "-r", " r", "rh")) else None)
-        if side is not None:
-            return side, subject.group(2)
-        stripped = subject.group(2)
-    for pattern, group in ((_PREFIX, 1), (_SUFFIX, 2)):
-        match = pattern.match(stripped)
-        if match:
-            side = _SIDE_WORDS.get(match.group(group).lower())
-            if side is not None:
-                return side, match.group(3 - group)
-    return None, stripped
+_PALM_WORDS = ("wrist", "wan", "hand", "back", "palm", "carp", "top", "radi", "ulna", "styl", "wr", "mc", "knuckle",
+               "arm")
 
 
 @dataclass
@@ -180,7 +156,12 @@ def place_hand(names: list[str], mean: np.ndarray, sd: np.ndarray, noise_mm: flo
                          f"{MIN_HAND_MARKERS} are needed to place them on a hand")
     palm = _palm(names, mean, sd, noise_mm)
     chains = _chains(names, [index for index in range(count) if index not in palm], mean, sd)
-    order = _digit_order(chains, mean)
+    said = [{name_digit(names[index]) for index in chain} for chain in chains]
+    named_order = [next(iter(digits)) for digits in said if len(digits) == 1]
+    if len(named_order) == len(chains) and None not in named_order and len(set(named_order)) == len(chains):
+        order = [str(digit) for digit in named_order]
+    else:
+        order = _digit_order(chains, mean)
     digits, segments = ["palm"] * count, [0] * count
     for digit, chain in zip(order, chains, strict=True):
         ordered = _proximal_to_distal(chain, palm, mean)
@@ -197,8 +178,8 @@ def _palm(names: list[str], mean: np.ndarray, sd: np.ndarray, noise_mm: float) -
     marker as rigid with it as its own members are. (Motion alone cannot tell a thumb held still against the
     palm from the palm, so names come first.)"""
     indices = list(range(len(names)))
-    named = [index for index, name in enumerate(names)
-             if any(word in _stem(name_side(name)[1]).lower() for word in _PALM_WORDS)]
+    named = [index for index, name in enumerate(names) if name_digit(name) != "thumb"
+             and any(word in _stem(name_side(name)[1]).lower() for word in _PALM_WORDS)]
     if 3 <= len(named) < len(names) - 1:
         return named
     groups = rigid_groups(indices, mean, sd, noise_mm)
@@ -236,9 +217,35 @@ def _stem(name: str) -> str:
     return match.group(1) if match else name
 
 
+#: words that name a digit in a marker name (its first such token decides): thumb, index, middle, ring, little
+_DIGIT_WORDS = {"thumb": "thumb", "th": "thumb", "pollex": "thumb", "index": "index", "ind": "index",
+                "if": "index", "pointer": "index", "middle": "middle", "mid": "middle", "mf": "middle",
+                "ring": "ring", "rf": "ring", "little": "little", "pinky": "little", "pinkie": "little",
+                "small": "little", "lf": "little"}
+_TOKENS = re.compile(r"[A-Za-z]+")
+
+
+def name_digit(name: str) -> str | None:
+    """The digit a marker name says by its first digit word (``index_middle`` → index, ``RTHUMB2`` is not
+    split), or None."""
+    for token in _TOKENS.findall(name_side(name)[1]):
+        digit = _DIGIT_WORDS.get(token.lower())
+        if digit is not None:
+            return digit
+    return None
+
+
 def _chains(names: list[str], fingers: list[int], mean: np.ndarray, sd: np.ndarray) -> list[list[int]]:
-    """The digit chains among the ``fingers`` markers: by name stem when the stems split them into 2 to 5
-    groups of at most 4, else by average-linkage clustering of the distance spreads into 5 (or fewer)."""
+    """The digit chains among the ``fingers`` markers: by the digit their names say (:func:`name_digit`) when
+    every one says one; by name stem when the stems split them into 2 to 5 groups of at most 4; else by
+    average-linkage clustering of the distance spreads into 5 (or fewer)."""
+    said = [name_digit(names[index]) for index in fingers]
+    if fingers and all(said):
+        by_digit: dict[str, list[int]] = {}
+        for index, digit in zip(fingers, said, strict=True):
+            by_digit.setdefault(str(digit), []).append(index)
+        if all(len(group) <= 4 for group in by_digit.values()):
+            return list(by_digit.values())
     by_stem: dict[str, list[int]] = {}
     for index in fingers:
         by_stem.setdefault(_stem(name_side(names[index])[1]).lower(), []).append(index)
@@ -307,8 +314,9 @@ def place_palm(targets: np.ndarray, model: HandModel, layout: MarkerLayout, plac
         return layout
     markers = resolve_layout(model, layout)
     result = solve_positions(digits_only, model, markers, settings=IKSettings(method="layered"))
-    knuckles = {digit: model.skeleton.rest_positions[JOINT_NAMES.index(f"{digit}_{'cmc' if digit == 'thumb' else 'mcp'}")]
-                for digit in DIGITS}
+    knuckle_joints = {digit: f"{digit}_{'cmc' if digit == 'thumb' else 'mcp'}" for digit in DIGITS}
+    knuckles = {digit: model.skeleton.rest_positions[JOINT_NAMES.index(joint)]
+                for digit, joint in knuckle_joints.items()}
     wrist = model.skeleton.rest_positions[0]
     specs = list(layout.markers)
     for index in palm:
