@@ -13,15 +13,19 @@ One flat TOML (or JSON) table, written by the GUI and read by ``handmocap batch`
     solve_method = "layered"
     exports = ["c3d", "csv", "bvh"]
     output = "exports"           # folder of the exports ("" = <session>/exports)
+    rate = 120.0                 # frame rate (Hz) of the takes whose file states none (NOKOV CSV); 0: none
 
 Relative file names (``layout`` when it names a file, ``objects``, ``output``) are relative to the
-pipeline file's folder. Every error is one line naming the file and the setting.
+pipeline file's folder. Every error is one line naming the file and the setting. ``rate`` is used when a
+take is added to the session (a folder of takes): a take keeps the rate it was added with, so the rate is
+not part of what decides whether a take is redone.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import math
 import tomllib
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
@@ -53,6 +57,7 @@ class Pipeline:
     solve_method: str = "layered"
     exports: tuple[str, ...] = ("c3d", "csv")
     output: str = ""
+    rate: float = 0.0
 
     def runs(self, step: str) -> bool:
         return step in self.steps
@@ -67,6 +72,7 @@ class Pipeline:
         :data:`PIPELINE_VERSION` (hex sha256)."""
         data = self.to_dict() | {"version": PIPELINE_VERSION}
         data.pop("output")
+        data.pop("rate")      # recorded with each take when it is added (module docstring)
         data["objects_content"] = hashlib.sha256(Path(self.objects).read_bytes()).hexdigest() if self.objects else ""
         if self.layout.lower().endswith(".json") and Path(self.layout).is_file():
             data["layout_content"] = hashlib.sha256(Path(self.layout).read_bytes()).hexdigest()
@@ -75,7 +81,7 @@ class Pipeline:
 
 _KINDS: dict[str, type] = {"steps": list, "layout": str, "hands": str, "objects": str, "online": bool,
                            "relabel": bool, "max_gap": int, "fill_method": str, "solve_method": str,
-                           "exports": list, "output": str}
+                           "exports": list, "output": str, "rate": float}
 
 
 def pipeline_from_dict(data: dict[str, Any], source: str = "pipeline", base: Path | None = None) -> Pipeline:
@@ -86,6 +92,8 @@ def pipeline_from_dict(data: dict[str, Any], source: str = "pipeline", base: Pat
     unknown = sorted(set(data) - set(_KINDS))
     if unknown:
         raise InputError(f"{source}: unknown setting '{unknown[0]}' (known: {', '.join(_KINDS)})")
+    if type(data.get("rate")) is int:      # TOML and JSON write 120 for 120.0
+        data = data | {"rate": float(data["rate"])}
     for name, value in data.items():
         kind = _KINDS[name]
         if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
@@ -97,6 +105,8 @@ def pipeline_from_dict(data: dict[str, Any], source: str = "pipeline", base: Pat
     _one_of(values.get("hands", "auto"), HANDS, "hands", source)
     _one_of(values.get("fill_method", "auto"), ("auto", *FILL_METHODS), "fill_method", source)
     _one_of(values.get("solve_method", "layered"), SOLVE_METHODS, "solve_method", source)
+    if not (math.isfinite(values.get("rate", 0.0)) and values.get("rate", 0.0) >= 0):
+        raise InputError(f"{source}: setting 'rate' must be a positive number of Hz (0: none given)")
     if values.get("max_gap", 20) < 1:
         raise InputError(f"{source}: setting 'max_gap' must be at least 1 frame")
     if "export" in values["steps"] and not values["exports"]:
@@ -115,7 +125,7 @@ def pipeline_from_dict(data: dict[str, Any], source: str = "pipeline", base: Pat
     return Pipeline(**values)
 
 
-_KIND_TEXT = {list: "a list", str: "text", bool: "true or false", int: "a whole number"}
+_KIND_TEXT = {list: "a list", str: "text", bool: "true or false", int: "a whole number", float: "a number"}
 
 
 def _choices(value: list, allowed: tuple[str, ...], name: str, source: str) -> list[str]:
@@ -157,6 +167,8 @@ def _toml_value(value: Any) -> str:
         return "true" if value else "false"
     if isinstance(value, int):
         return str(value)
+    if isinstance(value, float):
+        return repr(value)
     if isinstance(value, tuple | list):
         return "[" + ", ".join(_toml_value(item) for item in value) + "]"
     # a JSON string is a valid TOML basic string once DEL is escaped too (TOML forbids it raw)

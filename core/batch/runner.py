@@ -31,13 +31,13 @@ from core.batch.pipeline import Pipeline
 from core.batch.state import input_key, read_state, write_state
 from core.batch.task import process_take
 from core.errors import InputError
+from core.io import READ_SUFFIXES, FrameRateMissingError, recognised_format
 from core.session.session import Session
 
 #: times a task may be on a worker that dies before its take fails (Dask's ``allowed-failures``)
 ALLOWED_FAILURES = 1
 #: seconds between two progress reports while nothing finishes
 POLL_S = 0.5
-TAKE_SUFFIXES = (".c3d", ".tsv", ".trc", ".csv")
 SESSION_SUBFOLDER = "handmocap-session"
 
 
@@ -99,7 +99,8 @@ def open_study(path: str | Path, pipeline: Pipeline) -> Session:
         return Session.open(folder)
     if not folder.is_dir():
         raise InputError(f"{folder} is neither a session nor a folder of takes")
-    files = sorted(item for item in folder.iterdir() if item.suffix.lower() in TAKE_SUFFIXES and item.is_file())
+    files = sorted(item for item in folder.iterdir() if item.suffix.lower() in READ_SUFFIXES and item.is_file()
+                   and _is_take_file(item))
     if not files:
         raise InputError(f"{folder} is neither a session nor a folder of takes (no C3D, TSV, TRC or CSV)")
     target = folder / SESSION_SUBFOLDER
@@ -108,8 +109,28 @@ def open_study(path: str | Path, pipeline: Pipeline) -> Session:
     hands = ["right", "left"] if pipeline.hands == "both" else [pipeline.hands if pipeline.hands != "auto" else "right"]
     for item in files:
         if item not in known:
-            session.add_take(item, layout=Path(pipeline.layout).stem, hands=hands)
+            _add_take(session, item, pipeline, hands)
     return session
+
+
+def _is_take_file(path: Path) -> bool:
+    """Whether a file of a folder of takes is a take (a .csv or .txt file only when a format recognises it,
+    so that notes and other tables are left alone; a file that cannot be read is reported when added)."""
+    try:
+        return recognised_format(path) is not None
+    except OSError:
+        return True
+
+
+def _add_take(session: Session, path: Path, pipeline: Pipeline, hands: list[str]) -> None:
+    """Add the take file ``path`` at its own rate, or at the pipeline's ``rate`` when the file states none."""
+    try:
+        session.add_take(path, layout=Path(pipeline.layout).stem, hands=hands)
+    except FrameRateMissingError:
+        if not pipeline.rate:
+            raise InputError(f"{path.name}: the file has no frame rate; give it with rate = HZ in the pipeline"
+                             ) from None
+        session.add_take(path, layout=Path(pipeline.layout).stem, hands=hands, frame_rate=pipeline.rate)
 
 
 def plan_batch(session: Session, pipeline: Pipeline, only: str | None = None, redo: bool = False,

@@ -2,8 +2,18 @@
 and CSV of axis columns (millimetres, seconds, NaN for missing)."""
 
 from core.io.errors import FrameRateMissingError, TakeFormatError
-from core.io.loader import READ_SUFFIXES, TAKE_FILE_FILTER, TAKE_FORMATS, TakeFormat, load_take, save_take, take_format
+from core.io.loader import (
+    READ_SUFFIXES,
+    TAKE_FILE_FILTER,
+    TAKE_FORMATS,
+    TakeFormat,
+    load_take,
+    recognised_format,
+    save_take,
+    take_format,
+)
 from core.io.take import Take, is_marker_label, looks_unlabelled
 
 __all__ = ["READ_SUFFIXES", "TAKE_FILE_FILTER", "TAKE_FORMATS", "FrameRateMissingError", "Take", "TakeFormat",
-           "TakeFormatError", "is_marker_label", "load_take", "looks_unlabelled", "save_take", "take_format"]
+           "TakeFormatError", "is_marker_label", "load_take", "looks_unlabelled", "recognised_format", "save_take",
+           "take_format"]

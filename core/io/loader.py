@@ -59,24 +59,28 @@ TAKE_FILE_FILTER = ";;".join(
 _WRITERS: dict[str, Callable[[Take, Path], None]] = {".c3d": write_c3d, ".trc": write_trc, ".csv": write_csv}
 
 
+def recognised_format(path: str | PathLike[str]) -> TakeFormat | None:
+    """The format of the take file ``path`` by its suffix and, for .csv and .txt, by its first lines; None when
+    no format takes it (a folder scan then skips notes and other tables)."""
+    path = Path(path)
+    candidates = [fmt for fmt in TAKE_FORMATS if path.suffix.lower() in fmt.suffixes]
+    if all(fmt.recognises is None for fmt in candidates):
+        return candidates[0] if candidates else None
+    with open_text_lines(path) as lines:
+        head = [line for _, line in islice(lines, HEAD_LINES)]
+    return next((fmt for fmt in candidates if fmt.recognises is not None and fmt.recognises(head)), None)
+
+
 def take_format(path: str | PathLike[str]) -> TakeFormat:
     """The format of the take file ``path``: by its suffix, and for .csv and .txt by its first lines (a file no
     format recognises goes to the last, most general one of its suffix). TakeFormatError for an unknown
     suffix."""
     path = Path(path)
-    suffix = path.suffix.lower()
-    candidates = [fmt for fmt in TAKE_FORMATS if suffix in fmt.suffixes]
+    candidates = [fmt for fmt in TAKE_FORMATS if path.suffix.lower() in fmt.suffixes]
     if not candidates:
         raise TakeFormatError.at(path, f"unsupported file type '{path.suffix}' (expected "
                                        f"{', '.join(READ_SUFFIXES[:-1])} or {READ_SUFFIXES[-1]})")
-    if all(fmt.recognises is None for fmt in candidates):
-        return candidates[0]
-    with open_text_lines(path) as lines:
-        head = [line for _, line in islice(lines, HEAD_LINES)]
-    for fmt in candidates:
-        if fmt.recognises is not None and fmt.recognises(head):
-            return fmt
-    return candidates[-1]   # the most general reader then says what the file lacks
+    return recognised_format(path) or candidates[-1]   # the most general reader then says what the file lacks
 
 
 def load_take(path: str | PathLike[str], frame_rate: float | None = None) -> Take:

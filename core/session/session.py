@@ -22,8 +22,13 @@ Manifest (``format`` "handmocap-session", ``version`` 1)::
      "layouts": [{"name", "path": "layouts/x.json"}],
      "takes": [{"id", "name", "source", "source_relative", "subject", "layout", "hands": ["right"],
                 "labelled_source": bool, "state": "raw|labelled|reviewed|exported",
-                "frames", "points", "frame_rate", "added", "results": {"review": "takes/<id>/review.npz"},
-                "exports": {"c3d": path, ...}, "cameras": [camera entry (core.session.cameras)]}]}
+                "frames", "points", "frame_rate", "frame_rate_given", "added",
+                "results": {"review": "takes/<id>/review.npz"}, "exports": {"c3d": path, ...},
+                "cameras": [camera entry (core.session.cameras)]}]}
+
+``frame_rate`` is the rate (Hz) the take is read at; ``frame_rate_given`` (false when absent) says the user
+gave it (``--rate``, the open dialog, the pipeline's ``rate``: the file states none, or it was overridden),
+so the raw file is read again at that rate without asking.
 
 A corrupt manifest is never overwritten: :meth:`Session.open` raises an InputError naming it and the
 ``.bak`` copy; :meth:`Session.restore_backup` puts the backup back (keeping the damaged file aside).
@@ -136,6 +141,7 @@ class TakeEntry:
     frames: int = 0
     points: int = 0
     frame_rate: float = 0.0
+    frame_rate_given: bool = False
     added: str = ""
     results: dict[str, str] = field(default_factory=dict)
     exports: dict[str, str] = field(default_factory=dict)
@@ -164,11 +170,17 @@ class TakeEntry:
             raise ValueError(f"take '{entry.name}' has unknown state '{entry.state}'")
         return entry
 
+    @property
+    def given_frame_rate(self) -> float | None:
+        """The rate (Hz) the user gave for the take, to read its raw file at; None: the file's own."""
+        return self.frame_rate if self.frame_rate_given else None
+
 
 _TAKE_FIELD_TYPES: dict[str, Any] = {
     "id": str, "name": str, "source": str, "source_relative": (str, type(None)), "subject": (str, type(None)),
     "layout": (str, type(None)), "hands": list, "labelled_source": bool, "state": str, "frames": int,
-    "points": int, "frame_rate": (int, float), "added": str, "results": dict, "exports": dict,
+    "points": int, "frame_rate": (int, float), "frame_rate_given": bool,
+    "added": str, "results": dict, "exports": dict,
     "cameras": list}
 
 
@@ -343,15 +355,18 @@ class Session:
 
     def add_take(self, path: str | os.PathLike[str], subject: str | None = None, layout: str | None = None,
                  hands: list[str] | tuple[str, ...] = ("right",), name: str | None = None,
-                 labelled: bool | None = None, take: Take | None = None) -> TakeEntry:
-        """Add the raw take file ``path`` (read once to check it and record its size; pass ``take`` if it
-        is already loaded). ``labelled``: whether its columns are labelled markers (default: guessed:
+                 labelled: bool | None = None, take: Take | None = None,
+                 frame_rate: float | None = None) -> TakeEntry:
+        """Add the raw take file ``path`` (read once to check it and record its size, at ``frame_rate`` Hz when
+        given; pass ``take`` if it is already loaded). A rate the user gave (``Take.frame_rate_given``) is
+        recorded, so the file is read at it again.
+        ``labelled``: whether its columns are labelled markers (default: guessed:
         a labelled C3D from this program, names matching a shipped layout, or names that are not
         placeholders such as ``*12``, ``point_004``, ``Unlabeled 3``)."""
         self._check_writable_session()
         source = Path(path).expanduser().absolute()
         if take is None:
-            take = load_take(source)
+            take = load_take(source, frame_rate=frame_rate)
         for hand in hands:
             if hand not in ("right", "left"):
                 raise InputError(f"hand must be 'right' or 'left', not '{hand}'")
@@ -375,7 +390,8 @@ class Session:
                               source_relative=_relative(source, self.folder), subject=subject, layout=layout,
                               hands=list(hands), labelled_source=bool(labelled),
                               state="labelled" if labelled else "raw", frames=take.n_frames,
-                              points=take.n_markers, frame_rate=take.frame_rate, added=_now())
+                              points=take.n_markers, frame_rate=take.frame_rate,
+                              frame_rate_given=take.frame_rate_given, added=_now())
             self.takes.append(entry)
             return entry
 
@@ -447,10 +463,11 @@ class Session:
         raise InputError(f"the raw file of take '{entry.name}' is missing: {entry.source} (relink it)")
 
     def relink_take(self, take_id: str, path: str | os.PathLike[str]) -> TakeEntry:
-        """Point a take at a moved raw file (must have the same frames and points)."""
+        """Point a take at a moved raw file (must have the same frames and points; read at the rate the user
+        gave for the take, if any)."""
         self._check_writable_session()
         source = Path(path).expanduser().absolute()
-        take = load_take(source)
+        take = load_take(source, frame_rate=self.take(take_id).given_frame_rate)
 
         def change() -> TakeEntry:
             entry = self.take(take_id)
@@ -481,10 +498,10 @@ class Session:
 
         self.update(change)
 
-    def open_take(self, take_id: str, loader: Callable[[Path], Take] = load_take,
+    def open_take(self, take_id: str, loader: Callable[[Path], Take] | None = None,
                   label_names: list[str] | None = None) -> OpenTake:
-        """Open a take for review: its raw file, its newest readable snapshot and the journal replayed on
-        top.
+        """Open a take for review: its raw file (read by ``loader``, by default :func:`load_take` at the rate
+        the user gave for the take, if any), its newest readable snapshot and the journal replayed on top.
 
         A take never reviewed starts as :meth:`ReviewTake.from_labelled_take` when its source is labelled
         (with an unsolved hand per entry hand when every marker of the entry's layout is a column), else
@@ -495,7 +512,8 @@ class Session:
         entry = self.take(take_id)
         if entry.id in self._open_takes and not self._open_takes[entry.id].closed:
             return self._open_takes[entry.id]
-        take = loader(self.source_path(entry.id))
+        source = self.source_path(entry.id)
+        take = loader(source) if loader is not None else load_take(source, frame_rate=entry.given_frame_rate)
         if (take.n_frames, take.n_markers) != (entry.frames, entry.points) and entry.frames:
             raise InputError(f"the raw file of take '{entry.name}' changed: {take.n_frames} frames and "
                              f"{take.n_markers} points now, {entry.frames} and {entry.points} when added")

@@ -53,7 +53,7 @@ def test_toml_and_json_round_trip(tmp_path):
         save_pipeline(pipeline, tmp_path / name)
         assert load_pipeline(tmp_path / name) == pipeline
     assert json.loads((tmp_path / "p.json").read_text())["max_gap"] == 33
-    assert pipeline_toml(pipeline).count("\n") == 12
+    assert pipeline_toml(pipeline).count("\n") == 13
 
 
 def test_key_follows_what_decides_the_results(tmp_path):
