@@ -2,9 +2,10 @@
 
 The take is a labelled file (our labelled C3D, or any labelled C3D/TSV/TRC/CSV), ``SESSION_FOLDER:TAKE``
 or ``SESSION_FOLDER --take TAKE`` (a take id or name of a session; the session is opened read-only and
-nothing in it changes). The joint-angle formats (BVH, glTF) use the take's solved hand; a hand that is
-not solved yet is solved here (layered IK on the subject's calibrated hand when the file or session
-holds one, else the template), in memory only.
+nothing in it changes). The joint-angle formats (BVH, glTF) use the take's solved hands (found from its
+marker names: :func:`core.model.detect_hands`); a hand that is not solved yet is solved here (layered IK on
+the subject's calibrated hand when the file or session holds one, else the template), in memory only. Two
+hands give one BVH file per hand (``OUT_right.bvh``, ``OUT_left.bvh``) and one glTF with both.
 """
 
 from __future__ import annotations
@@ -83,15 +84,28 @@ def command_export(args: argparse.Namespace) -> int:
                 model = session.load_subject_model(entry.subject)
                 models[model.side] = model
             where = f"take '{entry.name}' of session {folder}"
-        model = None
+        hand_models = {}
         if angles:
             _solve_missing_hands(review, models, marker_sets, args.quiet)
-            side = args.hand or (review.hands[0].side if review.hands else "right")
-            model = models.get(side) or load_template(side)
-        export_review(review, args.out, args.format, units=args.units, up=args.up, hand=args.hand,
-                      fills=not args.no_fills, model=model, subjects=subjects)
-    print(f"exported {where} ({review.n_frames} frames, {review.n_labels} labels) as {args.format} -> {args.out}")
+            hand_models = {hand.side: models.get(hand.side) or load_template(hand.side) for hand in review.hands}
+            if args.format == "bvh" and args.hand is None:
+                _check_hand_outputs(review, args.out, args.overwrite)
+        written = export_review(review, args.out, args.format, units=args.units, up=args.up, hand=args.hand,
+                                fills=not args.no_fills, models=hand_models, subjects=subjects)
+    print(f"exported {where} ({review.n_frames} frames, {review.n_labels} labels) as {args.format} -> "
+          f"{', '.join(str(path) for path in written)}")
     return 0
+
+
+def _check_hand_outputs(review, out: str, overwrite: bool) -> None:
+    """Check the per-hand BVH files (``OUT_right.bvh``...) of a take with two solved hands before writing."""
+    from app.cli.common import check_output
+    from core.review.export import per_hand_path
+
+    solved = [hand for hand in review.hands if np.isfinite(hand.joint_angles).all(axis=1).any()]
+    if len(solved) > 1:
+        for hand in solved:
+            check_output(per_hand_path(out, hand.side), overwrite)
 
 
 def register(commands, bench_commands, evaluate_commands) -> None:
@@ -109,7 +123,8 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     export.add_argument("--out", required=True, metavar="FILE")
     export.add_argument("--units", choices=["mm", "cm", "m"], help="trc and bvh lengths (default mm)")
     export.add_argument("--up", choices=["y", "z"], help="trc and bvh up axis (default z, the lab frame)")
-    export.add_argument("--hand", choices=["right", "left"], help="bvh and gltf: which hand (default the first)")
+    export.add_argument("--hand", choices=["right", "left"], help="bvh and gltf: that hand only (default: every "
+                        "hand: with two, FILE_right.bvh and FILE_left.bvh, or one glTF with both)")
     export.add_argument("--no-fills", action="store_true", help="c3d, trc, csv: leave filled samples out")
     export.add_argument("--quiet", action="store_true", help="no progress output")
     add_outputs(export, "out")

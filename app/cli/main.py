@@ -97,34 +97,51 @@ def command_simulate(args: argparse.Namespace) -> int:
 
 
 def command_solve(args: argparse.Namespace) -> int:
-    """``handmocap solve``: write the inverse kinematics of a labelled take (result, CSV); exit 2 on bad input."""
+    """``handmocap solve``: write the inverse kinematics of each hand of a labelled take (result, CSV; one file
+    per hand when there are two); exit 2 on bad input."""
     from core.io import load_take
     from core.io.labelled_c3d import subject_calibrations
-    from core.model import load_layout, load_template, resolve_layout
+    from core.model import detect_hands, hand_layout, load_template, marker_columns
     from core.prior import PosturePrior
+    from core.review.export import per_hand_path
     from core.workflows.labelling import subject_model
-    from core.workflows.resolve import check_layout_names, solve_labelled_take
+    from core.workflows.resolve import hand_marker_set, solve_labelled_take
 
     take = load_take(args.take, frame_rate=args.rate)
-    layout = load_layout(args.layout)
-    check_layout_names(take.marker_names, layout)
-    prior = PosturePrior.load(args.prior) if args.prior else None
     subjects = {subject.side: subject for subject in subject_calibrations(take.parameters, args.take)}
-    side = args.side or (next(iter(subjects)) if len(subjects) == 1 else "right")
-    if side in subjects and not args.template:
-        model, markers = subject_model(subjects[side], layout)
-        hand = f"the subject's {side} hand calibrated by auto-label"
-    else:
-        model = load_template(side)
-        markers = resolve_layout(model, layout)
-        hand = f"the {side} template hand"
-    result = solve_labelled_take(take, model, markers, prior, args.method,
-                                 progress=progress_printer() if not args.quiet else None)
-    result.save(args.out)
-    if args.csv:
-        result.save_csv(args.csv)
-    print(f"solved {take.n_frames} frames with {args.method} IK on {hand}: mean residual "
-          f"{result.mean_residual_mm:.2f} mm -> {args.out}")
+    hint = args.side or (next(iter(subjects)) if len(subjects) == 1 else None)
+    hands = detect_hands(take.marker_names, args.layout, hint, required=True)
+    if args.side:
+        chosen = [hand for hand in hands if hand.side == args.side] or [hand for hand in hands
+                                                                         if not hand.side_from_names]
+        if not chosen:
+            raise InputError(f"the take has no {args.side} hand (it has: {', '.join(h.side for h in hands)})")
+        hands = chosen[:1]
+    if len(hands) > 1:  # one file per hand: check them all before any work, as add_outputs does for --out
+        for output in [args.out, args.csv] if args.csv else [args.out]:
+            for hand in hands:
+                check_output(per_hand_path(output, hand.side), args.overwrite)
+    prior = PosturePrior.load(args.prior) if args.prior else None
+    progress = progress_printer() if not args.quiet else None
+    for number, hand in enumerate(hands):
+        subject = subjects.get(hand.side)
+        model, calibrated, what = load_template(hand.side), None, f"the {hand.side} template hand"
+        if subject is not None and not args.template:
+            full = hand_layout(hand.layout_name, hand.side)
+            if (marker_columns(list(subject.marker_names), full.names) >= 0).all():
+                model, calibrated = subject_model(subject, full)
+                what = f"the subject's {hand.side} hand calibrated by auto-label"
+        markers = hand_marker_set(hand, list(take.marker_names), model, calibrated)
+        part = None if progress is None else (
+            lambda fraction, number=number: progress((number + fraction) / len(hands)))
+        result = solve_labelled_take(take, model, markers, prior, args.method, progress=part)
+        out = Path(args.out) if len(hands) == 1 else per_hand_path(args.out, hand.side)
+        result.save(out)
+        if args.csv:
+            result.save_csv(args.csv if len(hands) == 1 else per_hand_path(args.csv, hand.side))
+        layout = Path(hand.layout_name).stem
+        print(f"solved {take.n_frames} frames of the {hand.side} hand ({len(hand.labels)} markers of layout "
+              f"'{layout}') with {args.method} IK on {what}: mean residual {result.mean_residual_mm:.2f} mm -> {out}")
     return 0
 
 
@@ -222,15 +239,18 @@ def build_parser() -> argparse.ArgumentParser:  # noqa: PLR0915 - a statement pe
     solve = commands.add_parser("solve", help="inverse kinematics of a labelled take")
     solve.add_argument("take")
     add_rate_argument(solve)
-    solve.add_argument("--layout", required=True, help="marker layout name or JSON file")
+    solve.add_argument("--layout", help="marker layout or lab template (name or JSON file) the take is labelled "
+                       "with (default: the one its marker names match)")
     solve.add_argument("--prior", help="posture prior .npz (default: the shipped prior)")
     solve.add_argument("--method", choices=["layered", "subspace", "full"], default="layered")
     solve.add_argument("--side", choices=["right", "left"],
-                       help="hand side (default: the side auto-label calibrated in the file, else right)")
+                       help="solve this hand only; the side of a hand whose names do not say it (default: every "
+                       "hand; the side auto-label calibrated in the file, else right)")
     solve.add_argument("--template", action="store_true",
                        help="solve with the template hand even when the file holds a subject calibration")
-    solve.add_argument("--out", required=True, metavar="RESULT.npz")
-    solve.add_argument("--csv", metavar="ANGLES.csv", help="also write the joint angles as CSV")
+    solve.add_argument("--out", required=True, metavar="RESULT.npz",
+                       help="the result; with two hands RESULT_right.npz and RESULT_left.npz")
+    solve.add_argument("--csv", metavar="ANGLES.csv", help="also write the joint angles as CSV (one per hand)")
     solve.add_argument("--quiet", action="store_true", help="no progress output")
     add_outputs(solve, "out", "csv")
     solve.set_defaults(handler=command_solve)

@@ -6,6 +6,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from core.errors import InputError
+from core.model.hand_columns import HandColumns, detect_hands, hand_layout, name_side, track_layout
 from core.model.hand_model import HandModel, mean_vertex_error, skin_vertices
 from core.model.markers import (
     MarkerLayout,
@@ -40,10 +41,10 @@ def load_template(side: str = "right") -> HandModel:
 
 
 __all__ = [
-    "HandModel", "MarkerLayout", "MarkerSet", "MarkerSpec", "N_PARAMS", "PARAM_NAMES", "TEMPLATE_PATH",
-    "add_layout_folder", "best_layout_for",
+    "HandColumns", "HandModel", "MarkerLayout", "MarkerSet", "MarkerSpec", "N_PARAMS", "PARAM_NAMES", "TEMPLATE_PATH",
+    "add_layout_folder", "best_layout_for", "detect_hands", "hand_layout",
     "default_joint_limits", "layout_names", "load_layout", "load_template", "marker_columns", "marker_jacobian",
-    "marker_positions", "marker_positions_batch", "mean_vertex_error", "remove_layout_folder", "resolve_layout",
-    "save_layout",
-    "skin_vertices",
+    "marker_positions", "marker_positions_batch", "mean_vertex_error", "name_side", "remove_layout_folder",
+    "resolve_layout", "save_layout",
+    "skin_vertices", "track_layout",
 ]

@@ -35,6 +35,7 @@ import os
 import re
 import stat
 import struct
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from typing import Any, TypeGuard
@@ -734,6 +735,42 @@ class _Binary:
         return len(self.accessors) - 1
 
 
+def _add_hand(document: dict[str, Any], binary: _Binary, model: HandModel, prefix: str) -> int:
+    """Append ``model``'s joint and tip nodes (names prefixed ``prefix``), its skinned mesh, mesh node and skin to
+    the glTF ``document``; returns the mesh node's index (the wrist node is the first one added)."""
+    first = len(document["nodes"])
+    skeleton = model.skeleton
+    world = _rest_world(skeleton)
+    parents = list(JOINT_PARENTS) + [3 + 3 * d for d in range(5)]
+    names = list(JOINT_NAMES) + [f"{d}_tip" for d in DIGITS]
+    for index in range(N_JOINTS + 5):
+        parent = parents[index]
+        local = world[index] if parent < 0 else np.linalg.inv(world[parent]) @ world[index]
+        children = [first + c for c in range(N_JOINTS + 5) if parents[c] == index]
+        node = {"name": prefix + names[index], "translation": [float(v) for v in local[:3, 3]],
+                "rotation": _quaternion(local[:3, :3])}
+        if children:
+            node["children"] = children
+        document["nodes"].append(node)
+    mesh_node = len(document["nodes"])
+    document["nodes"].append({"name": f"{model.side}_hand_mesh", "mesh": len(document["meshes"]),
+                              "skin": len(document["skins"])})
+    weights = model.skin_weights.astype(np.float32)
+    weights /= weights.sum(axis=1, keepdims=True)
+    joints = np.where(weights > 0, model.skin_joints, 0).astype(np.uint16)
+    attributes = {"POSITION": binary.add((model.vertices / 1000.0).astype(np.float32), 5126, "VEC3", 34962, True),
+                  "NORMAL": binary.add(model.vertex_normals.astype(np.float32), 5126, "VEC3", 34962),
+                  "JOINTS_0": binary.add(joints, 5123, "VEC4", 34962),
+                  "WEIGHTS_0": binary.add(weights, 5126, "VEC4", 34962)}
+    indices = binary.add(model.faces.astype(np.uint32).ravel(), 5125, "SCALAR", 34963)
+    inverse_bind = binary.add(np.linalg.inv(world).transpose(0, 2, 1).astype(np.float32), 5126, "MAT4")
+    document["meshes"].append({"name": model.name, "primitives": [{"attributes": attributes, "indices": indices,
+                                                                   "mode": 4}]})
+    document["skins"].append({"name": f"{model.side}_hand", "joints": list(range(first, first + N_JOINTS + 5)),
+                              "inverseBindMatrices": inverse_bind, "skeleton": first})
+    return mesh_node
+
+
 def save_gltf_hand(model: HandModel, path: str | os.PathLike[str], animation: HandAnimation | None = None) -> None:
     """Write ``model`` as glTF 2.0 (``.glb`` binary or ``.gltf`` with an embedded buffer), metres, atomically.
 
@@ -741,68 +778,62 @@ def save_gltf_hand(model: HandModel, path: str | os.PathLike[str], animation: Ha
     sampler per joint node (16; the tips follow their distal joint), linear, keyed at every frame in
     seconds; the motion is in metres and Y up (the lab frame turned by :data:`core.io.axes.Y_UP`).
     Skin slots of zero weight point at joint 0 (the validator's ACCESSOR_JOINTS_USED_ZERO_WEIGHT)."""
+    save_gltf_hands([(model, animation)], path)
+
+
+def save_gltf_hands(hands: Sequence[tuple[HandModel, HandAnimation | None]], path: str | os.PathLike[str]) -> None:
+    """Write one or two hands (``(model, animation or None)`` each, e.g. a right and a left one) into one glTF
+    2.0 file as :func:`save_gltf_hand` writes one: per hand a skeleton (joint nodes prefixed ``R_``/``L_`` when
+    there are two), a skinned mesh and its skin; the animations of all hands are the channels of one animation
+    "motion" (same frame times). ``extras.handmocap`` describes the first hand (so :func:`load_gltf_hand`
+    reads it back) and lists every hand's side under ``hands``."""
     path = Path(path)
     if path.suffix.lower() not in (".glb", ".gltf"):
         raise InputError(f"{path.name}: glTF export needs a .glb or .gltf file name")
-    if animation is not None:
-        angles = np.asarray(animation.joint_angles)
-        if angles.ndim != 2 or angles.shape[1] != 26 or not len(angles):
-            raise InputError(f"glTF animation needs joint angles (F, 26) with F > 0, got {angles.shape}")
-        if not (np.isfinite(animation.frame_rate) and animation.frame_rate > 0):
-            raise InputError(f"frame rate must be positive, got {animation.frame_rate}")
-    skeleton = model.skeleton
-    world = _rest_world(skeleton)
-    parents = list(JOINT_PARENTS) + [3 + 3 * d for d in range(5)]
-    names = list(JOINT_NAMES) + [f"{d}_tip" for d in DIGITS]
-    nodes: list[dict[str, Any]] = []
-    for index in range(N_JOINTS + 5):
-        parent = parents[index]
-        local = world[index] if parent < 0 else np.linalg.inv(world[parent]) @ world[index]
-        children = [c for c in range(N_JOINTS + 5) if parents[c] == index]
-        node = {"name": names[index], "translation": [float(v) for v in local[:3, 3]],
-                "rotation": _quaternion(local[:3, :3])}
-        if children:
-            node["children"] = children
-        nodes.append(node)
-    mesh_node = len(nodes)
-    nodes.append({"name": f"{model.side}_hand_mesh", "mesh": 0, "skin": 0})
-
-    weights = model.skin_weights.astype(np.float32)
-    weights /= weights.sum(axis=1, keepdims=True)
-    joints = np.where(weights > 0, model.skin_joints, 0).astype(np.uint16)
+    if not hands:
+        raise InputError("glTF export needs at least one hand")
+    for _, animation in hands:
+        if animation is not None:
+            angles = np.asarray(animation.joint_angles)
+            if angles.ndim != 2 or angles.shape[1] != 26 or not len(angles):
+                raise InputError(f"glTF animation needs joint angles (F, 26) with F > 0, got {angles.shape}")
+            if not (np.isfinite(animation.frame_rate) and animation.frame_rate > 0):
+                raise InputError(f"frame rate must be positive, got {animation.frame_rate}")
     binary = _Binary()
-    attributes = {"POSITION": binary.add((model.vertices / 1000.0).astype(np.float32), 5126, "VEC3", 34962, True),
-                  "NORMAL": binary.add(model.vertex_normals.astype(np.float32), 5126, "VEC3", 34962),
-                  "JOINTS_0": binary.add(joints, 5123, "VEC4", 34962),
-                  "WEIGHTS_0": binary.add(weights, 5126, "VEC4", 34962)}
-    indices = binary.add(model.faces.astype(np.uint32).ravel(), 5125, "SCALAR", 34963)
-    inverse_bind = binary.add(np.linalg.inv(world).transpose(0, 2, 1).astype(np.float32), 5126, "MAT4")
-    document: dict[str, Any] = {
-        "asset": {"version": "2.0", "generator": "Hand Mocap Studio"},
-        "scene": 0, "scenes": [{"name": "Scene", "nodes": [0, mesh_node]}],
-        "nodes": nodes,
-        "meshes": [{"name": model.name, "primitives": [{"attributes": attributes, "indices": indices, "mode": 4}]}],
-        "skins": [{"name": f"{model.side}_hand", "joints": list(range(N_JOINTS + 5)),
-                   "inverseBindMatrices": inverse_bind, "skeleton": 0}],
-    }
-    if animation is not None:
+    document: dict[str, Any] = {"asset": {"version": "2.0", "generator": "Hand Mocap Studio"}, "scene": 0,
+                                "nodes": [], "meshes": [], "skins": []}
+    roots: list[int] = []
+    samplers: list[dict] = []
+    channels: list[dict] = []
+    time_accessor: int | None = None
+    for model, animation in hands:
+        prefix = ("R_" if model.side == "right" else "L_") if len(hands) > 1 else ""
+        first = len(document["nodes"])
+        mesh_node = _add_hand(document, binary, model, prefix)
+        roots += [first, mesh_node]
+        if animation is None:
+            continue
         translation, rotations, times = _animation_locals(model, animation)
-        time_accessor = binary.add(times.astype(np.float32), 5126, "SCALAR", bounds=True)
-        samplers = [{"input": time_accessor, "output": binary.add(translation.astype(np.float32), 5126, "VEC3"),
-                     "interpolation": "LINEAR"}]
-        channels = [{"sampler": 0, "target": {"node": 0, "path": "translation"}}]
+        if time_accessor is None:
+            time_accessor = binary.add(times.astype(np.float32), 5126, "SCALAR", bounds=True)
+        samplers.append({"input": time_accessor, "output": binary.add(translation.astype(np.float32), 5126, "VEC3"),
+                         "interpolation": "LINEAR"})
+        channels.append({"sampler": len(samplers) - 1, "target": {"node": first, "path": "translation"}})
         for joint in range(N_JOINTS):
             samplers.append({"input": time_accessor, "output": binary.add(rotations[:, joint].astype(np.float32),
                                                                           5126, "VEC4"), "interpolation": "LINEAR"})
-            channels.append({"sampler": len(samplers) - 1, "target": {"node": joint, "path": "rotation"}})
+            channels.append({"sampler": len(samplers) - 1, "target": {"node": first + joint, "path": "rotation"}})
+    document["scenes"] = [{"name": "Scene", "nodes": roots}]
+    if channels:
         document["animations"] = [{"name": "motion", "samplers": samplers, "channels": channels}]
-    document.update({
-        "accessors": binary.accessors, "bufferViews": binary.views,
-        "buffers": [{"byteLength": len(binary.data)}],
-        "extras": {"handmocap": {"side": model.side, "landmarks": {k: int(v) for k, v in model.landmarks.items()},
-                                 "back_direction": [float(v) for v in model.back_direction],
-                                 "hand_length": float(model.hand_length), "name": model.name}},
-    })
+    model = hands[0][0]
+    extras: dict[str, Any] = {"side": model.side, "landmarks": {k: int(v) for k, v in model.landmarks.items()},
+                              "back_direction": [float(v) for v in model.back_direction],
+                              "hand_length": float(model.hand_length), "name": model.name}
+    if len(hands) > 1:
+        extras["hands"] = [hand.side for hand, _ in hands]
+    document.update({"accessors": binary.accessors, "bufferViews": binary.views,
+                     "buffers": [{"byteLength": len(binary.data)}], "extras": {"handmocap": extras}})
     data = bytes(binary.data) + b"\0" * ((-len(binary.data)) % 4)
     document["buffers"][0]["byteLength"] = len(data)
     if path.suffix.lower() == ".gltf":

@@ -48,6 +48,7 @@ from core.review.take import (
     Problem,
     ReviewSettings,
     ReviewTake,
+    detected_hands,
 )
 
 __all__ = [
@@ -56,6 +57,6 @@ __all__ = [
     "AcceptFills", "ApplyLabelling", "AssignLabel", "Change", "Command", "CompoundCommand", "DefineHand", "FrameSpan",
     "GapFill", "HandTrack", "LabellingArrays", "MarkGhost", "MarkerStats", "Problem", "RejectFills",
     "ReviewChanged", "ReviewSettings", "ReviewTake", "SetSolve", "SwapLabels", "UndoStack", "Unlabel",
-    "command_from_json", "export_bvh", "export_joint_angles_csv", "export_labelled_c3d", "resolve_track",
-    "review_from_labelled_c3d",
+    "command_from_json", "detected_hands", "export_bvh", "export_joint_angles_csv", "export_labelled_c3d",
+    "resolve_track", "review_from_labelled_c3d",
 ]

@@ -683,10 +683,23 @@ class ApplyLabelling(Command):
         return cls(arrays, hands=hands, description=str(params.get("description", "auto-label")))
 
 
+def replaced_hand(hands: list, name: str, labels: np.ndarray) -> int | None:
+    """Index of the hand :class:`DefineHand` replaces among ``hands``: the one named ``name``, else the one
+    holding exactly the label indices ``labels (K,)``; None when it adds one."""
+    for number, hand in enumerate(hands):
+        if hand.name == name:
+            return number
+    for number, hand in enumerate(hands):
+        if np.array_equal(hand.labels, labels):
+            return number
+    return None
+
+
 class DefineHand(Command):
-    """Add a solved-hand track (or replace the one of the same ``name``): ``side`` "right"/"left", its
-    ``labels`` by name in layout order, the ``layout`` name; its joint angles start unsolved (NaN) until
-    a :class:`SetSolve`. Used for takes that arrive labelled (no labelling result made the hands)."""
+    """Add a solved-hand track (or replace the one of the same ``name``, else the one of the same labels, e.g. a
+    hand whose names do not say its side, solved as the other side): ``side`` "right"/"left", its ``labels`` by
+    name in layout order, the ``layout`` name; its joint angles start unsolved (NaN) until a :class:`SetSolve`.
+    Used for takes that arrive labelled (no labelling result made the hands)."""
 
     kind = "define_hand"
     whole = True
@@ -710,11 +723,11 @@ class DefineHand(Command):
         from core.review.take import HandTrack
 
         track = HandTrack(self.name, self.side, self.layout, self._indices, np.full((review.n_frames, 26), np.nan))
-        names = [hand.name for hand in review.hands]
-        if self.name in names:
-            review.hands[names.index(self.name)] = track
-        else:
+        number = replaced_hand(review.hands, self.name, self._indices)
+        if number is None:
             review.hands.append(track)
+        else:
+            review.hands[number] = track
 
     def params(self, blobs: BlobStore | None = None) -> dict[str, Any]:
         return {"name": self.name, "side": self.side, "labels": self.labels, "layout": self.layout}

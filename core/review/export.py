@@ -9,7 +9,9 @@ of its unlabelled ``*n`` points.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from os import PathLike
+from pathlib import Path
 
 import numpy as np
 
@@ -26,12 +28,12 @@ from core.io.labelled_c3d import (
     write_labelled_c3d,
 )
 from core.io.trc import write_trc
-from core.model import HandModel, load_layout, marker_columns
+from core.model import HandModel
 from core.model.bvh import write_bvh
-from core.model.gltf import HandAnimation, save_gltf_hand
+from core.model.gltf import HandAnimation, save_gltf_hands
 from core.model.joint_angles import write_joint_angles_csv
 from core.model.provenance import MEASURED, MISSING
-from core.review.take import HandTrack, ReviewTake
+from core.review.take import HandTrack, ReviewTake, detected_hands
 
 UNLABELLED_CHOICES = ("all", "non-ghost", "none")
 HAND_PREFIXES = {"right": "R_", "left": "L_"}
@@ -62,13 +64,23 @@ EXPORT_FORMATS: dict[str, tuple[tuple[str, ...], bool, bool]] = {
     "bvh": ((".bvh",), True, True), "gltf": ((".glb", ".gltf"), False, True)}
 
 
+def per_hand_path(path: str | PathLike[str], side: str) -> Path:
+    """The file of the ``side`` hand when a take's two hands are written to one file each:
+    ``OUT.bvh`` -> ``OUT_right.bvh``, ``OUT_left.bvh``."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}_{side}{path.suffix}")
+
+
 def export_review(review: ReviewTake, path: str | PathLike[str], format_name: str, *, units: str | None = None,
                   up: str | None = None, hand: str | None = None, fills: bool = True, model: HandModel | None = None,
-                  subjects: list[SubjectCalibration] | None = None) -> None:
+                  subjects: list[SubjectCalibration] | None = None,
+                  models: Mapping[str, HandModel] | None = None) -> list[Path]:
     """Write ``review`` as ``format_name`` (:data:`EXPORT_FORMATS`): "c3d" labelled C3D (mm, Z up, with
     provenance and ``subjects``), "trc" (``units``, ``up``), "csv" labelled points (mm), "bvh" (``units``,
-    ``up``) and "gltf" (metres, Y up by the glTF specification) of the solved ``hand`` side (default: the
-    first hand) on ``model``. ``fills`` False leaves the fills out of the point formats. InputError (one
+    ``up``) and "gltf" (metres, Y up by the glTF specification) of the solved hands on their models
+    (``models`` per side, or ``model`` for its side). ``hand`` ("right"/"left") exports that hand only; without
+    it a take with two hands gives two BVH files (:func:`per_hand_path`) and one glTF with both hands.
+    ``fills`` False leaves the fills out of the point formats. Returns the files written. InputError (one
     line) on options the format does not take."""
     if format_name not in EXPORT_FORMATS:
         raise InputError(f"unknown export format '{format_name}' (use {', '.join(EXPORT_FORMATS)})")
@@ -91,19 +103,37 @@ def export_review(review: ReviewTake, path: str | PathLike[str], format_name: st
     elif format_name == "csv":
         export_points_csv(review, path, fills)
     else:
-        track = _hand_of_side(review, hand)
-        if model is None:
-            raise InputError(f"no hand model given for the {track.side} hand")
-        if format_name == "bvh":
-            export_bvh(review, path, model, track.name, units, up)
-        else:
-            export_gltf(review, path, model, track.name)
+        tracks = [_hand_of_side(review, hand)] if hand is not None else _hands_to_export(review)
+        hand_models = dict(models or {})
+        if model is not None:
+            hand_models.setdefault(model.side, model)
+        for track in tracks:
+            if track.side not in hand_models:
+                raise InputError(f"no hand model given for the {track.side} hand")
+        if format_name == "gltf":
+            export_gltf_hands(review, path, {track.name: hand_models[track.side] for track in tracks})
+            return [Path(path)]
+        written = []
+        for track in tracks:
+            target = Path(path) if len(tracks) == 1 else per_hand_path(path, track.side)
+            export_bvh(review, target, hand_models[track.side], track.name, units, up)
+            written.append(target)
+        return written
+    return [Path(path)]
+
+
+def _hands_to_export(review: ReviewTake) -> list[HandTrack]:
+    """The hands of ``review`` that are solved somewhere (the first hand when none is, so the export says so)."""
+    first = _hand_of_side(review, None)
+    solved = [track for track in review.hands if np.isfinite(track.joint_angles).all(axis=1).any()]
+    return solved or [first]
 
 
 def _hand_of_side(review: ReviewTake, side: str | None) -> HandTrack:
     """The first hand of ``side`` ("right", "left"; None: the first hand); InputError when there is none."""
     if not review.hands:
-        raise InputError("this take has no hand (label it with a layout first: handmocap label)")
+        raise InputError("this take has no hand: its marker names match no layout (label it with a layout first: "
+                         "handmocap label, or learn the lab's template: handmocap layout learn)")
     for track in review.hands:
         if side is None or track.side == side:
             return track
@@ -169,21 +199,24 @@ def review_from_labelled_c3d(path: str | PathLike[str]) -> ReviewTake:
 
 
 def labelled_hands(label_names: list[str], hands: list[str], frames: int) -> list[HandTrack]:
-    """Unsolved tracks of the ``"name:side:layout"`` ``hands`` of a labelled C3D whose layout's markers
-    (``R_``/``L_`` prefixed with two hands) are all among ``label_names``; the others are left out."""
-    tracks = []
-    for text in hands:
-        name, side, layout_name = (text.split(":") + ["", ""])[:3]
-        if side not in HAND_PREFIXES or not layout_name:
-            continue
+    """Unsolved tracks of the hands of a labelled C3D: its ``"name:side:layout"`` ``hands`` (the ``HANDS``
+    parameter this program writes) give the layout and the side of a hand whose names do not say it; without
+    them, or when their layout is unknown here, the hands the names show (:func:`detected_hands`)."""
+    parts = [(text.split(":") + ["", ""])[:3] for text in hands]
+    entries = [(name, side, layout) for name, side, layout in parts if side in HAND_PREFIXES]
+    names = {side: name or side for name, side, _ in entries}
+    hint = entries[0][1] if len(entries) == 1 else None
+    tracks: list[HandTrack] = []
+    layout_name = next((layout for _, _, layout in entries if layout), None)
+    if layout_name:
         try:
-            layout = load_layout(layout_name)
+            tracks = [track for track in detected_hands(label_names, frames, layout_name, hint) if track.side in names]
         except InputError:
-            continue
-        prefix = HAND_PREFIXES[side] if len(hands) > 1 else ""
-        columns = marker_columns(label_names, [prefix + marker for marker in layout.names])
-        if len(columns) and (columns >= 0).all():
-            tracks.append(HandTrack(name or side, side, layout_name, columns, np.full((frames, 26), np.nan)))
+            tracks = []
+    if not tracks:
+        tracks = detected_hands(label_names, frames, None, hint)
+    for track in tracks:
+        track.name = names.get(track.side, track.name)
     return tracks
 
 
@@ -229,12 +262,22 @@ def export_bvh(review: ReviewTake, path: str | PathLike[str], model: HandModel, 
 def export_gltf(review: ReviewTake, path: str | PathLike[str], model: HandModel, hand: int | str = 0) -> None:
     """One hand as a skinned glTF 2.0 (``.glb``/``.gltf``) on ``model`` with its joint angles as the
     animation (``core.model.gltf``: metres, Y up, times in seconds from the take's first frame)."""
-    track = _hand(review, hand)
-    if model.side != track.side:
-        raise InputError(f"the {track.name} hand is a {track.side} hand; the model is a {model.side} hand")
-    if not np.isfinite(track.joint_angles).all(axis=1).any():
-        raise InputError(f"the {track.name} hand is not solved in any frame; nothing to animate")
-    save_gltf_hand(model, path, HandAnimation(track.joint_angles, review.take.frame_rate))
+    export_gltf_hands(review, path, {hand: model})
+
+
+def export_gltf_hands(review: ReviewTake, path: str | PathLike[str], models: Mapping[int | str, HandModel]) -> None:
+    """Hands of ``review`` (``{hand name or index: its model}``) as one skinned glTF 2.0 file with their joint
+    angles as one animation (:func:`core.model.gltf.save_gltf_hands`). InputError when a hand is not solved in
+    any frame or its model is of the other side."""
+    hands = []
+    for hand, model in models.items():
+        track = _hand(review, hand)
+        if model.side != track.side:
+            raise InputError(f"the {track.name} hand is a {track.side} hand; the model is a {model.side} hand")
+        if not np.isfinite(track.joint_angles).all(axis=1).any():
+            raise InputError(f"the {track.name} hand is not solved in any frame; nothing to animate")
+        hands.append((model, HandAnimation(track.joint_angles, review.take.frame_rate)))
+    save_gltf_hands(hands, path)
 
 
 def export_trc(review: ReviewTake, path: str | PathLike[str], units: str = "mm", up: str = "z",

@@ -36,6 +36,7 @@ import numpy as np
 from core.errors import InputError
 from core.io import Take
 from core.labelling.health import WARNING_KINDS, HealthWarning
+from core.model.hand_columns import detect_hands
 from core.model.provenance import MEASURED, MISSING
 
 # Timeline lane states (``lane_states``), in increasing priority within a sample.
@@ -102,6 +103,15 @@ class HandTrack:
     def meta(self) -> dict[str, Any]:
         """JSON description (without the joint angles)."""
         return {"name": self.name, "side": self.side, "layout": self.layout, "labels": self.labels.tolist()}
+
+
+def detected_hands(label_names: list[str], n_frames: int, layout: str | None = None,
+                   side: str | None = None) -> list[HandTrack]:
+    """Unsolved tracks of the hands :func:`core.model.detect_hands` finds among ``label_names`` (with
+    ``layout`` given or recognised; ``side`` for a hand whose names do not say it): each track holds the labels
+    of the layout markers present, in layout order, and the layout's name."""
+    return [HandTrack(hand.side, hand.side, hand.layout_name, hand.labels, np.full((n_frames, 26), np.nan))
+            for hand in detect_hands(label_names, layout, side)]
 
 
 def copy_health(warnings: list) -> list[HealthWarning]:
@@ -256,9 +266,11 @@ class ReviewTake:
     def from_labelled_take(cls, take: Take, hands: list[HandTrack] | None = None,
                            provenance: np.ndarray | None = None) -> ReviewTake:
         """A review of an already-labelled take: the labels are the take's columns, each label takes its
-        own column where it is finite. With ``provenance (F, M)`` (e.g. from a labelled C3D), samples
-        coded as fills (> 0) become accepted fills and are removed from the review's raw take (a fill is
-        not a measurement)."""
+        own column where it is finite; ``hands`` None: the hands its names show (:func:`detected_hands`). With
+        ``provenance (F, M)`` (e.g. from a labelled C3D), samples coded as fills (> 0) become accepted fills
+        and are removed from the review's raw take (a fill is not a measurement)."""
+        if hands is None:
+            hands = detected_hands(list(take.marker_names), take.n_frames)
         present = np.isfinite(take.marker_positions).all(axis=2)
         filled = np.zeros_like(present)
         codes = np.zeros(present.shape, dtype=np.int8)

@@ -59,7 +59,7 @@ import numpy as np
 
 from core.errors import InputError
 from core.io import Take, load_take, looks_unlabelled
-from core.model import HandModel, MarkerLayout, best_layout_for, load_layout, marker_columns
+from core.model import HandModel, MarkerLayout, best_layout_for, detect_hands
 from core.model.lab_template import LabTemplate, save_lab_template
 from core.review.commands import Command, FrameSpan, UndoStack
 from core.review.take import HandTrack, ReviewTake
@@ -827,21 +827,20 @@ def _looks_labelled(take: Take) -> bool:
 
 
 def _layout_hands(take: Take, entry: TakeEntry, session: Session) -> list[HandTrack]:
-    """Hands of a labelled take at its first opening: for each of the entry's hands, a track when every
-    marker of the entry's layout is a column (``R_``/``L_`` prefixed with two hands); unsolved."""
-    if not entry.layout:
-        return []
+    """Hands of a labelled take at its first opening (unsolved): those :func:`core.model.detect_hands` finds
+    with the entry's layout when it has one (a session layout, a template, or a shipped one), else among the
+    session's layouts and the known ones; the entry's side for a hand whose names do not say it."""
+    hint = entry.hands[0] if len(entry.hands) == 1 else None
+    paths = {str(session.folder / item.path): item.name for item in session.layouts}
+    layout = (session.layout_path(entry.layout) or entry.layout) if entry.layout else None
     try:
-        layout = load_layout(session.layout_path(entry.layout) or entry.layout)
+        found = detect_hands(take.marker_names, layout, hint, candidates=list(paths))
     except InputError:
-        return []
-    hands = []
-    for side in entry.hands:
-        prefix = {"right": "R_", "left": "L_"}[side] if len(entry.hands) > 1 else ""
-        columns = marker_columns(take.marker_names, [prefix + name for name in layout.names])
-        if len(columns) and (columns >= 0).all():
-            hands.append(HandTrack(side, side, entry.layout, columns, np.full((take.n_frames, 26), np.nan)))
-    return hands
+        found = []
+    if not found and layout is not None:
+        found = detect_hands(take.marker_names, None, hint, candidates=list(paths))
+    return [HandTrack(hand.side, hand.side, paths.get(hand.layout_name, hand.layout_name), hand.labels,
+                      np.full((take.n_frames, 26), np.nan)) for hand in found]
 
 
 def _relative(path: Path, folder: Path) -> str | None:

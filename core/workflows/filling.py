@@ -3,8 +3,8 @@ previews of each method, "fill all short gaps" as one undoable command, and its 
 hidden at once in a labelled take.
 
 A *group* is a hand's labels in layout order (the model fill uses that hand's model, layout and solved
-joint angles), or the labels no hand owns (the model fill then applies only when their names match a
-shipped layout, e.g. an already-labelled take, and solves IK around each gap itself).
+joint angles), or the labels no hand owns (the model fill then applies only when their names are one hand's
+markers, :func:`core.model.detect_hands`, and solves IK around each gap itself).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from core.gaps import FILL_METHODS, FillCheck, Gap, ModelContext, check_gap, fil
 from core.gaps.check import fill_order
 from core.gaps.fills import fill_pattern
 from core.io import Take
-from core.model import HandModel, MarkerSet, best_layout_for, load_layout, load_template
+from core.model import HandModel, MarkerSet, detect_hands, load_template, track_layout
 from core.review import PROVENANCE_NAMES, AcceptFills, GapFill, ReviewTake
 from core.workflows.resolve import subject_markers
 
@@ -71,9 +71,12 @@ def gap_groups(review: ReviewTake, models: dict[str, HandModel] | None = None,
         if not len(labels):
             continue
         owned[labels] = True
-        layout = load_layout(hand.layout) if hand.layout else None
-        names = list(layout.names) if layout is not None and len(layout.names) == len(labels) else \
-            [review.label_names[label] for label in labels]
+        label_names = [review.label_names[label] for label in labels]
+        try:
+            layout = track_layout(hand.layout, hand.side, label_names) if hand.layout else None
+        except InputError:
+            layout = None   # labels that are not the layout's markers: no model fill for this hand
+        names = list(layout.names) if layout is not None else label_names
         take = _group_take(review, labels, names)
         model = models.get(hand.side) or load_template(hand.side)
         context = (ModelContext.for_take(names, model, layout,
@@ -84,14 +87,14 @@ def gap_groups(review: ReviewTake, models: dict[str, HandModel] | None = None,
     rest = np.flatnonzero(~owned)
     if len(rest):
         names = [review.label_names[label] for label in rest]
-        layout_name = best_layout_for(names)
-        side = next(iter(models)) if len(models) == 1 else "right"     # a lone subject hand's side
-        model = models.get(side) or load_template(side)
+        hint = next(iter(models)) if len(models) == 1 else None     # a lone subject hand's side
+        found = detect_hands(names, side=hint)
         context = None
-        if layout_name:
-            layout = load_layout(layout_name)
-            context = ModelContext.for_take(names, model, layout, subject_markers(model, layout,
-                                                                                   marker_sets.get(side)))
+        if len(found) == 1:   # labels no hand owns that still name one hand's markers (R_, a vendor's names...)
+            side, layout = found[0].side, found[0].present_layout
+            model = models.get(side) or load_template(side)
+            context = ModelContext(model, layout, subject_markers(model, layout, marker_sets.get(side)),
+                                   found[0].labels)
         groups.append(GapGroup(rest, _group_take(review, rest, names), context, None))
     return groups
 

@@ -3,14 +3,23 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from core.errors import InputError
 from core.ik import IKResult, IKSettings, solve_positions
 from core.io import Take
-from core.model import HandModel, MarkerLayout, MarkerSet, load_layout, load_template, marker_columns, resolve_layout
+from core.model import (
+    HandColumns,
+    HandModel,
+    MarkerLayout,
+    MarkerSet,
+    load_template,
+    marker_columns,
+    resolve_layout,
+    track_layout,
+)
 from core.prior import PosturePrior
 from core.review import FrameSpan, ReviewTake, SetSolve
 
@@ -26,25 +35,60 @@ def hand_models_for(review: ReviewTake, models: dict[str, HandModel] | None = No
                     marker_sets: dict[str, MarkerSet] | None = None) -> list[tuple[HandModel, MarkerSet] | None]:
     """The hand model (``models`` per side, else the template) and marker set of each hand of ``review``:
     ``marker_sets`` per side (the subject's calibrated markers, e.g. from auto-label) when it holds the
-    hand's layout markers, else the layout resolved on the model; None for a hand without a layout."""
+    hand's layout markers, else the layout resolved on the model; None for a hand without a layout (or whose
+    labels are not markers of its layout). The marker set holds the markers of the hand's labels, in order
+    (:func:`core.model.track_layout`: ``R_``/``L_``, a lab template's or a vendor's names)."""
     models, marker_sets = models or {}, marker_sets or {}
     result: list[tuple[HandModel, MarkerSet] | None] = []
     for hand in review.hands:
         if not hand.layout:
             result.append(None)
             continue
+        try:
+            layout = track_layout(hand.layout, hand.side, [review.label_names[label] for label in hand.labels])
+        except InputError:
+            result.append(None)
+            continue
         model = models.get(hand.side) or load_template(hand.side)
-        result.append((model, subject_markers(model, load_layout(hand.layout), marker_sets.get(hand.side))))
+        result.append((model, subject_markers(model, layout, marker_sets.get(hand.side))))
     return result
 
 
 def subject_markers(model: HandModel, layout: MarkerLayout, calibrated: MarkerSet | None) -> MarkerSet:
-    """``calibrated`` (a subject's marker set) when it holds ``layout``'s markers in order, else ``layout``
-    resolved on ``model``."""
-    wanted = [name.lower() for name in layout.names]
-    if calibrated is not None and [name.lower() for name in calibrated.names] == wanted:
-        return calibrated
+    """``calibrated`` (a subject's marker set) when it holds ``layout``'s markers (those of them, in the layout's
+    order), else ``layout`` resolved on ``model``."""
+    if calibrated is not None:
+        columns = marker_columns(calibrated.names, layout.names)
+        if (columns >= 0).all():
+            return calibrated if np.array_equal(columns, np.arange(len(calibrated.names))) else \
+                calibrated.subset(columns)
     return resolve_layout(model, layout)
+
+
+def hand_marker_set(hand: HandColumns, marker_names: list[str], model: HandModel,
+                    calibrated: MarkerSet | None = None) -> MarkerSet:
+    """The markers of ``hand`` (:func:`core.model.detect_hands`) that a take with columns ``marker_names`` has,
+    on ``model`` (the subject's ``calibrated`` ones when they hold them), named as the take's columns so that
+    :func:`solve_labelled_take` takes each from its column (``R_index_tip`` for the layout's ``index_tip``)."""
+    markers = subject_markers(model, hand.present_layout, calibrated)
+    return replace(markers, names=[marker_names[column] for column in hand.labels])
+
+
+def solve_hands(take: Take, hands: list[HandColumns], models: dict[str, HandModel] | None = None,
+                marker_sets: dict[str, MarkerSet] | None = None, prior: PosturePrior | None = None,
+                method: str = "layered", progress: Callable[[float], None] | None = None,
+                cancelled: Callable[[], bool] | None = None) -> list[IKResult]:
+    """IK of each of ``hands`` of a labelled ``take`` (one :class:`IKResult` per hand, its ``marker_names`` the
+    take's columns), on ``models`` per side (else the template) with the subject's calibrated ``marker_sets``."""
+    models, marker_sets = models or {}, marker_sets or {}
+    results = []
+    for number, hand in enumerate(hands):
+        model = models.get(hand.side) or load_template(hand.side)
+        markers = hand_marker_set(hand, list(take.marker_names), model, marker_sets.get(hand.side))
+        part = None if progress is None else (
+            lambda fraction, number=number: progress((number + fraction) / len(hands)))
+        results.append(solve_labelled_take(take, model, markers, prior, method, part, cancelled))
+    return results
 
 
 def check_layout_names(marker_names: list[str], layout: MarkerLayout) -> None:
