@@ -5,6 +5,7 @@ from __future__ import annotations
 from contextlib import suppress
 from dataclasses import dataclass, field
 from functools import cached_property
+from types import SimpleNamespace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -13,8 +14,17 @@ from core.errors import HandMocapError
 from core.ik import IKResult
 from core.io import Take, looks_unlabelled
 from core.io.labelled_c3d import SubjectCalibration
-from core.model import HandModel, MarkerSet, best_layout_for, load_layout, load_template, marker_columns
+from core.model import (
+    HandModel,
+    MarkerSet,
+    detect_hands,
+    hand_layout,
+    load_template,
+    marker_columns,
+    track_layout,
+)
 from core.review import Command, CompoundCommand, DefineHand, FrameSpan, ReviewTake, SetSolve, UndoStack
+from core.review.commands import replaced_hand
 from core.session import OpenTake
 from core.workflows.resolve import subject_markers
 
@@ -29,7 +39,10 @@ class TakeDocument:
     ``solve_request`` is the id of the solve whose result may still be applied (0: none pending); a
     result arriving with another id is stale and dropped. ``auto_solve``: solve it as soon as the
     solver is free (demo takes, ``--solve``). ``current_frame``: where the operator left it (0-based).
-    ``side``: the hand the next solve fits ("right" or "left"); the result knows its own.
+    ``side``: the hand the next solve fits ("right", "left", or "both" for a take with two hands); each result
+    knows its own. ``layout_name`` and ``side`` start as the review's hands or the hands the take's names show
+    (:func:`core.model.detect_hands`: ``R_``/``L_``, a lab template's or a vendor's names). ``results``: the
+    last solve's IK result per hand (``result`` is the first of them).
     ``hand_models`` / ``marker_sets``: the subject's hand per side and its calibrated markers (from
     auto-label), used by drawing, solves and re-solves instead of the template; ``subjects``: those
     calibrations relative to the template, written into exported labelled C3D files.
@@ -42,6 +55,7 @@ class TakeDocument:
     title: str
     layout_name: str | None = None
     result: IKResult | None = None
+    results: list[IKResult] = field(default_factory=list)
     solve_request: int = 0
     auto_solve: bool = False
     current_frame: int = 0
@@ -54,14 +68,21 @@ class TakeDocument:
     hand_models: dict[str, HandModel] = field(default_factory=dict)
     marker_sets: dict[str, MarkerSet] = field(default_factory=dict)
     subjects: dict[str, SubjectCalibration] = field(default_factory=dict)
-    _columns: np.ndarray | None = field(default=None, repr=False)
-    _marker_sets: dict[tuple[str, str, int, int], MarkerSet] = field(default_factory=dict, repr=False)
+    _columns: list[np.ndarray] = field(default_factory=list, repr=False)
+    _marker_sets: dict[tuple, MarkerSet | None] = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
-        if self.layout_name is None:
-            self.layout_name = best_layout_for(self.take.marker_names)
         if self.open_take is not None:
             self.review, self.stack = self.open_take.review, self.open_take.stack
+        hands = [(hand.side, hand.layout) for hand in self.review.hands] if self.review is not None else []
+        if not hands and not self.is_raw:
+            hands = [(hand.side, hand.layout_name) for hand in detect_hands(self.take.marker_names,
+                                                                             self.layout_name)]
+        if self.layout_name is None:
+            self.layout_name = next((layout for _, layout in hands if layout), None)
+        sides = {side for side, _ in hands}
+        if sides:
+            self.side = "both" if len(sides) > 1 else sides.pop()
 
     # ------------------------------------------------------------------------------------ review
     @property
@@ -102,24 +123,40 @@ class TakeDocument:
         """Whether a hand of the review is solved in some frame."""
         return self.review is not None and any(np.isfinite(hand.joint_angles).any() for hand in self.review.hands)
 
-    def record_solve(self, result: IKResult) -> None:
-        """Keep an IK solve in the review as one undoable (and, in a session, journalled) step, defining the
-        hand from the layout's labels first when the review has none; nothing when the review has no labels
-        or they do not cover the layout (the solve then stays on :attr:`result` only)."""
+    def record_solve(self, result: IKResult | list[IKResult]) -> None:
+        """Keep an IK solve (one result per hand) in the review as one undoable (and, in a session, journalled)
+        step, defining a hand from its result's labels first when the review has none of them; nothing when the
+        review has no labels or they do not cover the result's markers (the solve then stays on :attr:`results`
+        only)."""
+        results = result if isinstance(result, list) else [result]
         review = self.ensure_review()
-        if not review.n_labels:
+        if not review.n_labels or not results:
             return
-        names = [name.lower() for name in result.marker_names]
-        number = next((index for index, hand in enumerate(review.hands)
-                       if hand.side == result.hand_side and len(hand.labels) == len(names)
-                       and [review.label_names[label].lower() for label in hand.labels] == names), None)
+        hands = [SimpleNamespace(name=hand.name, labels=hand.labels) for hand in review.hands]  # as the steps go
         steps: list[Command] = []
-        if number is None:
-            steps.append(DefineHand(result.hand_side, result.hand_side, list(result.marker_names), self.layout_name))
-            number = len(review.hands)
-        steps.append(SetSolve(number, 0, result.joint_angles, result.residuals_mm))
+        for solved in results:
+            wanted = [name.lower() for name in solved.marker_names]
+            number = next((index for index, hand in enumerate(review.hands)
+                           if hand.side == solved.hand_side and len(hand.labels) == len(wanted)
+                           and [review.label_names[label].lower() for label in hand.labels] == wanted), None)
+            if number is None:
+                try:
+                    labels = np.array([review.label_index(name) for name in solved.marker_names], dtype=np.int64)
+                except HandMocapError:
+                    return
+                steps.append(DefineHand(solved.hand_side, solved.hand_side, list(solved.marker_names),
+                                        self.layout_name))
+                number = replaced_hand(hands, solved.hand_side, labels)  # where DefineHand puts it
+                if number is None:
+                    number = len(hands)
+                    hands.append(SimpleNamespace(name=solved.hand_side, labels=labels))
+                else:
+                    hands[number] = SimpleNamespace(name=solved.hand_side, labels=labels)
+            steps.append(SetSolve(number, 0, solved.joint_angles, solved.residuals_mm))
+        sides = " and ".join(solved.hand_side for solved in results)
+        text = f"{results[0].method} IK solve ({sides} hand{'s' if len(results) > 1 else ''})"
         with suppress(HandMocapError):
-            self.push(CompoundCommand(steps, f"{result.method} IK solve ({result.hand_side} hand)"))
+            self.push(CompoundCommand(steps, text))
 
     def model_for(self, side: str) -> HandModel:
         """The hand model of ``side``: the subject's (calibrated) model when known, else the template."""
@@ -127,17 +164,24 @@ class TakeDocument:
             self.hand_models[side] = load_template(side)
         return self.hand_models[side]
 
-    def marker_set_for(self, side: str, layout_name: str | None) -> MarkerSet | None:
-        """The markers of layout ``layout_name`` on :meth:`model_for` ``side``: the subject's calibrated
-        ones when :attr:`marker_sets` has them, else the layout resolved on the model (cached); None
-        without a layout."""
+    def marker_set_for(self, side: str, layout_name: str | None,
+                       label_names: list[str] | None = None) -> MarkerSet | None:
+        """The markers of layout ``layout_name`` (the ``side`` hand's markers of a template; those that
+        ``label_names`` name, in that order, when given: :func:`core.model.track_layout`) on :meth:`model_for`
+        ``side``: the subject's calibrated ones when :attr:`marker_sets` has them, else the layout resolved on
+        the model (cached); None without a layout or when the labels are not its markers."""
         if not layout_name:
             return None
         model = self.model_for(side)
         calibrated = self.marker_sets.get(side)
-        key = (side, layout_name, id(model), id(calibrated))
+        key = (side, layout_name, tuple(label_names or ()), id(model), id(calibrated))
         if key not in self._marker_sets:
-            self._marker_sets[key] = subject_markers(model, load_layout(layout_name), calibrated)
+            try:
+                layout = (track_layout(layout_name, side, label_names) if label_names is not None
+                          else hand_layout(layout_name, side))
+                self._marker_sets[key] = subject_markers(model, layout, calibrated)
+            except HandMocapError:
+                self._marker_sets[key] = None
         return self._marker_sets[key]
 
     @cached_property
@@ -151,35 +195,41 @@ class TakeDocument:
         return 1.0 - self.take.missing_fraction_per_marker
 
     def hand_columns(self) -> np.ndarray:
-        """Take columns of the chosen layout's markers (all columns when no layout matches)."""
+        """Take columns of the markers of the hands the chosen layout finds (all columns when it finds none)."""
         if self.layout_name is None:
             return np.arange(self.take.n_markers)
-        columns = self.columns_of(load_layout(self.layout_name).names)
-        return columns[columns >= 0] if (columns >= 0).any() else np.arange(self.take.n_markers)
+        try:
+            hands = detect_hands(self.take.marker_names, self.layout_name)
+        except HandMocapError:
+            hands = []
+        columns = np.concatenate([hand.labels for hand in hands]) if hands else np.zeros(0, dtype=np.int64)
+        return np.unique(columns) if len(columns) else np.arange(self.take.n_markers)
 
     def columns_of(self, names: list[str]) -> np.ndarray:
         """Take column of each marker name, -1 where the take lacks it ``(len(names),)``."""
         return marker_columns(self.take.marker_names, names)
 
-    def set_result(self, result: IKResult) -> None:
-        """Attach an IK result; its markers are matched to the take's columns by name."""
-        self._columns = self.columns_of(result.marker_names)
-        self.result = result
+    def set_result(self, result: IKResult | list[IKResult]) -> None:
+        """Attach an IK solve (one result per hand); their markers are matched to the take's columns by name."""
+        self.results = list(result) if isinstance(result, list) else [result]
+        self.result = self.results[0] if self.results else None
+        self._columns = [self.columns_of(solved.marker_names) for solved in self.results]
 
     def residuals_per_take_marker(self, frame: int) -> np.ndarray | None:
         """IK residual (mm) of each take marker at ``frame`` ``(M_take,)`` (NaN: none), or None."""
-        if self.result is None or self._columns is None:
+        if not self.results:
             return None
         residuals = np.full(self.take.n_markers, np.nan)
-        present = self._columns >= 0
-        residuals[self._columns[present]] = self.result.residuals_mm[frame, present]
+        for solved, columns in zip(self.results, self._columns, strict=True):
+            present = columns >= 0
+            residuals[columns[present]] = solved.residuals_mm[frame, present]
         return residuals
 
     def mean_residual_per_frame(self) -> np.ndarray | None:
         """Mean IK residual over the observed markers of each frame ``(F,)`` mm (NaN: none), or None."""
-        if self.result is None:
+        if not self.results:
             return None
-        residuals = self.result.residuals_mm
+        residuals = np.concatenate([solved.residuals_mm for solved in self.results], axis=1)
         observed = np.isfinite(residuals)
         counts = observed.sum(axis=1)
         sums = np.where(observed, residuals, 0.0).sum(axis=1)
@@ -194,10 +244,14 @@ class TakeDocument:
         return np.where(counts > 0, np.nansum(residuals, axis=1) / np.maximum(counts, 1), np.nan)
 
     def effector_targets(self, frame: int) -> tuple[np.ndarray, np.ndarray] | None:
-        """Effector positions ``(K,3)`` and the measured positions of their markers ``(K,3)`` mm."""
-        if self.result is None or self._columns is None:
+        """Effector positions ``(K,3)`` and the measured positions of their markers ``(K,3)`` mm (every hand)."""
+        if not self.results:
             return None
-        targets = np.full((len(self._columns), 3), np.nan)
-        present = self._columns >= 0
-        targets[present] = self.take.marker_positions[frame, self._columns[present]]
-        return self.result.effector_positions[frame], targets
+        effectors, targets = [], []
+        for solved, columns in zip(self.results, self._columns, strict=True):
+            measured = np.full((len(columns), 3), np.nan)
+            present = columns >= 0
+            measured[present] = self.take.marker_positions[frame, columns[present]]
+            effectors.append(solved.effector_positions[frame])
+            targets.append(measured)
+        return np.concatenate(effectors), np.concatenate(targets)

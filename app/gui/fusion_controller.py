@@ -168,6 +168,8 @@ class FusionController(QObject):
             return
         document, taken = self.document, self.cameras.camera
         side, layout_name, settings = document.side, document.layout_name, self.settings
+        if side not in ("right", "left"):  # "both": the fusion fits one hand, the first of the take
+            side = document.review.hands[0].side if document.review.hands else "right"
         take = document.review.labelled_take()
         model = document.model_for(side)
 

@@ -55,12 +55,12 @@ from app.gui.plots_controller import PlotsController
 from app.gui.review_controller import ReviewController
 from app.gui.session_controller import SessionController
 from app.gui.workers import TaskRunner, one_line
-from core.errors import CancelledError, HandMocapError
+from core.errors import CancelledError, HandMocapError, InputError
 from core.ik import METHODS, IKResult
 from core.io import READ_SUFFIXES, TAKE_FILE_FILTER, Take, load_take
-from core.model import layout_names, load_layout, skin_vertices
+from core.model import detect_hands, layout_names, skin_vertices
 from core.review.events import ReviewChanged
-from core.workflows.resolve import check_layout_names, solve_labelled_take
+from core.workflows.resolve import hand_marker_set, solve_labelled_take
 from widgets.elided_combo import ElidedComboBox
 from widgets.marker_panel import MarkerPanel
 from widgets.message_panel import MessagePanel, PanelLogHandler
@@ -68,7 +68,7 @@ from widgets.timeline import TimelineWidget
 from widgets.viewport import HandViewport
 from widgets.window_image import save_screenshot, window_image
 
-HAND_SIDES = ("right", "left")
+HAND_SIDES = ("right", "left", "both")
 APP_NAME = "Hand Mocap Studio"
 HAND_MARKER_COLOUR = (0.55, 0.80, 1.00)     # markers of the hand layout
 OTHER_MARKER_COLOUR = (0.62, 0.62, 0.66)    # arm, body and object markers
@@ -262,7 +262,8 @@ class MainWindow(QMainWindow):
         toolbar.addWidget(self.layout_box)
         self.side_box = QComboBox(self)
         self.side_box.addItems(list(HAND_SIDES))
-        self.side_box.setToolTip("Which hand the model fits: the left hand mirrors the right template")
+        self.side_box.setToolTip("Which hand the model fits (the left hand mirrors the right template); both: "
+                                 "each hand of a two-hand take (R_/L_, a lab template's or a vendor's names)")
         self.side_box.currentTextChanged.connect(self._side_chosen)
         toolbar.addWidget(QLabel(" Hand "))
         toolbar.addWidget(self.side_box)
@@ -517,6 +518,8 @@ class MainWindow(QMainWindow):
         self.take_box.blockSignals(False)
         if document.layout_name:
             self.layout_box.blockSignals(True)
+            if self.layout_box.findText(document.layout_name) < 0:   # a template file outside the layout folders
+                self.layout_box.addItem(document.layout_name)
             self.layout_box.setCurrentText(document.layout_name)
             self.layout_box.blockSignals(False)
         self.side_box.blockSignals(True)
@@ -629,37 +632,54 @@ class MainWindow(QMainWindow):
 
     # --------------------------------------------------------------------------------------- solve
     def solve(self, document: TakeDocument | None = None) -> None:
-        """Run IK of ``document`` (default: the current take) on the worker thread with the chosen
-        layout and method, on the review's labels when it has any (after auto-label) else on the take's
-        names, with the subject's hand and calibrated markers when auto-label made them; a solve running
-        for another take is cancelled (it is retried later when it was an automatic one)."""
+        """Run IK of ``document`` (default: the current take) on the worker thread with the chosen layout, hand
+        and method: each hand :func:`core.model.detect_hands` finds with that layout (both hands of a two-hand
+        take, or the chosen side), on the review's labels when it has any (after auto-label) else on the take's
+        names, with the subject's hand and calibrated markers when auto-label made them; a solve running for
+        another take is cancelled (it is retried later when it was an automatic one)."""
         document = document or self.document
         if document is None:
             return
         layout_name = (self.layout_box.currentText() if document is self.document
                        else document.layout_name or self.layout_box.currentText())
+        side = self.side_box.currentText() if document is self.document else document.side
         review = document.review
         take = review.labelled_take() if review is not None and review.n_labels else document.take
         try:
-            layout = load_layout(layout_name)
-            check_layout_names(take.marker_names, layout)
+            hands = detect_hands(take.marker_names, layout_name, side if side in ("right", "left") else None,
+                                 required=True)
+            if side in ("right", "left"):
+                hands = ([hand for hand in hands if hand.side == side]
+                         or [hand for hand in hands if not hand.side_from_names])[:1]
+                if not hands:
+                    raise InputError(f"the take has no {side} hand with layout '{layout_name}' (choose the hand "
+                                     "'both' or the other side)")
         except HandMocapError as error:
             self.show_error("Cannot solve", str(error))
             return
-        document.layout_name = layout.name
-        if document is self.document:
-            document.side = self.side_box.currentText()
-        model, method = document.model_for(document.side), self.method_box.currentText()
-        markers = document.marker_set_for(document.side, layout.name)
+        document.layout_name = layout_name
+        document.side = side
+        method = self.method_box.currentText()
+        models = {hand.side: document.model_for(hand.side) for hand in hands}
+        calibrated = {hand.side: document.marker_sets.get(hand.side) for hand in hands}
+        names = list(take.marker_names)
 
-        def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> IKResult:
-            result = solve_labelled_take(take, model, markers, method=method, progress=progress, cancelled=cancelled)
-            skin_vertices(model, result.joint_angles[0])     # compiles the skinning kernel off the GUI thread
-            return result
+        def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> list[IKResult]:
+            results = []
+            for number, hand in enumerate(hands):
+                model = models[hand.side]
+                markers = hand_marker_set(hand, names, model, calibrated[hand.side])
+                results.append(solve_labelled_take(
+                    take, model, markers, method=method, cancelled=cancelled,
+                    progress=lambda fraction, number=number: progress((number + fraction) / len(hands))))
+                skin_vertices(model, results[-1].joint_angles[0])  # compiles the skinning kernel off the GUI thread
+            return results
 
         document.solve_request = self.runner.start(task)
         self.app.job_started(SOLVE_JOB, Job("solve", document, self.cancel_solve))
-        self.statusBar().showMessage(f"Solving {document.title} with {method} IK ({layout.name})…")
+        which = " and ".join(hand.side for hand in hands)
+        self.statusBar().showMessage(f"Solving {document.title} with {method} IK ({Path(layout_name).stem}, "
+                                     f"{which} hand{'s' if len(hands) > 1 else ''})…")
         self._update_enabled()
 
     def cancel_work(self) -> None:
@@ -687,15 +707,16 @@ class MainWindow(QMainWindow):
         self.progress_bar.setValue(int(round(100 * fraction)))
         self.progress_bar.setToolTip(f"Solving {owner.title}")
 
-    def _solve_succeeded(self, request_id: int, result: IKResult) -> None:
+    def _solve_succeeded(self, request_id: int, results: list[IKResult]) -> None:
         document = self._owner(request_id)
         if document is None:
             return
         document.solve_request = 0
-        document.set_result(result)
-        document.record_solve(result)
-        self.statusBar().showMessage(f"{document.title}: {result.method} IK done, mean residual "
-                                     f"{result.mean_residual_mm:.2f} mm", 15000)
+        document.set_result(results)
+        document.record_solve(results)
+        residuals = ", ".join(f"{result.hand_side} {result.mean_residual_mm:.2f} mm" for result in results)
+        self.statusBar().showMessage(f"{document.title}: {results[0].method} IK done, mean residual "
+                                     f"{residuals}", 15000)
         if document is self.document:
             self._show_result_geometry()
             self.timeline.set_residuals(document.mean_residual_per_frame())

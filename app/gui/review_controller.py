@@ -475,7 +475,8 @@ class ReviewController(QObject):
                 continue
             model = document.model_for(hand.side)
             viewport.update_hand_vertices(skin_vertices(model, theta), number)
-            markers = document.marker_set_for(hand.side, hand.layout)
+            markers = document.marker_set_for(hand.side, hand.layout, [review.label_names[label]
+                                                                        for label in hand.labels])
             if markers is not None and len(markers.names) == len(hand.labels):
                 effectors.append(marker_positions(model, markers, theta))
                 targets.append(labelled[hand.labels])
