@@ -160,7 +160,7 @@ def session_sources(app: Application) -> list[tuple[str, TakeSource]]:
         except HandMocapError:
             continue                     # its file moved away: the browser says so
         sources.append((entry.id, TakeSource(f"{entry.name} (session)", path=path,
-                                             frame_rate=entry.frame_rate or None)))
+                                             frame_rate=entry.given_frame_rate)))
     return sources
 
 

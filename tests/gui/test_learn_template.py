@@ -141,6 +141,26 @@ def test_file_without_rate_asks_it_and_saves_to_a_file(qtbot, lab_take, tmp_path
     assert path == tmp_path / "lab.json" and load_lab_template(path).name == "from-file"
 
 
+def test_session_takes_are_offered_when_the_shown_take_has_no_labels(qtbot, window, lab_take, tmp_path,
+                                                                     monkeypatch) -> None:
+    csv = tmp_path / "lab_take.csv"
+    _write_nokov(lab_take, csv)
+    monkeypatch.setattr(QInputDialog, "getDouble", lambda *args: pytest.fail("the session knows the rate"))
+    assert window.sessions.create_session(tmp_path / "session")
+    try:
+        entry = window.sessions.session.add_take(csv, frame_rate=100.0)
+        assert entry.labelled_source
+        window.open_learn_template()
+        dialog = window._learn_template_dialog
+        assert [source.title for source in dialog.chosen_sources()] == ["lab_take (session)"]
+        _learn(qtbot, dialog, "from-session")
+        assert window.messages == [] and dialog.learned is not None
+        _check_lab_hands(dialog)
+        dialog.close()
+    finally:
+        window.sessions.close_session()
+
+
 def test_bad_input_is_one_line(qtbot, lab_take, messages) -> None:
     dialog = _dialog(qtbot, [])
     assert not dialog.learn() and messages == ["Tick at least one labelled take to learn from"]
