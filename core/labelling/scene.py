@@ -45,12 +45,13 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
 from pathlib import Path
 
 import numpy as np
 from numba import njit
+from scipy.sparse.csgraph import minimum_spanning_tree
 
 from core.errors import CancelledError, InputError
 from core.io import Take
@@ -58,6 +59,7 @@ from core.labelling.fragments import extend_trajectories, free_fragments
 from core.labelling.health import HealthWarning, assess_labelling
 from core.labelling.hypotheses import check_whole_take
 from core.labelling.initialise import (
+    LINK_MARGIN,
     Candidate,
     cluster_cut,
     gated_assignment,
@@ -947,6 +949,8 @@ def _scene(positions: np.ndarray, hands: str, layout: str | MarkerLayout | LabTe
     spec or clashing names."""
     template = _lab_template(layout)
     layouts = _side_layouts(layout, template)
+    if template is not None:
+        settings = replace(settings, cluster_cut_mm=max(settings.cluster_cut_mm, template_cluster_cut(template)))
     specs = _objects(objects)
     if template is not None:
         given_names = {spec.name for spec in specs}
@@ -964,6 +968,26 @@ def _scene(positions: np.ndarray, hands: str, layout: str | MarkerLayout | LabTe
     marker_sets = {side: resolve_layout(hand_models[side], layouts[side]) for side in sides}
     return _Scene(settings, {side: layouts[side] for side in sides}, sides, specs, hand_names, hand_models,
                   marker_sets, decision, template=template)
+
+
+REACH_SD = 2.0
+"""A template hand's markers reach each other up to their mean distance plus this many standard deviations."""
+
+
+def template_cluster_cut(template: LabTemplate) -> float:
+    """The single-linkage cut (mm) that keeps each of the template's hands one cluster in the postures it was
+    learned in: the largest gap of the hand's minimum spanning tree over the learned pair distances (mean +
+    :data:`REACH_SD` standard deviations) × the linking margin (a fretting hand's thumb behind the neck stands
+    farther from its fingers than the model's mean posture says)."""
+    cut = 0.0
+    for side in template.sides:
+        statistics = template.hands[side].statistics
+        reach = statistics.mean_mm + REACH_SD * statistics.sd_mm
+        if len(reach) < 2 or not np.isfinite(reach).all():
+            continue
+        tree = minimum_spanning_tree(np.maximum(reach, 1e-6) * (1 - np.eye(len(reach)))).toarray()
+        cut = max(cut, LINK_MARGIN * float(tree.max()))
+    return cut
 
 
 def _lab_template(layout: str | MarkerLayout | LabTemplate) -> LabTemplate | None:
@@ -1108,10 +1132,11 @@ def _decide_sides(positions: np.ndarray, layouts: dict[str, MarkerLayout], setti
     def make_track(side: str) -> HandTracker:
         return HandTracker(side, side, hand_models[side], marker_sets[side], settings)
 
-    cut = cluster_cut([make_track("right"), *(RigidTrack(spec, settings) for spec in specs)], settings)
+    objects = [RigidTrack(spec, settings) for spec in specs]
+    cut = cluster_cut([make_track("right"), *objects], settings)
     return decide_sides(positions, make_track, settings, cut,
                         lambda track, frame, labels, state: window_cost(track, positions, frame, labels, state,
-                                                                        settings))
+                                                                        settings), objects)
 
 
 class _WindowDone(Exception):

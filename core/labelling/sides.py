@@ -14,14 +14,14 @@ starts from it.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from core.errors import InputError
-from core.labelling.initialise import clusters_of, fit_hand
-from core.labelling.models import HandTracker, SceneSettings
+from core.labelling.initialise import clusters_of, find_spread_object, fit_hand
+from core.labelling.models import HandTracker, RigidTrack, SceneSettings
 
 Start = tuple[np.ndarray, np.ndarray]
 """Where a hand starts: point column per marker (K,) (-1 none) and θ (26,)."""
@@ -49,15 +49,18 @@ class SideDecision:
 
 
 def decide_sides(positions: np.ndarray, make_track: Callable[[str], HandTracker], settings: SceneSettings,
-                 cut_mm: float, cost: Callable[[HandTracker, int, np.ndarray, np.ndarray], float]) -> SideDecision:
+                 cut_mm: float, cost: Callable[[HandTracker, int, np.ndarray, np.ndarray], float],
+                 objects: Sequence[RigidTrack] = ()) -> SideDecision:
     """Decide the hands of ``positions (F,P,3)`` mm (module docstring). ``make_track(side)`` gives a fresh
-    track of that side; ``cost(track, frame, labels (K,) point columns, θ)`` the tracked cost of a start.
-    Raises :class:`InputError` when no frame holds a cluster either hand fits."""
+    track of that side; ``cost(track, frame, labels (K,) point columns, θ)`` the tracked cost of a start. The
+    points of the rigid ``objects`` found by their own geometry in a frame (a prop next to a hand) are set aside
+    before its clusters are fitted. Raises :class:`InputError` when no frame holds a cluster either hand fits."""
     present = np.isfinite(positions).all(axis=2)
     probes = {side: make_track(side) for side in ("right", "left")}
     least = max(3, int(np.ceil(settings.init_min_share * probes["right"].count)))
     for frame in range(0, len(positions), max(settings.retry_every, 1)):
         columns = np.flatnonzero(present[frame])
+        columns = columns[_not_objects(positions[frame, columns], objects, settings)]
         if len(columns) < least:
             continue
         points = positions[frame, columns]
@@ -95,3 +98,14 @@ def decide_sides(positions: np.ndarray, make_track: Callable[[str], HandTracker]
                             {side: start for side, start in chosen.items() if start is not None})
     raise InputError("no frame of the take initialises a hand: no cluster of points fits a left or right hand "
                      "with this layout (is the layout right, and is most of the hand visible in some frame?)")
+
+
+def _not_objects(points: np.ndarray, objects: Sequence[RigidTrack], settings: SceneSettings) -> np.ndarray:
+    """``(N,)`` True for the ``points (N,3)`` no rigid object takes when found by its own geometry."""
+    free = np.ones(len(points), dtype=bool)
+    for track in objects:
+        found = find_spread_object(track, points[free], settings)
+        if found is not None:
+            taken = np.flatnonzero(free)[found.point_index[found.point_index >= 0]]
+            free[taken] = False
+    return free

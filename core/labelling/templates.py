@@ -163,13 +163,57 @@ def place_hand(names: list[str], mean: np.ndarray, sd: np.ndarray, noise_mm: flo
     else:
         order = _digit_order(chains, mean)
     digits, segments = ["palm"] * count, [0] * count
-    for digit, chain in zip(order, chains, strict=True):
-        ordered = _proximal_to_distal(chain, palm, mean)
-        first_segment = 3 - len(ordered) + 1
-        for offset, index in enumerate(ordered):
+    for digit, ordered in zip(order, _ordered_chains(names, chains, palm, mean, sd), strict=True):
+        said_segments = [name_segment(names[index]) for index in ordered]
+        if None not in said_segments and len(set(said_segments)) == len(ordered):
+            chain_segments = [int(segment) for segment in said_segments if segment is not None]
+        else:
+            chain_segments = [max(1, 3 - len(ordered) + 1 + offset) for offset in range(len(ordered))]
+        for index, segment in zip(ordered, chain_segments, strict=True):
             digits[index] = digit
-            segments[index] = max(1, first_segment + offset)
+            segments[index] = segment
     return HandPlacement(digits, segments)
+
+
+#: words that name a segment of a digit in a marker name
+_SEGMENT_WORDS = {"tip": 3, "distal": 3, "nail": 3, "dip": 3, "middle": 2, "mid": 2, "pip": 2, "intermediate": 2,
+                  "proximal": 1, "prox": 1, "base": 1, "mcp": 1, "metacarpal": 1, "knuckle": 1}
+
+
+def name_segment(name: str) -> int | None:
+    """The segment a marker name says by a segment word after its digit word (``index_middle`` → 2,
+    ``thumb_tip`` → 3), or None."""
+    tokens = [token.lower() for token in _TOKENS.findall(name_side(name)[1])]
+    digit_at = next((number for number, token in enumerate(tokens) if token in _DIGIT_WORDS), -1)
+    return next((_SEGMENT_WORDS[token] for token in tokens[digit_at + 1:] if token in _SEGMENT_WORDS), None)
+
+
+def _ordered_chains(names: list[str], chains: list[list[int]], palm: list[int], mean: np.ndarray,
+                    sd: np.ndarray) -> list[list[int]]:
+    """Each digit chain from proximal to distal (:func:`_proximal_to_distal`). When every chain's names are
+    numbered (``B1 B2 B3``), the lab's numbering runs the same way on every digit: the way most chains'
+    geometry says (weighted by how clearly it says it) orders them all by number."""
+    ordered = [_proximal_to_distal(chain, palm, mean, sd) for chain in chains]
+    numbers = [[_number(names[index]) for index in chain] for chain in ordered]
+    if not ordered or any(None in chain_numbers or len(set(chain_numbers)) != len(chain_numbers)
+                          for chain_numbers in numbers if len(chain_numbers) > 1):
+        return ordered
+    vote = 0.0
+    for chain, chain_numbers in zip(ordered, numbers, strict=True):
+        if len(chain) < 2:
+            continue
+        first, last = chain[0], chain[-1]
+        spread_first, spread_last = float(np.nanmean(sd[first, palm])), float(np.nanmean(sd[last, palm]))
+        clarity = abs(spread_last - spread_first) / max(spread_last + spread_first, 1e-9)
+        rising = (chain_numbers[-1] or 0) > (chain_numbers[0] or 0)
+        vote += clarity * (1.0 if rising else -1.0)
+    descending = vote < 0  # the numbers fall towards the tip (1 on the nail)
+    return [sorted(chain, key=lambda index: _number(names[index]) or 0, reverse=descending) for chain in ordered]
+
+
+def _number(name: str) -> int | None:
+    match = _STEM.match(name_side(name)[1])
+    return int(match.group(2)) if match else None
 
 
 def _palm(names: list[str], mean: np.ndarray, sd: np.ndarray, noise_mm: float) -> list[int]:
@@ -199,16 +243,17 @@ def _palm(names: list[str], mean: np.ndarray, sd: np.ndarray, noise_mm: float) -
     return sorted(palm)
 
 
-def _proximal_to_distal(chain: list[int], palm: list[int], mean: np.ndarray) -> list[int]:
-    """A digit chain's markers from proximal to distal: the two markers farthest apart are its ends (a
-    flexed finger can bring its nail nearer the wrist than its middle), the one nearer the palm is proximal;
-    the others follow by their distance from it."""
+def _proximal_to_distal(chain: list[int], palm: list[int], mean: np.ndarray, sd: np.ndarray) -> list[int]:
+    """A digit chain's markers from proximal to distal. Its ends are the two markers farthest apart; the
+    proximal end is the one whose distances to the palm markers vary least over the take (more joints lie
+    between the palm and a distal marker; a flexed finger can bring its nail nearer the wrist than its middle,
+    so nearness does not tell); the others follow by their distance from it."""
     if len(chain) <= 1:
         return list(chain)
     block = mean[np.ix_(chain, chain)]
     first, last = np.unravel_index(np.nanargmax(block), block.shape)
     ends = [chain[int(first)], chain[int(last)]]
-    proximal = min(ends, key=lambda index: float(np.nanmean(mean[index, palm])))
+    proximal = min(ends, key=lambda index: float(np.nanmean(sd[index, palm])))
     return sorted(chain, key=lambda index: float(mean[proximal, index]) if index != proximal else -1.0)
 
 
