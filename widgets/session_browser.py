@@ -45,7 +45,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from core.io import READ_SUFFIXES, TAKE_FILE_FILTER
+from core.io import READ_SUFFIXES, TAKE_FILE_FILTER, recognised_format
 from core.session import TAKE_STATES
 from widgets.marker_lanes import css
 
@@ -93,9 +93,18 @@ class TakeRow:
                    str(getattr(entry, "source", "") or ""))
 
 
-def take_files(paths: list[str]) -> list[str]:
-    """The paths among ``paths`` with a take file suffix (case-insensitive)."""
-    return [path for path in paths if Path(path).suffix.lower() in TAKE_SUFFIXES]
+def take_files(paths: list[str], by_content: bool = False) -> list[str]:
+    """The paths among ``paths`` with a take file suffix (case-insensitive); ``by_content``: a .csv or .txt
+    file only when a take format recognises its first lines (notes and other tables are left out)."""
+    return [path for path in paths if Path(path).suffix.lower() in TAKE_SUFFIXES
+            and (not by_content or _recognised(path))]
+
+
+def _recognised(path: str) -> bool:
+    try:
+        return recognised_format(path) is not None
+    except OSError:
+        return False
 
 
 class StateBadgeDelegate(QStyledItemDelegate):
@@ -336,7 +345,7 @@ class SessionBrowser(QWidget):
 
     def dropEvent(self, event: QDropEvent) -> None:
         """Ask to add the dropped take files (other files are ignored)."""
-        paths = take_files([url.toLocalFile() for url in event.mimeData().urls()])
+        paths = take_files([url.toLocalFile() for url in event.mimeData().urls()], by_content=True)
         if paths:
             event.acceptProposedAction()
             self.add_requested.emit(paths)

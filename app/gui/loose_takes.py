@@ -11,6 +11,9 @@ renamed ``<key>.replaced-<time>``) instead of replaying edits made on other data
 
 When the data folder cannot be written the take is reviewed in memory only, and
 :attr:`LooseTake.warning` says that its edits will not survive.
+
+The frame rate the user gave for a file that states none is kept in its automatic session's manifest:
+:func:`remembered_frame_rate` gives it back when the same file is opened again, so it is asked once.
 """
 
 from __future__ import annotations
@@ -82,6 +85,21 @@ def loose_document(path: str | os.PathLike[str], take: Take, auto_solve: bool = 
     elif loose.opened.read_only:
         title += " (read-only)"
     return TakeDocument(take, title, auto_solve=auto_solve, open_take=loose.opened, loose=loose)
+
+
+def remembered_frame_rate(path: str | os.PathLike[str]) -> float | None:
+    """The rate (Hz) the user gave for the take file ``path`` when it was opened before (its automatic
+    session keeps it); None when none was given, or the file changed since."""
+    source = Path(path).expanduser().absolute()
+    folder = loose_folder(source)
+    try:
+        if json.loads((folder / SOURCE_NAME).read_text(encoding="utf-8")) != file_identity(source):
+            return None
+        entry = json.loads((folder / "session.json").read_text(encoding="utf-8"))["takes"][0]
+        rate = float(entry["frame_rate"])
+    except (OSError, ValueError, KeyError, IndexError, TypeError):
+        return None
+    return rate if entry.get("frame_rate_given") is True and rate > 0 else None
 
 
 def open_loose_take(path: str | os.PathLike[str], take: Take) -> LooseTake:

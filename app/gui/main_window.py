@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from PySide6.QtCore import Qt, Signal
+from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtGui import QAction, QCloseEvent, QDragEnterEvent, QDropEvent, QImage, QKeySequence
 from PySide6.QtWidgets import (
     QComboBox,
@@ -50,18 +50,19 @@ from app.gui.document import TakeDocument
 from app.gui.export_dialog import export_action
 from app.gui.fusion_controller import FusionController
 from app.gui.load_queue import LoadQueue
-from app.gui.loose_takes import loose_document
+from app.gui.loose_takes import loose_document, remembered_frame_rate
 from app.gui.plots_controller import PlotsController
 from app.gui.review_controller import ReviewController
 from app.gui.session_controller import SessionController
 from app.gui.workers import TaskRunner, one_line
 from core.errors import CancelledError, HandMocapError, InputError
 from core.ik import METHODS, IKResult
-from core.io import READ_SUFFIXES, TAKE_FILE_FILTER, Take, load_take
+from core.io import READ_SUFFIXES, TAKE_FILE_FILTER, FrameRateMissingError, Take, load_take
 from core.model import detect_hands, layout_names, skin_vertices
 from core.review.events import ReviewChanged
 from core.workflows.resolve import hand_marker_set, solve_labelled_take
 from widgets.elided_combo import ElidedComboBox
+from widgets.frame_rate_dialog import FrameRatePrompt
 from widgets.marker_panel import MarkerPanel
 from widgets.message_panel import MessagePanel, PanelLogHandler
 from widgets.timeline import TimelineWidget
@@ -81,17 +82,21 @@ TAKE_NAME_CHARACTERS = 28                  # the take choice's width; longer nam
 
 @dataclass
 class OpenedTakes:
-    """What an opening task produced: the new documents and one line per file that failed."""
+    """What an opening task produced: the new documents, one line per file that failed, the files that state
+    no frame rate (their rate is asked, then they are opened again) and whether to solve the takes."""
 
     documents: list[TakeDocument] = field(default_factory=list)
     errors: list[str] = field(default_factory=list)
+    rate_needed: list[Path] = field(default_factory=list)
+    solve: bool = False
 
 
-def _open_files_task(paths: list[Path], solve: bool) -> Callable:
-    """Worker task loading ``paths`` one after the other; a bad file is reported, not fatal."""
+def _open_files_task(paths: list[Path], solve: bool, rates: dict[Path, float] | None = None) -> Callable:
+    """Worker task loading ``paths`` one after the other (at ``rates[path]`` Hz when given, else at the rate the
+    file states or the user gave when it was last opened); a bad file is reported, not fatal."""
 
     def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> OpenedTakes:
-        opened = OpenedTakes()
+        opened = OpenedTakes(solve=solve)
         for index, path in enumerate(paths):
             if cancelled():
                 for document in opened.documents:     # release the takes opened in their automatic sessions
@@ -99,7 +104,15 @@ def _open_files_task(paths: list[Path], solve: bool) -> Callable:
                         document.open_take.close()
                 raise CancelledError("opening cancelled")
             try:
-                take = load_take(path)
+                try:
+                    take = load_take(path, frame_rate=(rates or {}).get(path))
+                except FrameRateMissingError:
+                    remembered = remembered_frame_rate(path)
+                    if remembered is None:
+                        opened.rate_needed.append(path)
+                        progress((index + 1) / len(paths))
+                        continue
+                    take = load_take(path, frame_rate=remembered)
                 opened.documents.append(loose_document(path, take, auto_solve=solve))
             except HandMocapError as error:
                 opened.errors.append(one_line(str(error)))
@@ -148,7 +161,8 @@ class MainWindow(QMainWindow):
         self._build_status_bar()
         self.loader.started.connect(self.opening_label.setText)
         self.review = ReviewController(self.app, self, self.viewport, self.timeline)
-        self.sessions = SessionController(self.app, self, self.loader)
+        self.rate_prompt = FrameRatePrompt(self)   # the rate of files that state none, asked once per file
+        self.sessions = SessionController(self.app, self, self.loader, self.rate_prompt)
         self.plots = PlotsController(self.app, self)
         self.cameras = CameraController(self.app, self, self.viewport)
         self.fusion = FusionController(self.app, self, self.cameras)
@@ -443,6 +457,21 @@ class MainWindow(QMainWindow):
         self._solve_next_pending()
         if opened.errors:
             self.show_error("Cannot open", "\n".join(opened.errors))
+        if opened.rate_needed:
+            QTimer.singleShot(0, lambda: self._open_at_asked_rates(opened.rate_needed, opened.solve))
+
+    def _open_at_asked_rates(self, paths: list[Path], solve: bool) -> None:
+        """Ask the frame rate of each file in ``paths`` (they state none), then open those given one."""
+        rates = {}
+        for path in paths:
+            rate = self.rate_prompt.ask(path)
+            if rate is None:
+                self.statusBar().showMessage(f"{path.name} not opened: it states no frame rate", 15000)
+            else:
+                rates[path] = rate
+        if rates:
+            title = next(iter(rates)).name if len(rates) == 1 else f"{len(rates)} takes"
+            self.loader.queue(f"Opening {title}…", _open_files_task(list(rates), solve, rates), self._apply_opened)
 
     def add_document(self, document: TakeDocument) -> None:
         """Add an open take to the take list and show it."""

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from PySide6.QtCore import QObject, QTimer, Signal
@@ -37,12 +37,13 @@ from app.gui.document import TakeDocument
 from app.gui.load_queue import LoadQueue
 from app.gui.review_controller import AutoLabelSettings
 from core.errors import HandMocapError
-from core.io import Take, load_take
+from core.io import FrameRateMissingError, Take, load_take
 from core.io.durable import write_atomic
 from core.io.labelled_c3d import SubjectCalibration
 from core.model import HandModel, MarkerSet
 from core.session import OpenTake, Session
 from core.session.storage import read_marker_set, write_marker_set
+from widgets.frame_rate_dialog import FrameRatePrompt
 from widgets.session_browser import SessionBrowser, TakeRow
 
 AUTOSAVE_MS = 15_000
@@ -54,10 +55,12 @@ SNAPSHOT_INTERVAL_S = 60.0
 
 @dataclass
 class LoadedTakes:
-    """Takes read on the loader thread for adding to the session: (path, take) pairs and failures."""
+    """Takes read on the loader thread for adding to the session: (path, take) pairs, failures and the files
+    that state no frame rate (their rate is asked, then they are read again)."""
 
     takes: list[tuple[Path, Take]]
     failures: list[str]
+    rate_needed: list[Path] = field(default_factory=list)
 
 
 class SessionController(QObject):
@@ -68,9 +71,11 @@ class SessionController(QObject):
     error_raised = Signal(str, str)                # title, message
     auto_label_requested = Signal(object, object)  # AutoLabelSettings, the document to label
 
-    def __init__(self, app: Application, host: QWidget, loads: LoadQueue) -> None:
+    def __init__(self, app: Application, host: QWidget, loads: LoadQueue,
+                 rate_prompt: FrameRatePrompt | None = None) -> None:
         super().__init__(host)
         self.app, self.host, self.loads = app, host, loads
+        self.rate_prompt = rate_prompt or FrameRatePrompt(host)   # asks the rate of takes that state none
         self.browser = SessionBrowser(host)
         self.browser.add_requested.connect(self.add_takes)
         self.browser.open_requested.connect(self.open_take)
@@ -188,8 +193,9 @@ class SessionController(QObject):
             BatchPanel(self.app, self.host).show()
 
     # ----------------------------------------------------------------------------------- takes
-    def add_takes(self, paths: list[str]) -> None:
-        """Read the take files on the loader thread, then add them to the session."""
+    def add_takes(self, paths: list[str], rates: dict[Path, float] | None = None) -> None:
+        """Read the take files on the loader thread (at ``rates[path]`` Hz when given), then add them to the
+        session; the rate of a file that states none is asked, and kept in the session."""
         if self.session is None:
             if not self.app.documents and not paths:
                 return
@@ -197,14 +203,16 @@ class SessionController(QObject):
             return
 
         def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> LoadedTakes:
-            loaded, failures = [], []
+            loaded, failures, rate_needed = [], [], []
             for number, path in enumerate(paths):
                 try:
-                    loaded.append((Path(path), load_take(path)))
+                    loaded.append((Path(path), load_take(path, frame_rate=(rates or {}).get(Path(path)))))
+                except FrameRateMissingError:
+                    rate_needed.append(Path(path))
                 except HandMocapError as error:
                     failures.append(f"{Path(path).name}: {error}")
                 progress((number + 1) / len(paths))
-            return LoadedTakes(loaded, failures)
+            return LoadedTakes(loaded, failures, rate_needed)
 
         self.loads.queue("Adding takes…", task, self._takes_loaded)
 
@@ -217,6 +225,20 @@ class SessionController(QObject):
                 failures.append(f"{path.name}: {error}")
         if failures:
             self.error_raised.emit("Some takes were not added", "\n".join(failures))
+        if loaded.rate_needed:
+            QTimer.singleShot(0, lambda: self._add_at_asked_rates(loaded.rate_needed))
+
+    def _add_at_asked_rates(self, paths: list[Path]) -> None:
+        """Ask the frame rate of each file in ``paths`` (they state none), then add those given one."""
+        rates = {}
+        for path in paths:
+            rate = self.rate_prompt.ask(path)
+            if rate is None:
+                self.status_message.emit(f"{path.name} not added: it states no frame rate", 15000)
+            else:
+                rates[path] = rate
+        if rates:
+            self.add_takes([str(path) for path in rates], rates)
 
     def open_take(self, take_id: str, automatic: bool = False) -> None:
         """Open a session take for review (switch to it when it is open already). ``automatic``: then
