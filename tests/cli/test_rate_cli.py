@@ -22,6 +22,7 @@ TAKE_COMMANDS = [
     ["camera", "overlay", "T", "video.mp4", "--camera", "c.json", "--out", "o.mp4"],
     ["fuse", "T", "--camera", "c.json", "--rgbd", "frames", "--out", "o.npz"],
     ["evaluate", "gaps", "T"],
+    ["evaluate", "label", "--take", "T"],
 ]
 
 
