@@ -51,7 +51,7 @@ def command_gui(args: argparse.Namespace) -> int:
     from app.gui.launch import run_gui
 
     return run_gui(args.files, screenshot=args.screenshot, frame=args.frame, solve=args.solve, demo=args.demo,
-                   size=args.size)
+                   size=args.size, frame_rate=args.rate)
 
 
 def command_info(args: argparse.Namespace) -> int:
@@ -207,7 +207,8 @@ def build_parser() -> argparse.ArgumentParser:  # noqa: PLR0915 - a statement pe
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")
 
     gui = commands.add_parser("gui", help="start the application (demo session when no file is given)")
-    gui.add_argument("files", nargs="*", help="takes to open (C3D, TSV, TRC, CSV)")
+    gui.add_argument("files", nargs="*", help="takes to open (C3D, TSV, TRC, CSV, TXT)")
+    add_rate_argument(gui)
     gui.add_argument("--screenshot", metavar="PNG", help="wait for the solves, save a screenshot and exit")
     gui.add_argument("--frame", type=int, help="0-based frame to show in the screenshot")
     gui.add_argument("--solve", action="store_true", help="solve the opened takes at once")

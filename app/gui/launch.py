@@ -36,9 +36,10 @@ def window_size(text: str) -> tuple[int, int]:
 
 
 def run_gui(files: list[str], screenshot: str | None = None, frame: int | None = None, solve: bool = False,
-            demo: bool = False, size: str | None = None) -> int:
+            demo: bool = False, size: str | None = None, frame_rate: float | None = None) -> int:
     """Open the main window on ``files`` (and the demo session when ``demo`` or when no file is given;
-    ``solve``: solve the files at once), ``size`` ``"WxH"`` pixels (default the window's own). With
+    ``solve``: solve the files at once; ``frame_rate``: their rate in Hz, asked for a file that states none
+    when not given), ``size`` ``"WxH"`` pixels (default the window's own). With
     ``screenshot``, wait until everything is opened and solved, go to ``frame`` (0-based; default a third
     into the take), save a PNG and quit. Returns the process exit code."""
     requested = window_size(size) if size else None
@@ -71,7 +72,7 @@ def run_gui(files: list[str], screenshot: str | None = None, frame: int | None =
     if sessions:                       # a session folder or its session.json (the file manager's "Open with")
         window.sessions.open_session(sessions[-1])
     if takes:
-        window.open_files(takes, solve=solve)
+        window.open_files(takes, solve=solve, frame_rate=frame_rate)
     if screenshot is None:
         code = app.exec()
         _release(window, app)

@@ -419,10 +419,12 @@ class MainWindow(QMainWindow):
         if paths:
             self.open_files(paths)
 
-    def open_files(self, paths: list[str | Path], solve: bool = False) -> None:
+    def open_files(self, paths: list[str | Path], solve: bool = False, frame_rate: float | None = None) -> None:
         """Open take files on the loader thread; each good one becomes a take in the take list (solved
         at once when ``solve``), reviewed in an automatic session of its own (:mod:`app.gui.loose_takes`),
-        each bad one a one-line message; what is open stays open (a file open already is shown)."""
+        each bad one a one-line message; what is open stays open (a file open already is shown).
+        ``frame_rate`` (Hz, ``handmocap gui --rate``) is every file's rate; without it, the rate of a file
+        that states none is asked."""
         files = []
         for path in map(Path, paths):
             document = self.app.document_of_file(path)
@@ -433,7 +435,8 @@ class MainWindow(QMainWindow):
         if not files:
             return
         title = files[0].name if len(files) == 1 else f"{len(files)} takes"
-        self.loader.queue(f"Opening {title}…", _open_files_task(files, solve), self._apply_opened)
+        rates = dict.fromkeys(files, frame_rate) if frame_rate is not None else None
+        self.loader.queue(f"Opening {title}…", _open_files_task(files, solve, rates), self._apply_opened)
 
     def open_demo(self) -> None:
         """Open the demo session (made on the loader thread the first time): the labelled takes are

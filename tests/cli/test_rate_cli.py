@@ -11,6 +11,7 @@ NOKOV = Path(__file__).resolve().parents[1] / "io" / "fixtures" / "nokov.csv"
 
 #: every command that reads a take, with its other required arguments
 TAKE_COMMANDS = [
+    ["gui", "T"],
     ["info", "T"],
     ["solve", "T", "--layout", "dense", "--out", "o.npz"],
     ["label", "T", "--layout", "dense", "--out", "o.c3d"],

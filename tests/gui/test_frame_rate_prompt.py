@@ -123,3 +123,11 @@ def test_add_takes_asks_the_rate_and_the_session_keeps_it(window, qtbot, nokov_f
     assert reopened.review.take.frame_rate == 240.0
     np.testing.assert_allclose(reopened.review.take.marker_positions, window.document.take.marker_positions)
     reopened.close(save=False)
+
+
+def test_a_rate_given_on_the_command_line_opens_without_asking(window, qtbot, nokov_file, answers):
+    _replies, asked = answers
+    window.open_files([nokov_file], frame_rate=90.0)          # handmocap gui FILE --rate 90
+    qtbot.waitUntil(lambda: window.document is not None, timeout=30_000)
+    wait_loader(window, qtbot)
+    assert asked == [] and window.document.take.frame_rate == 90.0
