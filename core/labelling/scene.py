@@ -956,7 +956,8 @@ def _scene(positions: np.ndarray, hands: str, layout: str | MarkerLayout | LabTe
         given_names = {spec.name for spec in specs}
         specs += [spec for spec in template.objects if spec.name not in given_names]
     given = dict(models or {})
-    decision = _decide_sides(positions, layouts, settings, given, specs) if hands == "auto" else None
+    expect_both = template is not None and len(template.sides) == 2
+    decision = _decide_sides(positions, layouts, settings, given, specs, expect_both) if hands == "auto" else None
     sides = decision.sides if decision is not None else _hand_sides(hands)
     hand_models = {side: given.get(side) or load_template(side) for side in sides}
     hand_names = {}
@@ -1123,7 +1124,7 @@ def _link_and_rescue(run: _Run, scene: _Scene, online: bool) -> None:
 
 
 def _decide_sides(positions: np.ndarray, layouts: dict[str, MarkerLayout], settings: SceneSettings,
-                  models: dict[str, HandModel], specs: list[ObjectSpec]) -> SideDecision:
+                  models: dict[str, HandModel], specs: list[ObjectSpec], expect_both: bool = False) -> SideDecision:
     """``hands="auto"``: which hands the take shows (:func:`core.labelling.sides.decide_sides`), each side
     tried with the layout it wears."""
     hand_models = {side: models.get(side) or load_template(side) for side in ("right", "left")}
@@ -1136,7 +1137,7 @@ def _decide_sides(positions: np.ndarray, layouts: dict[str, MarkerLayout], setti
     cut = cluster_cut([make_track("right"), *objects], settings)
     return decide_sides(positions, make_track, settings, cut,
                         lambda track, frame, labels, state: window_cost(track, positions, frame, labels, state,
-                                                                        settings), objects)
+                                                                        settings), objects, expect_both)
 
 
 class _WindowDone(Exception):

@@ -50,11 +50,14 @@ class SideDecision:
 
 def decide_sides(positions: np.ndarray, make_track: Callable[[str], HandTracker], settings: SceneSettings,
                  cut_mm: float, cost: Callable[[HandTracker, int, np.ndarray, np.ndarray], float],
-                 objects: Sequence[RigidTrack] = ()) -> SideDecision:
+                 objects: Sequence[RigidTrack] = (), expect_both: bool = False) -> SideDecision:
     """Decide the hands of ``positions (F,P,3)`` mm (module docstring). ``make_track(side)`` gives a fresh
     track of that side; ``cost(track, frame, labels (K,) point columns, θ)`` the tracked cost of a start. The
     points of the rigid ``objects`` found by their own geometry in a frame (a prop next to a hand) are set aside
-    before its clusters are fitted. Raises :class:`InputError` when no frame holds a cluster either hand fits."""
+    before its clusters are fitted. ``expect_both`` (a lab template with both hands): when the deciding frame
+    shows one hand, later frames are searched for a second (:func:`_second_hand_later`); the other side then
+    starts wherever the tracker first finds it. Raises :class:`InputError` when no frame holds a cluster either
+    hand fits."""
     present = np.isfinite(positions).all(axis=2)
     probes = {side: make_track(side) for side in ("right", "left")}
     least = max(3, int(np.ceil(settings.init_min_share * probes["right"].count)))
@@ -87,7 +90,12 @@ def decide_sides(positions: np.ndarray, make_track: Callable[[str], HandTracker]
             costs, starts = clusters[0]
             best = min(costs, key=lambda side: costs[side])
             other = "left" if best == "right" else "right"
-            return SideDecision([best], frame, {best: costs[other] - costs[best]}, {best: starts[best]})
+            margin = costs[other] - costs[best]
+            if expect_both and _second_hand_later(positions, present, frame, probes, objects, settings, cut_mm,
+                                                  least):
+                return SideDecision(sorted([best, other], key=("right", "left").index), frame, {best: margin},
+                                    {best: starts[best]})
+            return SideDecision([best], frame, {best: margin}, {best: starts[best]})
         (first, first_starts), (second, second_starts) = clusters[0], clusters[1]
         straight = first["right"] + second["left"]
         crossed = first["left"] + second["right"]
@@ -109,3 +117,28 @@ def _not_objects(points: np.ndarray, objects: Sequence[RigidTrack], settings: Sc
             taken = np.flatnonzero(free)[found.point_index[found.point_index >= 0]]
             free[taken] = False
     return free
+
+
+#: frames searched for a second hand after a deciding frame that showed one (spread over the rest of the take)
+SECOND_HAND_PROBES = 12
+
+
+def _second_hand_later(positions: np.ndarray, present: np.ndarray, frame: int, probes: dict[str, HandTracker],
+                       objects: Sequence[RigidTrack], settings: SceneSettings, cut_mm: float, least: int) -> bool:
+    """True when a frame after ``frame`` (:data:`SECOND_HAND_PROBES` of them, evenly spread) holds two clusters
+    that a hand model fits (either side): the take shows two hands, the second out of sight at first."""
+    later = np.unique(np.linspace(frame + 1, len(positions) - 1, SECOND_HAND_PROBES).astype(np.int64))
+    for probe_frame in later[later > frame]:
+        columns = np.flatnonzero(present[probe_frame])
+        columns = columns[_not_objects(positions[probe_frame, columns], objects, settings)]
+        points = positions[probe_frame, columns]
+        fitted = 0
+        for members in clusters_of(points, cut_mm):
+            if len(members) < least:
+                continue
+            if any(fit[3] <= settings.init_max_residual_mm and fit[2] >= least
+                   for probe in probes.values() for fit in fit_hand(probe, points[members], settings)):
+                fitted += 1
+        if fitted >= 2:
+            return True
+    return False
