@@ -1,9 +1,9 @@
 """File ▸ Export…: the review as C3D, TRC, CSV, BVH or glTF with the options of ``handmocap export``.
 
 One small dialog: the format, where the format takes them the units and up axis (TRC, BVH; glTF is always
-metres and Y up, C3D and CSV mm in the lab frame), the hand (BVH, glTF: only solved hands are offered),
-whether fills are included (C3D, TRC, CSV), and the file. The export itself is
-:func:`core.review.export.export_review`, the same as the command line's.
+metres and Y up, C3D and CSV mm in the lab frame), the hand (BVH, glTF: only solved hands are offered; "both"
+for a take with two: a BVH file per hand, one glTF with both), whether fills are included (C3D, TRC, CSV),
+and the file. The export itself is :func:`core.review.export.export_review`, the same as the command line's.
 """
 
 from __future__ import annotations
@@ -71,7 +71,10 @@ class ExportDialog(QDialog):
         self.up_box.addItem("Z (as recorded)", "z")
         self.up_box.addItem("Y", "y")
         self.hand_box = QComboBox()
-        for side in dict.fromkeys(hand.side for hand in solved):
+        self.sides = list(dict.fromkeys(hand.side for hand in solved))
+        if len(self.sides) > 1:   # as handmocap export without --hand: a BVH per hand, one glTF with both
+            self.hand_box.addItem("both (BVH: a file per hand)", None)
+        for side in self.sides:
             self.hand_box.addItem(side, side)
         self.fills_box = QCheckBox("Include accepted fills")
         self.fills_box.setChecked(True)
@@ -148,14 +151,16 @@ class ExportDialog(QDialog):
                 return False
         name, options = self.format_name, self.options()
         try:
-            model = None
+            models = {}
             if EXPORT_FORMATS[name][2]:
-                model = self.model_for(options["hand"] or self.review.hands[0].side)
-            export_review(self.review, path, name, model=model, subjects=self.subjects, **options)
+                models = {side: self.model_for(side) for side in ([options["hand"]] if options["hand"] else
+                                                                  self.sides or [self.review.hands[0].side])}
+            written = export_review(self.review, path, name, models=models, subjects=self.subjects, **options)
         except (HandMocapError, OSError) as error:
             QMessageBox.warning(self, "Cannot export", str(error))
             return False
-        self.exported.emit(name, path)
+        for target in written:
+            self.exported.emit(name, str(target))
         self.accept()
         return True
 

@@ -96,3 +96,24 @@ def test_the_gap_dock_fills_either_hand_with_the_model(window, qtbot, tmp_path):
     assert (review.provenance[gap.start:gap.start + gap.length, gap.marker] == FILL_CODES["model"]).all()
     qtbot.waitUntil(lambda: not controller.jobs.is_busy(), timeout=60_000)
     assert not window.messages, window.messages
+
+
+def test_the_export_dialog_writes_a_bvh_per_hand_and_one_gltf(qtbot, tmp_path):
+    from app.gui.export_dialog import ExportDialog
+    from core.model import load_template
+    from core.model.bvh import read_bvh
+    from core.review import ReviewTake
+
+    review = ReviewTake.from_labelled_take(named_take("label", frames=30))
+    for number, hand in enumerate(review.hands):
+        hand.joint_angles[:] = 0.0
+        hand.joint_angles[:, 0] = 100.0 * number
+    dialog = ExportDialog(None, review, load_template, None, str(tmp_path / "take"))
+    qtbot.addWidget(dialog)
+    assert dialog.hand_box.currentData() is None and dialog.hand_box.count() == 3
+    written: list[str] = []
+    dialog.exported.connect(lambda name, path: written.append(path))
+    dialog.format_box.setCurrentIndex(dialog.format_box.findData("bvh"))
+    assert dialog.export()
+    assert written == [str(tmp_path / "take_right.bvh"), str(tmp_path / "take_left.bvh")]
+    assert read_bvh(tmp_path / "take_left.bvh").joint_names[0] == "L_wrist"
