@@ -24,6 +24,7 @@ from __future__ import annotations
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -47,6 +48,43 @@ PLACEMENT_FRAMES = 300
 _STEM = re.compile(r"^(.*?)[-_ ]?(\d+)$")
 _PALM_WORDS = ("wrist", "wan", "hand", "back", "palm", "carp", "top", "radi", "ulna", "styl", "wr", "mc", "knuckle",
                "arm")
+
+
+_PAIRED = re.compile(r"^([LR])([A-Z0-9].*)$")
+
+
+def paired_sides(names: Sequence[str]) -> dict[int, str]:
+    """The side of the names that carry it as a bare leading ``L``/``R`` (Plug-in Gait's ``LASI``, ART's
+    ``Human4:LIFT``): only where the same name with the other letter is there too. {index: side}."""
+    stripped = [name_side(name)[1] if name_side(name)[0] is None else "" for name in names]
+    present = set(stripped)
+    sides = {}
+    for index, name in enumerate(stripped):
+        match = _PAIRED.match(name)
+        if match and ("R" if match.group(1) == "L" else "L") + match.group(2) in present:
+            sides[index] = "left" if match.group(1) == "L" else "right"
+    return sides
+
+
+#: markers of one hand lie within this many times the hand's typical nearest-neighbour distance of another
+HAND_LINK_RATIO = 4.0
+
+
+def hand_component(indices: list[int], mean: np.ndarray) -> tuple[list[int], list[int]]:
+    """Of a side's markers ``indices``, those of the hand and those set aside: the largest single-linkage
+    component of their mean distances (``mean (M,M)`` mm) cut at :data:`HAND_LINK_RATIO` × the median
+    nearest-neighbour distance (a body model's shoulder, arm and leg markers stand far from the hand's)."""
+    if len(indices) < MIN_HAND_MARKERS:
+        return indices, []
+    block = np.nan_to_num(mean[np.ix_(indices, indices)], nan=np.inf)
+    np.fill_diagonal(block, np.inf)
+    cut = HAND_LINK_RATIO * float(np.median(block.min(axis=1)))
+    from scipy.sparse.csgraph import connected_components
+
+    _, labels = connected_components(block <= cut, directed=False)
+    largest = np.bincount(labels).argmax()
+    keep = [index for index, label in zip(indices, labels, strict=True) if label == largest]
+    return keep, [index for index in indices if index not in keep]
 
 
 @dataclass
@@ -155,7 +193,9 @@ def place_hand(names: list[str], mean: np.ndarray, sd: np.ndarray, noise_mm: flo
         raise InputError(f"the hand of markers {', '.join(names)} has {count} markers; at least "
                          f"{MIN_HAND_MARKERS} are needed to place them on a hand")
     palm = _palm(names, mean, sd, noise_mm)
-    chains = _chains(names, [index for index in range(count) if index not in palm], mean, sd)
+    fingers = [index for index in range(count) if index not in palm]
+    chains = _chains(names, fingers, mean, sd, _palm_followers(fingers, palm, sd))
+    palm = sorted(set(palm) | (set(fingers) - {index for chain in chains for index in chain}))
     said = [{name_digit(names[index]) for index in chain} for chain in chains]
     named_order = [next(iter(digits)) for digits in said if len(digits) == 1]
     if len(named_order) == len(chains) and None not in named_order and len(set(named_order)) == len(chains):
@@ -257,6 +297,22 @@ def _proximal_to_distal(chain: list[int], palm: list[int], mean: np.ndarray, sd:
     return sorted(chain, key=lambda index: float(mean[proximal, index]) if index != proximal else -1.0)
 
 
+def _palm_followers(fingers: list[int], palm: list[int], sd: np.ndarray) -> list[int]:
+    """The ``fingers`` markers whose distances to some palm marker vary less than to any other non-palm marker:
+    they move with the palm (a marker on the middle of the hand)."""
+    followers = []
+    for index in fingers:
+        others = [other for other in fingers if other != index]
+        if others and np.nanmin(sd[index, palm]) < np.nanmin(sd[index, others]):
+            followers.append(index)
+    return followers
+
+
+def _prefix(name: str, cut: int) -> str:
+    """``name`` without its last ``cut`` characters (ART's ``IFM IFO IFT`` share ``I``… of the index finger)."""
+    return name[:-cut] if len(name) > cut else name
+
+
 def _stem(name: str) -> str:
     match = _STEM.match(name)
     return match.group(1) if match else name
@@ -280,10 +336,13 @@ def name_digit(name: str) -> str | None:
     return None
 
 
-def _chains(names: list[str], fingers: list[int], mean: np.ndarray, sd: np.ndarray) -> list[list[int]]:
+def _chains(names: list[str], fingers: list[int], mean: np.ndarray, sd: np.ndarray,
+            followers: Sequence[int] = ()) -> list[list[int]]:
     """The digit chains among the ``fingers`` markers: by the digit their names say (:func:`name_digit`) when
-    every one says one; by name stem when the stems split them into 2 to 5 groups of at most 4; else by
-    average-linkage clustering of the distance spreads into 5 (or fewer)."""
+    every one says one; by name stem (``B1 B2 B3``) or name prefix (ART's ``IFM IFO IFT``) when that splits them
+    into 2 to 5 groups of at most 4 (a marker alone under its name that moves with the palm, one of
+    ``followers``, is then no chain: ART's hand centre ``HAN``); else by average-linkage clustering of the
+    distance spreads into 5 (or fewer)."""
     said = [name_digit(names[index]) for index in fingers]
     if fingers and all(said):
         by_digit: dict[str, list[int]] = {}
@@ -291,11 +350,13 @@ def _chains(names: list[str], fingers: list[int], mean: np.ndarray, sd: np.ndarr
             by_digit.setdefault(str(digit), []).append(index)
         if all(len(group) <= 4 for group in by_digit.values()):
             return list(by_digit.values())
-    by_stem: dict[str, list[int]] = {}
-    for index in fingers:
-        by_stem.setdefault(_stem(name_side(names[index])[1]).lower(), []).append(index)
-    if 2 <= len(by_stem) <= 5 and all(len(group) <= 4 for group in by_stem.values()):
-        return list(by_stem.values())
+    for key in (_stem, *(partial(_prefix, cut=cut) for cut in (1, 2))):
+        by_key: dict[str, list[int]] = {}
+        for index in fingers:
+            by_key.setdefault(key(name_side(names[index])[1]).lower(), []).append(index)
+        groups = [group for group in by_key.values() if len(group) > 1 or group[0] not in followers]
+        if 2 <= len(groups) <= 5 and all(len(group) <= 4 for group in groups):
+            return groups
     from scipy.cluster.hierarchy import fcluster, linkage
     from scipy.spatial.distance import squareform
 
@@ -434,9 +495,14 @@ def learn_template(takes: Sequence[Take], name: str = "lab", progress: Callable[
     mean, sd = distance_statistics(pooled.positions)
     by_side: dict[str, list[int]] = {"right": [], "left": []}
     unsided: list[int] = []
+    paired = paired_sides(pooled.names)
     for index, marker in enumerate(pooled.names):
-        side, _ = name_side(marker)
+        side = name_side(marker)[0] or paired.get(index)
         (by_side[side] if side else unsided).append(index)
+    set_aside: list[int] = []
+    for side in by_side:
+        by_side[side], away = hand_component(by_side[side], mean)
+        set_aside += away
     groups = rigid_groups(unsided, mean, sd, noise_mm)
     grouped = {index for group in groups for index in group}
     rest = [index for index in unsided if index not in grouped]
@@ -460,8 +526,8 @@ def learn_template(takes: Sequence[Take], name: str = "lab", progress: Callable[
     template = LabTemplate(name=name, hands={side: learned.hand for side, learned in hands.items()},
                            objects=tuple(objects), description=f"learned from {len(takes)} labelled take(s)",
                            learned_from=tuple(source.rsplit("/", 1)[-1] for source in sources), noise_mm=noise_mm)
-    ignored = [pooled.names[index] for index in rest if not any(pooled.names[index] in learned.hand.names
-                                                                 for learned in hands.values())]
+    ignored = [pooled.names[index] for index in rest + set_aside
+               if not any(pooled.names[index] in learned.hand.names for learned in hands.values())]
     report = {"hands": {side: {"markers": len(learned.hand.names), "residual_mm": round(learned.residual_mm, 3),
                                "digits": {marker: f"{digit} {segment}" for marker, digit, segment in
                                           zip(learned.hand.names, learned.hand.digits, learned.hand.segments,
