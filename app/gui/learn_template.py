@@ -26,7 +26,6 @@ from PySide6.QtWidgets import (
     QGroupBox,
     QHBoxLayout,
     QHeaderView,
-    QInputDialog,
     QLabel,
     QLineEdit,
     QListWidget,
@@ -48,6 +47,7 @@ from core.labelling.templates import LearnedTemplate, learn_template
 from core.model.lab_template import LabTemplate, TemplateHand, layout_path, save_lab_template
 from core.model.markers import LAYOUT_DIR, MarkerSpec
 from core.model.skeleton import DIGITS
+from widgets.frame_rate_dialog import FrameRatePrompt
 
 LOAD_SHARE = 0.25                 # share of the progress bar for reading the take files
 NAME_PATTERN = re.compile(r"^[A-Za-z0-9](?:[A-Za-z0-9._-]*[A-Za-z0-9-])?$")   # a session keeps it as <name>.json
@@ -183,6 +183,7 @@ class LearnTemplateDialog(QDialog):
         self.save_to_session = save_to_session
         self.learned: LearnedTemplate | None = None
         self._learning: list[TakeSource] = []
+        self.rate_prompt = FrameRatePrompt(self)
         self.runner = TaskRunner(self)
         self.runner.progressed.connect(lambda _request, fraction: self.progress_bar.setValue(round(100 * fraction)))
         self.runner.succeeded.connect(self._succeeded)
@@ -341,10 +342,8 @@ class LearnTemplateDialog(QDialog):
 
     def _ask_rate(self, source: TakeSource) -> None:
         """A file stated no frame rate: ask for it and learn again (nothing learned when the operator declines)."""
-        rate, given = QInputDialog.getDouble(
-            self, "Frame rate", f"{source.path.name} states no frame rate.\nIts frame rate (Hz):", 120.0, 0.1,
-            100000.0, 3)
-        if not given:
+        rate = self.rate_prompt.ask(source.path)
+        if rate is None:
             self._ended(f"Nothing learned: {source.path.name} needs its frame rate")
             return
         source.frame_rate = rate

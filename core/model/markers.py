@@ -132,6 +132,7 @@ def remove_layout_folder(folder: str | Path) -> None:
 
 
 def layout_folders() -> list[Path]:
+    """Where layouts are looked for by name: the added folders, most recent first, then the shipped ones."""
     return [*_EXTRA_LAYOUT_DIRS, LAYOUT_DIR]
 
 

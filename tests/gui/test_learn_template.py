@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PySide6.QtCore import Qt
-from PySide6.QtWidgets import QInputDialog, QMessageBox
+from PySide6.QtWidgets import QMessageBox
 
 from app.gui.document import TakeDocument
 from app.gui.learn_template import LearnTemplateDialog, TakeSource, where_it_sits
@@ -21,6 +21,7 @@ from core.io import Take
 from core.model import MarkerLayout, layout_names, load_layout
 from core.model.lab_template import load_lab_template
 from core.simulate import simulate_scene
+from widgets.frame_rate_dialog import FrameRatePrompt
 
 FRAMES = 300            # shorter simulated takes sometimes get the digit order wrong (core)
 GUITAR = SHARED_DATA / "guitar" / "nokov_guitarist_arpeggio.csv"
@@ -125,11 +126,11 @@ def test_file_without_rate_asks_it_and_saves_to_a_file(qtbot, lab_take, tmp_path
     _write_nokov(lab_take, csv)
     asked: list[str] = []
 
-    def ask(parent, title, label, *rest):
-        asked.append(label)
-        return 100.0, True
+    def ask(prompt, path):
+        asked.append(f"{Path(path).name} states no frame rate")
+        return 100.0
 
-    monkeypatch.setattr(QInputDialog, "getDouble", ask)
+    monkeypatch.setattr(FrameRatePrompt, "ask", ask)
     dialog = _dialog(qtbot, [])
     dialog.add_files([csv])
     assert "a file you choose" in dialog.where_label.text()
@@ -145,7 +146,7 @@ def test_session_takes_are_offered_when_the_shown_take_has_no_labels(qtbot, wind
                                                                      monkeypatch) -> None:
     csv = tmp_path / "lab_take.csv"
     _write_nokov(lab_take, csv)
-    monkeypatch.setattr(QInputDialog, "getDouble", lambda *args: pytest.fail("the session knows the rate"))
+    monkeypatch.setattr(FrameRatePrompt, "ask", lambda *args: pytest.fail("the session knows the rate"))
     assert window.sessions.create_session(tmp_path / "session")
     try:
         entry = window.sessions.session.add_take(csv, frame_rate=100.0)

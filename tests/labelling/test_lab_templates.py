@@ -136,3 +136,21 @@ def test_cli_learn_label_and_evaluate_a_real_lab_take(shared_data, tmp_path, cap
     assert figures["groups"]["Marker"]["taken_as_hand_pct"] <= 0.1
     assert main(["layout", "learn", str(later), "--out", str(tmp_path / "x.json")]) == 2
     assert "rate" in capsys.readouterr().err
+
+
+def test_vendor_body_and_hands_take_learned_from_its_own_labels(shared_data):
+    """ART's hand C3D (a body model with fingers, ``Human4:LIFT`` …): learned on its first half, its second
+    half relabelled stripped and shuffled."""
+    from core.io import load_take
+
+    path = shared_data / "c3d" / "sample_37__ART-Human_hands_real_no6dof.c3d"
+    if not path.is_file():
+        pytest.skip("the ART hand C3D is absent")
+    figures = evaluate_take_labelling(load_take(path))
+    digits = figures["template"]["hands"]["right"]["digits"]
+    assert digits["Human4:RIFT"] == "index 3" and digits["Human4:RTTI"] == "thumb 3"
+    assert digits["Human4:RPMI"] == "little 1" and digits["Human4:RHAN"] == "palm 0"
+    assert "Human4:RFOO" in figures["template"]["ignored_markers"]
+    for side in ("right", "left"):
+        assert figures["groups"][side]["correct_pct"] >= 99.0
+        assert figures["groups"][side]["wrong_pct"] == 0.0
