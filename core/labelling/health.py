@@ -20,6 +20,10 @@ WARNING_KINDS = {
     "high_residual": "the fit is much worse here than over the rest of the take",
     "no_hand": "no hand was found in the take",
     "noisy_take": "the markers are noisier than a well-calibrated system gives",
+    "whole_take_doubt": "the lab template's distances cannot tell this hand's labelling from a whole-take "
+                        "alternative (fingers cycled, tip and middle exchanged, hands exchanged)",
+    "whole_take_identity": "the hand was relabelled for the whole take: the lab template's distances fit the "
+                           "alternative clearly better",
 }
 
 
