@@ -50,8 +50,8 @@ LANE_NAMES = ("none", "observed", "gap", "filled", "low confidence", "edited")
 
 PROBLEM_KINDS = ("low_confidence", "swap", "gap", "labelling")
 #: health warning kinds, most serious first (the status bar names the most serious one)
-HEALTH_SEVERITY = ("no_hand", "whole_take_doubt", "whole_take_identity", "side_uncertain", "low_labelled_share", "reinitialised", "many_ghosts", "high_residual",
-                   "noisy_take")
+HEALTH_SEVERITY = ("no_hand", "whole_take_doubt", "whole_take_identity", "side_uncertain", "low_labelled_share",
+                   "reinitialised", "many_ghosts", "high_residual", "noisy_take")
 
 #: per-frame arrays a command may change, captured for undo (name -> axis 0 is the frame)
 FRAME_ARRAYS = ("assignment", "provenance", "edited", "filled_positions", "confidence", "residuals_mm", "ghost")
