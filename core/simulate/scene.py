@@ -94,11 +94,13 @@ def _object_visibility(shape: tuple[int, int], rng: np.random.Generator) -> np.n
 
 def simulate_scene(layout: str | MarkerLayout = "dense", n_frames: int = 600, seed: int = 0,
                    hands: str = "both", n_objects: int = 2, noise_mm: float = 0.3, ghost_rate: float = 0.05,
-                   occlusion: bool = True, frame_rate: float = DEFAULT_FRAME_RATE) -> SimulatedScene:
+                   occlusion: bool = True, frame_rate: float = DEFAULT_FRAME_RATE,
+                   motion: str = "mixed") -> SimulatedScene:
     """A synthetic unlabelled scene take (module docstring), deterministic per ``seed``.
 
-    ``hands``: "right", "left" or "both"; ``n_objects``: 0-3 rigid objects; other arguments as
-    :func:`core.simulate.simulate_take`.
+    ``hands``: "right", "left" or "both"; ``n_objects``: 0-3 rigid objects; ``motion`` of the hands (e.g.
+    "heldout": grasp cycles through held-out grasps, fingers strongly flexed and pressed together); other
+    arguments as :func:`core.simulate.simulate_take`.
     """
     if hands not in ("right", "left", "both"):
         raise InputError(f"hands must be right, left or both, not '{hands}'")
@@ -114,7 +116,7 @@ def simulate_scene(layout: str | MarkerLayout = "dense", n_frames: int = 600, se
     for number, side in enumerate(sides):
         model = load_template(side)
         markers = resolve_layout(model, layout)
-        thetas = simulate_joint_angles(n_frames, seed + 1000 * number, "mixed", frame_rate)
+        thetas = simulate_joint_angles(n_frames, seed + 1000 * number, motion, frame_rate)
         if len(sides) > 1:
             thetas[:, 0] += SIDE_OFFSET_MM if side == "right" else -SIDE_OFFSET_MM
         hand_positions = marker_positions_batch(model, markers, thetas)
