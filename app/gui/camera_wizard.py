@@ -13,7 +13,6 @@ camera file chosen by the operator; both are durable writes.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -56,6 +55,8 @@ from core.camera.overlay import markers_at
 from core.camera.registration import TakeRegistration, register_take
 from core.camera.sync import SyncResult, sync_markers
 from core.errors import CancelledError, HandMocapError, InputError
+from core.io.documents import read_document
+from core.io.input_schemas import BOARD_MARKERS
 
 if TYPE_CHECKING:
     from app.gui.camera_controller import CameraController
@@ -140,13 +141,8 @@ def read_board_markers(path: str | Path, names: list[str]) -> tuple[np.ndarray, 
     """The marked board's file ``{"markers": {"<take marker name>": [x, y, z], ...}}`` (board frame, mm):
     ``(columns (B,) of those markers in the take's ``names``, points (B,3) mm)``; InputError (one line)."""
     path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-        markers = data["markers"]
-        points = np.array([[float(value) for value in markers[name]] for name in markers], dtype=float)
-    except (OSError, UnicodeDecodeError, RecursionError, KeyError, TypeError, ValueError) as error:
-        raise InputError(f"{path.name}: not a board marker file {{\"markers\": {{name: [x, y, z] mm}}}} "
-                         f"({type(error).__name__}: {error})") from None
+    markers = read_document(path, "board marker file", BOARD_MARKERS)["markers"]
+    points = np.array([markers[name] for name in markers], dtype=float)
     missing = [name for name in markers if name not in names]
     if missing:
         raise InputError(f"{path.name}: the take has no marker {', '.join(missing[:5])}")

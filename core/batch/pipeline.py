@@ -26,13 +26,14 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import tomllib
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any
 
 from core.errors import InputError
 from core.gaps import FILL_METHODS
+from core.io.documents import read_document
+from core.io.input_schemas import PIPELINE
 
 STEPS = ("label", "calibrate", "fill", "solve", "export")
 HANDS = ("auto", "right", "left", "both")
@@ -91,7 +92,7 @@ def pipeline_from_dict(data: dict[str, Any], source: str = "pipeline", base: Pat
         raise InputError(f"{source}: a pipeline is a table of settings")
     unknown = sorted(set(data) - set(_KINDS))
     if unknown:
-        raise InputError(f"{source}: unknown setting '{unknown[0]}' (known: {', '.join(_KINDS)})")
+        raise InputError(f"{source}: unknown setting {_quoted(unknown[0])} (known: {', '.join(_KINDS)})")
     if type(data.get("rate")) is int:      # TOML and JSON write 120 for 120.0
         data = data | {"rate": float(data["rate"])}
     for name, value in data.items():
@@ -136,21 +137,19 @@ def _choices(value: list, allowed: tuple[str, ...], name: str, source: str) -> l
 
 def _one_of(value: Any, allowed: tuple[str, ...], name: str, source: str) -> None:
     if value not in allowed:
-        raise InputError(f"{source}: setting '{name}' has '{value}'; use {', '.join(allowed)}")
+        raise InputError(f"{source}: setting '{name}' has {_quoted(value)}; use {', '.join(allowed)}")
+
+
+def _quoted(value: Any) -> str:
+    """``value`` quoted on one line, cut to 40 characters (a setting may hold anything)."""
+    text = f"'{value}'" if isinstance(value, str) and value.isprintable() else repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def load_pipeline(path: str | Path) -> Pipeline:
     """Read a pipeline file (``.toml``, else JSON). InputError (one line) when missing or malformed."""
     path = Path(path).expanduser().absolute()
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as error:
-        raise InputError(f"cannot read the pipeline {path} ({getattr(error, 'strerror', None) or error})") from None
-    try:
-        data = tomllib.loads(text) if path.suffix.lower() == ".toml" else json.loads(text)
-    except (tomllib.TOMLDecodeError, ValueError) as error:
-        raise InputError(f"{path}: not a valid {'TOML' if path.suffix.lower() == '.toml' else 'JSON'} pipeline "
-                         f"({str(error).splitlines()[0]})") from None
+    data = read_document(path, "pipeline", PIPELINE, source=str(path))
     return pipeline_from_dict(data, str(path), path.parent)
 
 

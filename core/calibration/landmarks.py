@@ -12,7 +12,9 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
+from core.io.documents import read_document
 from core.io.durable import write_text_atomic
+from core.io.input_schemas import LANDMARKS
 from core.model.template_mesh import LANDMARK_NAMES
 
 MIN_LANDMARKS = 6
@@ -46,12 +48,7 @@ def validate_landmarks(landmarks: dict[str, np.ndarray | None], source: str = "l
 def load_landmarks(path: str | Path) -> dict[str, np.ndarray | None]:
     """Read a landmark JSON file: every name of ``LANDMARK_NAMES`` -> position (3,) in mm or None."""
     path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"landmark file not found: {path}") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as error:
-        raise InputError(f"{path.name}: not valid JSON ({error})") from None
+    data = read_document(path, "landmark file", LANDMARKS)
     if not isinstance(data, dict) or not isinstance(data.get("landmarks"), dict):
         raise InputError(f"{path.name}: expected an object with a 'landmarks' object")
     units = data.get("units", "mm")

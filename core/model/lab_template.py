@@ -37,8 +37,10 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
+from core.io.documents import read_document
 from core.io.durable import write_text_atomic
-from core.model.markers import MarkerLayout, layout_folders, load_layout
+from core.io.input_schemas import LAYOUT
+from core.model.markers import MAX_LAYOUT_BYTES, MarkerLayout, layout_folders, load_layout
 from core.model.objects import ObjectSpec, check_unique_names, object_from_json
 
 TEMPLATE_VERSION = 1
@@ -206,10 +208,7 @@ def load_lab_template(name_or_path: str | Path) -> LabTemplate | None:
     if path is None:
         load_layout(name_or_path)  # says which layouts there are
         return None
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise InputError(f"{path.name}: cannot read the layout ({error})") from error
+    data = read_document(path, "marker layout", LAYOUT, max_bytes=MAX_LAYOUT_BYTES)
     return LabTemplate.from_json(data, path.name) if is_template_data(data) else None
 
 

@@ -22,12 +22,16 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
+from core.io.documents import read_document
 from core.io.durable import write_text_atomic
+from core.io.input_schemas import LAYOUT
 from core.model.hand_model import HandModel
 from core.model.kinematics import ANCESTOR, points_and_jacobian_kernel, skinned_points_kernel
 from core.model.skeleton import DIGITS, JOINT_NAMES
 
 LAYOUT_DIR = Path(__file__).resolve().parents[2] / "resources" / "layouts"
+#: largest layout or lab template file (bytes; a two-hand template with its statistics is about 100 kB)
+MAX_LAYOUT_BYTES = 16_000_000
 
 #: direction names in a joint's rest frame (x = radial-pointing flexion axis, y = bone, z = palmar)
 SIDE_DIRECTIONS = {
@@ -165,10 +169,7 @@ def load_layout(name_or_path: str | Path) -> MarkerLayout:
                      if (folder / f"{name_or_path}.json").exists()), LAYOUT_DIR / f"{name_or_path}.json")
         if not path.exists():
             raise InputError(f"unknown layout '{name_or_path}' (available: {', '.join(layout_names())})")
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise InputError(f"{path.name}: cannot read the layout ({error})") from error
+    data = read_document(path, "marker layout", LAYOUT, max_bytes=MAX_LAYOUT_BYTES)
     return MarkerLayout.from_json(data, source=path.name)
 
 

@@ -33,7 +33,9 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
+from core.io.documents import read_document
 from core.io.durable import write_text_atomic
+from core.io.input_schemas import SCENE_SPEC
 
 OBJECT_TYPES = ("box", "sphere", "cylinder", "rigid")
 #: largest distance (mm) of a primitive's marker centre from its surface (marker radius + base + slack)
@@ -189,13 +191,7 @@ def check_unique_names(objects: list[ObjectSpec], source: str = "scene", reserve
 def load_scene_spec(path: str | Path) -> list[ObjectSpec]:
     """Read a scene spec JSON file (module docstring) into its objects."""
     path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"{path.name}: no such scene spec file") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise InputError(f"{path.name}: cannot read the scene spec ({error})") from None
-    return scene_spec_from_json(data, path.name)
+    return scene_spec_from_json(read_document(path, "scene spec", SCENE_SPEC), path.name)
 
 
 def save_scene_spec(objects: list[ObjectSpec], path: str | Path) -> None:

@@ -22,6 +22,7 @@ from pathlib import Path
 from core.camera.files import MAX_FILE_BYTES, camera_from_json, camera_to_json
 from core.camera.model import Camera
 from core.errors import InputError
+from core.io.documents import parse_document
 from core.session.files import make_folder, read_bytes, write_file
 from core.session.session import Session, _relative, _safe_name
 
@@ -93,8 +94,8 @@ def take_cameras(session: Session, take_id: str) -> list[TakeCamera]:
     for item in session.take(take_id).cameras:
         path = session.folder / item["camera"]
         try:
-            data = json.loads(read_bytes(session.folder, path, MAX_FILE_BYTES).decode("utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as error:
+            data = parse_document(read_bytes(session.folder, path, MAX_FILE_BYTES), path.name, "camera file")
+        except (OSError, InputError) as error:
             raise InputError(f"cannot read camera '{item['name']}' of take '{take_id}' from {path} "
                              f"({getattr(error, 'strerror', None) or error})") from None
         camera = camera_from_json(data, path.name)

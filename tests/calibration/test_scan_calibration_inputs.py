@@ -311,5 +311,5 @@ def test_invalid_landmark_files(tmp_path, content, message):
     with pytest.raises(InputError, match=message):
         load_landmarks(tmp_path / "bad.json")
     (tmp_path / "broken.json").write_text("{")
-    with pytest.raises(InputError, match="not valid JSON"):
+    with pytest.raises(InputError, match="not a valid JSON"):
         load_landmarks(tmp_path / "broken.json")
