@@ -1,10 +1,13 @@
-"""Camera files: our JSON (read and written) and OpenCV's YAML/XML calibration files (read).
+"""Camera files: our JSON and OpenCV's YAML/XML calibration files, read and written.
 
 JSON layout: ``{"format": "handmocap-camera", "version": 1, "name", "image_size": [w, h],
 "camera_matrix": 3×3, "distortion": [...], "registered": bool, "rotation": 3×3 (mocap → camera),
 "translation_mm": [3], "time_offset_s", "rate_ratio", "report": {...}}``. OpenCV files are those its
 calibration sample writes (``camera_matrix``, ``distortion_coefficients``, ``image_width``,
-``image_height``), with the common alternative key names and optional ``R``/``rvec`` and ``T``/``tvec``.
+``image_height``), with the common alternative key names and optional ``R``/``rvec`` and ``T``/``tvec``
+(and ``time_offset_s``, ``rate_ratio``, which we write too). They are read by our own bounded reader
+(:mod:`core.camera.opencv_storage`), never by ``cv2.FileStorage``, and written in OpenCV's format, so that
+OpenCV reads our files.
 """
 
 from __future__ import annotations
@@ -17,8 +20,11 @@ import cv2
 import numpy as np
 
 from core.camera.model import Camera, CameraClock
+from core.camera.opencv_storage import read_storage, storage_text
 from core.errors import InputError
+from core.io.documents import check_document, read_document, read_limited
 from core.io.durable import write_text_atomic
+from core.io.input_schemas import CAMERA
 
 FORMAT = "handmocap-camera"
 VERSION = 1
@@ -47,29 +53,39 @@ def camera_to_json(camera: Camera, report: dict | None = None) -> dict:
 
 
 def save_camera(camera: Camera, path: str | Path, report: dict | None = None) -> None:
-    """Write ``camera`` as JSON (durable write)."""
-    write_text_atomic(path, json.dumps(camera_to_json(camera, report), indent=1) + "\n")
+    """Write ``camera`` (durable write): as OpenCV's YAML or XML for a ``.yaml``/``.yml``/``.xml`` path (the
+    calibration sample's keys, plus ``R``, ``T`` and the clock when registered; no report), else as JSON."""
+    path = Path(path)
+    if path.suffix.lower() in OPENCV_SUFFIXES:
+        write_text_atomic(path, camera_storage_text(camera, xml=path.suffix.lower() == ".xml"))
+    else:
+        write_text_atomic(path, json.dumps(camera_to_json(camera, report), indent=1) + "\n")
+
+
+def camera_storage_text(camera: Camera, xml: bool = False) -> str:
+    """``camera`` as the text of an OpenCV FileStorage file (YAML, or XML when ``xml``)."""
+    entries: dict[str, object] = {
+        "image_width": int(camera.size[0]), "image_height": int(camera.size[1]),
+        "camera_matrix": camera.matrix, "distortion_coefficients": camera.distortion.reshape(1, -1)}
+    if camera.registered:
+        entries |= {"R": camera.rotation, "T": camera.translation.reshape(3, 1),
+                    "time_offset_s": float(camera.clock.offset_s), "rate_ratio": float(camera.clock.rate_ratio)}
+    return storage_text(entries, xml)
 
 
 def load_camera(path: str | Path) -> Camera:
     """Read a camera from our JSON or an OpenCV YAML/XML calibration file; :class:`InputError` (one line)
     when the file is missing, too large or not a camera file."""
     path = Path(path)
-    try:
-        size = path.stat().st_size
-    except OSError as error:
-        raise InputError(f"cannot read camera file {path}: {error.strerror or error}") from None
-    if not path.is_file():
-        raise InputError(f"camera file {path} is not a file")
-    if size > MAX_FILE_BYTES:
-        raise InputError(f"{path.name}: {size} bytes is too large for a camera file (limit {MAX_FILE_BYTES})")
     if path.suffix.lower() in OPENCV_SUFFIXES:
-        return _load_opencv(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as error:
-        raise InputError(f"{path.name}: not a camera JSON file ({type(error).__name__}: {error})") from None
-    return camera_from_json(data, path.name)
+        data = read_limited(path, "camera file", MAX_FILE_BYTES)
+        try:
+            text = data.decode("utf-8-sig")
+        except UnicodeDecodeError as error:
+            raise InputError(f"{path.name}: not an OpenCV calibration file (not UTF-8 text: byte "
+                             f"{error.start})") from None
+        return _load_opencv(path, read_storage(path, text))
+    return camera_from_json(read_document(path, "camera file", max_bytes=MAX_FILE_BYTES), path.name)
 
 
 def camera_from_json(data: object, source: str = "camera JSON") -> Camera:
@@ -77,7 +93,9 @@ def camera_from_json(data: object, source: str = "camera JSON") -> Camera:
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise InputError(f"{source}: not a {FORMAT} file (no \"format\": \"{FORMAT}\")")
     if data.get("version") != VERSION:
-        raise InputError(f"{source}: camera file version {data.get('version')!r} is not supported (expected 1)")
+        raise InputError(f"{source}: camera file version {str(data.get('version'))[:20]!r} is not supported "
+                         "(expected 1)")
+    check_document(data, CAMERA, source, "camera file")
     try:
         width, height = (_integer(v) for v in data["image_size"])
         clock = CameraClock(float(data.get("time_offset_s", 0.0)), float(data.get("rate_ratio", 1.0)))
@@ -111,57 +129,62 @@ def _array(value: object, shape: tuple[int, ...] | None) -> np.ndarray:
     return array
 
 
-def _load_opencv(path: Path) -> Camera:
-    """A camera from an OpenCV ``FileStorage`` file (YAML or XML)."""
+def _load_opencv(path: Path, storage: dict) -> Camera:
+    """A camera from the top-level mapping of an OpenCV FileStorage file (YAML or XML)."""
+    matrix = _node_matrix(storage, _MATRIX_KEYS, path.name, (9,))
+    if matrix is None:
+        raise InputError(f"{path.name}: no camera matrix (expected one of {', '.join(_MATRIX_KEYS)})")
+    distortion = _node_matrix(storage, _DISTORTION_KEYS, path.name, (0, 4, 5, 8, 12, 14))
+    width, height = _node_number(storage, "image_width", path.name), _node_number(storage, "image_height", path.name)
+    if width is None or height is None:
+        raise InputError(f"{path.name}: no image_width/image_height")
+    rotation = _node_matrix(storage, _ROTATION_KEYS, path.name, (3, 9))
+    translation = _node_matrix(storage, _TRANSLATION_KEYS, path.name, (3,))
+    offset = _node_number(storage, "time_offset_s", path.name)
+    ratio = _node_number(storage, "rate_ratio", path.name)
     try:
-        storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_FORMAT_AUTO)
-    except cv2.error as error:
-        raise InputError(f"{path.name}: OpenCV cannot parse this calibration file "
-                         f"({str(error).strip().splitlines()[-1][:200]})") from None
-    try:
-        if not storage.isOpened():
-            raise InputError(f"{path.name}: OpenCV cannot open this calibration file")
-        matrix = _node_matrix(storage, _MATRIX_KEYS)
-        if matrix is None:
-            raise InputError(f"{path.name}: no camera matrix (expected one of {', '.join(_MATRIX_KEYS)})")
-        distortion = _node_matrix(storage, _DISTORTION_KEYS)
-        width, height = _node_number(storage, "image_width"), _node_number(storage, "image_height")
-        if width is None or height is None:
-            raise InputError(f"{path.name}: no image_width/image_height")
-        rotation = _node_matrix(storage, _ROTATION_KEYS)
-        translation = _node_matrix(storage, _TRANSLATION_KEYS)
-        try:
-            pose_rotation: np.ndarray = np.eye(3)
-            pose_translation, registered = np.zeros(3), False
-            if rotation is not None and translation is not None:
-                pose_rotation = (cv2.Rodrigues(rotation.reshape(3, 1))[0] if rotation.size == 3
-                                 else rotation.reshape(3, 3))
-                pose_translation, registered = translation.ravel(), True
-            return Camera(matrix=matrix.reshape(3, 3), size=(_integer(width), _integer(height)),
-                          distortion=np.zeros(0) if distortion is None else distortion.ravel(),
-                          rotation=pose_rotation, translation=pose_translation, registered=registered,
-                          name=path.stem[:200])
-        except (ValueError, cv2.error) as error:
-            raise InputError(f"{path.name}: invalid calibration values ({error})") from None
-    finally:
-        storage.release()
+        pose_rotation: np.ndarray = np.eye(3)
+        pose_translation, registered = np.zeros(3), False
+        if rotation is not None and translation is not None:
+            pose_rotation = (cv2.Rodrigues(rotation.reshape(3, 1))[0] if rotation.size == 3
+                             else rotation.reshape(3, 3))
+            pose_translation, registered = translation.ravel(), True
+        clock = CameraClock(0.0 if offset is None else offset, 1.0 if ratio is None else ratio)
+        return Camera(matrix=matrix.reshape(3, 3), size=(_integer(width), _integer(height)),
+                      distortion=distortion.ravel() if distortion is not None else np.zeros(0),
+                      rotation=pose_rotation, translation=pose_translation, registered=registered,
+                      clock=clock, name=path.stem[:200])
+    except InputError as error:
+        raise InputError(f"{path.name}: {error}") from None
+    except (ValueError, OverflowError, cv2.error) as error:
+        raise InputError(f"{path.name}: invalid calibration values ({str(error).strip().splitlines()[-1][:160]})"
+                         ) from None
 
 
-def _node_matrix(storage: cv2.FileStorage, keys: tuple[str, ...]) -> np.ndarray | None:
-    """The first of ``keys`` holding a matrix (or a sequence of numbers), as a float array; None if absent."""
+def _node_matrix(storage: dict, keys: tuple[str, ...], source: str, sizes: tuple[int, ...]) -> np.ndarray | None:
+    """The first of ``keys`` holding a matrix or a list of numbers, as a finite float array of one of
+    ``sizes`` values; None if absent."""
     for key in keys:
-        node = storage.getNode(key)
-        if node.empty():
+        if key not in storage:
             continue
-        if node.isSeq():
-            values = [node.at(index).real() for index in range(min(node.size(), 16))]
-            return np.asarray(values, dtype=float)
-        matrix = node.mat()
-        if matrix is not None:
-            return np.asarray(matrix, dtype=float)
+        value = storage[key]
+        if isinstance(value, list) and all(isinstance(v, int | float) and not isinstance(v, bool) for v in value):
+            value = np.asarray(value, dtype=float)
+        if not isinstance(value, np.ndarray):
+            raise InputError(f"{source}: '{key}' must be a matrix or a list of numbers")
+        if value.size not in sizes:
+            raise InputError(f"{source}: '{key}' has {value.size} values (expected "
+                             f"{' or '.join(str(size) for size in sizes)})")
+        if not np.isfinite(value).all():
+            raise InputError(f"{source}: '{key}' holds a value that is not a finite number")
+        return value
     return None
 
 
-def _node_number(storage: cv2.FileStorage, key: str) -> float | None:
-    node = storage.getNode(key)
-    return None if node.empty() or not (node.isInt() or node.isReal()) else float(node.real())
+def _node_number(storage: dict, key: str, source: str) -> float | None:
+    value = storage.get(key)
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise InputError(f"{source}: '{key}' must be a finite number")
+    return float(value)
