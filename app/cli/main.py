@@ -16,6 +16,7 @@ from app.cli import camera as camera_commands
 from app.cli import export as export_commands
 from app.cli import fusion as fusion_commands
 from app.cli import layout as layout_commands
+from app.cli import live as live_commands
 from app.cli import review as review_commands
 from app.cli.common import (
     add_json_flag,
@@ -32,7 +33,7 @@ from core.errors import HandMocapError, InputError
 
 #: modules that add their own subcommands (``register(commands, bench_commands, evaluate_commands)``)
 SUBCOMMAND_MODULES = (layout_commands, review_commands, calibrate_commands, camera_commands, export_commands,
-                      batch_commands, fusion_commands)
+                      batch_commands, fusion_commands, live_commands)
 
 EXIT_ERROR = 2
 

@@ -191,6 +191,8 @@ class _Run:
         #: per hand track: running typical mean residual (mm) and the last frame it was re-checked
         self.typical_residual: dict[int, float] = {}
         self.last_recheck: dict[int, int] = {}
+        #: the frame of the last initialisation attempt for the models not found yet
+        self.last_attempt = -10 ** 9
 
     def columns(self, index: int) -> slice:
         return slice(int(self.offsets[index]), int(self.offsets[index + 1]))
@@ -344,34 +346,41 @@ class _Run:
     def forward(self, start: int, stop: int, report: Callable[[int], None],
                 on_frame: Callable[[int], None] | None = None) -> None:
         """Track frames ``start..stop-1``, initialising models as they are found."""
-        settings = self.settings
-        last_attempt = -10 ** 9
+        self.last_attempt = -10 ** 9
         for frame in range(start, stop):
             report(frame)
-            columns = np.flatnonzero(self.present[frame])
-            points = self.positions[frame, columns]
-            active = [number for number, track in enumerate(self.tracks) if track.active]
-            taken = np.zeros(len(columns), dtype=bool)
-            if active:
-                index, confidence, residuals, states = self.step([self.tracks[number] for number in active], points)
-                self.record(frame, active, columns, index, confidence, residuals, states)
-                taken[index[index >= 0]] = True
-                self._count_lost(frame, active)
-            for number, labels, state in self.scheduled.pop(frame, []):
-                taken |= self._start_with(frame, number, columns, labels, state, taken)
-            waiting = [number for number, track in enumerate(self.tracks)
-                       if not track.active and not any(number == entry[0] for entries in self.scheduled.values()
-                                                      for entry in entries)]
-            if waiting and (not active or frame - last_attempt >= settings.retry_every):
-                last_attempt = frame
-                free = np.flatnonzero(~taken)
-                if len(free) >= 3:
-                    for candidate in initialise_frame(self.tracks, waiting, points[free], settings, self.cut):
-                        self._start(frame, candidate, columns[free], points[free])
-            for number in [number for number, count in self.lost.items() if count >= settings.retry_every]:
-                self._reinitialise(frame, number)
+            self.track_frame(frame)
             if on_frame is not None:
                 on_frame(frame)
+
+    def track_frame(self, frame: int) -> None:
+        """Track one frame causally (a step of :meth:`forward`, also driven frame by frame by the live
+        labeller, :mod:`core.labelling.online`): the active models, the tracks scheduled to start there, an
+        initialisation attempt for the models not found yet (every ``retry_every`` frames while others are
+        tracked) and a fresh fit of the hands lost for ``retry_every`` frames."""
+        settings = self.settings
+        columns = np.flatnonzero(self.present[frame])
+        points = self.positions[frame, columns]
+        active = [number for number, track in enumerate(self.tracks) if track.active]
+        taken = np.zeros(len(columns), dtype=bool)
+        if active:
+            index, confidence, residuals, states = self.step([self.tracks[number] for number in active], points)
+            self.record(frame, active, columns, index, confidence, residuals, states)
+            taken[index[index >= 0]] = True
+            self._count_lost(frame, active)
+        for number, labels, state in self.scheduled.pop(frame, []):
+            taken |= self._start_with(frame, number, columns, labels, state, taken)
+        waiting = [number for number, track in enumerate(self.tracks)
+                   if not track.active and not any(number == entry[0] for entries in self.scheduled.values()
+                                                  for entry in entries)]
+        if waiting and (not active or frame - self.last_attempt >= settings.retry_every):
+            self.last_attempt = frame
+            free = np.flatnonzero(~taken)
+            if len(free) >= 3:
+                for candidate in initialise_frame(self.tracks, waiting, points[free], settings, self.cut):
+                    self._start(frame, candidate, columns[free], points[free])
+        for number in [number for number, count in self.lost.items() if count >= settings.retry_every]:
+            self._reinitialise(frame, number)
 
     def _count_lost(self, frame: int, active: list[int]) -> None:
         """Count, per active hand, the consecutive frames up to ``frame`` in which it labelled fewer than
