@@ -15,7 +15,7 @@ client address that connected, in metres with Y up as Motive streams.
 
 ``unlabelled``: every point goes out unlabelled, shuffled per frame; otherwise the take's labelled columns
 go out as labelled markers (QTM's 3D component, NatNet marker set 1) and the rest unlabelled. The take
-loops unless ``loop=False``. ``garbage`` (tests): after that many frames, send bytes no client can read.
+loops unless ``loop=False``; the replay starts with the first client that asks for frames. ``garbage`` (tests): after that many frames, send bytes no client can read.
 """
 
 from __future__ import annotations
@@ -164,8 +164,11 @@ class StandInServer:
                 self._transport.close()
 
     async def _stream(self) -> None:
-        """Send frame after frame at the replay's rate (a schedule, not a sleep per frame, so no drift)."""
+        """Send frame after frame at the replay's rate (a schedule, not a sleep per frame, so no drift), from
+        the take's first frame once the first client asks for frames."""
         loop = asyncio.get_running_loop()
+        while not (self._natnet_clients or any(client.components for client in self._clients)):
+            await asyncio.sleep(0.005)
         period = 1.0 / self.replay.rate
         start = loop.time()
         index = 0
