@@ -1,10 +1,12 @@
 """Frame sources: videos (``cv2.VideoCapture``: MP4, AVI, ...), folders of PNG/JPG colour frames and
 folders of 16-bit PNG depth frames with a depth unit, all with timestamps and random access.
 
-A source keeps the last :data:`CACHE_FRAMES` decoded frames (LRU), so scrubbing back and forth near the
-current frame decodes nothing. Sizes are checked before any decode (the image header, the video's
-reported size), so a hostile header cannot ask for a huge allocation; a file OpenCV cannot decode gives
-one :class:`InputError` line naming it.
+A source keeps the most recently used decoded frames within a memory budget in bytes
+(:data:`FRAME_MEMORY_BUDGET` by default; LRU), so scrubbing back and forth near the current frame decodes
+nothing. Sizes are checked before any decode (the image header, the video's reported size): a stream whose
+decoded frame would take more than half the budget is refused when it is opened, so that a hostile header
+(or 16384×16384 frames of a few kB each) cannot ask for huge allocations; a file OpenCV cannot decode, or
+one it runs out of memory on, gives one :class:`InputError` line naming it.
 """
 
 from __future__ import annotations
@@ -21,8 +23,8 @@ import numpy as np
 from core.camera.model import MAX_IMAGE_SIDE
 from core.errors import InputError
 
-#: decoded frames kept per source (640×480 colour: 0.9 MB each)
-CACHE_FRAMES = 32
+#: bytes of decoded frames a source keeps (640×480 colour: 0.9 MB a frame); a decoded frame may take half
+FRAME_MEMORY_BUDGET = 256 * 1024 * 1024
 #: most frames a source may hold (a day at 120 Hz)
 MAX_FRAMES = 10_000_000
 #: largest image file read (bytes)
@@ -38,12 +40,20 @@ class FrameSource(ABC):
     mm (0 = no depth); frame ``k`` at :meth:`time` ``k / frame_rate`` s unless timestamps were given."""
 
     kind = "colour"
+    #: bytes a decoded pixel takes while it is decoded and kept (BGR uint8)
+    bytes_per_pixel = 3
 
     def __init__(self, name: str, count: int, size: tuple[int, int], frame_rate: float,
-                 timestamps: np.ndarray | None = None) -> None:
+                 timestamps: np.ndarray | None = None, memory_budget: int | None = None) -> None:
         if not 0 < count <= MAX_FRAMES:
             raise InputError(f"{name}: {count} frames is outside 1..{MAX_FRAMES}")
         check_size(size, name)
+        self.memory_budget = int(FRAME_MEMORY_BUDGET if memory_budget is None else memory_budget)
+        frame_bytes = size[0] * size[1] * self.bytes_per_pixel
+        if 2 * frame_bytes > self.memory_budget:
+            raise InputError(f"{name}: a {size[0]}×{size[1]} px {self.kind} frame takes {frame_bytes / 2**20:.0f} MB "
+                             f"decoded, more than half the frame memory budget of "
+                             f"{self.memory_budget / 2**20:.0f} MB")
         if not (np.isfinite(frame_rate) and 0.1 <= frame_rate <= 10_000):
             raise InputError(f"{name}: frame rate {frame_rate} Hz is outside 0.1..10000")
         if timestamps is not None:
@@ -53,6 +63,7 @@ class FrameSource(ABC):
         self.name, self.count, self.size, self.frame_rate = name, count, size, float(frame_rate)
         self.timestamps = np.arange(count) / self.frame_rate if timestamps is None else timestamps
         self._cache: OrderedDict[int, np.ndarray] = OrderedDict()
+        self._cached_bytes = 0
 
     def __len__(self) -> int:
         return self.count
@@ -79,11 +90,20 @@ class FrameSource(ABC):
         if cached is not None:
             self._cache.move_to_end(index)
             return cached
-        image = self._decode(index)
+        try:
+            image = self._decode(index)
+        except cv2.error as error:   # e.g. OpenCV's own allocation limits
+            raise InputError(f"{self.name}: OpenCV cannot decode frame {index} "
+                             f"({str(error).strip().splitlines()[-1][:120]})") from None
+        except MemoryError:
+            raise InputError(f"{self.name}: not enough memory to decode frame {index}") from None
         image.setflags(write=False)
-        self._cache[index] = image
-        if len(self._cache) > CACHE_FRAMES:
-            self._cache.popitem(last=False)
+        while self._cache and self._cached_bytes + image.nbytes > self.memory_budget:
+            _, dropped = self._cache.popitem(last=False)
+            self._cached_bytes -= dropped.nbytes
+        if image.nbytes <= self.memory_budget:
+            self._cache[index] = image
+            self._cached_bytes += image.nbytes
         return image
 
     @abstractmethod
@@ -92,6 +112,7 @@ class FrameSource(ABC):
 
     def close(self) -> None:
         self._cache.clear()
+        self._cached_bytes = 0
 
     def __enter__(self) -> FrameSource:
         return self
@@ -110,7 +131,7 @@ def check_size(size: tuple[int, int], name: str) -> None:
 class VideoFrames(FrameSource):
     """A video file read through ``cv2.VideoCapture`` (FFmpeg backend)."""
 
-    def __init__(self, path: str | Path, frame_rate: float | None = None) -> None:
+    def __init__(self, path: str | Path, frame_rate: float | None = None, memory_budget: int | None = None) -> None:
         path = Path(path)
         if not path.is_file():
             raise InputError(f"video {path} does not exist or is not a file")
@@ -125,7 +146,7 @@ class VideoFrames(FrameSource):
             count = int(reported) if np.isfinite(reported) else 0
             rate = frame_rate or capture.get(cv2.CAP_PROP_FPS)
             rate = rate if np.isfinite(rate) and rate > 0 else DEFAULT_FRAME_RATE
-            super().__init__(path.name, count, size, rate)
+            super().__init__(path.name, count, size, rate, memory_budget=memory_budget)
             self._next = 0
             self.frame(0)
         except InputError:
@@ -158,7 +179,8 @@ class ImageFolderFrames(FrameSource):
     """A folder of colour frames (PNG/JPG), in natural name order (``frame_2`` before ``frame_10``)."""
 
     def __init__(self, folder: str | Path, frame_rate: float = DEFAULT_FRAME_RATE,
-                 timestamps: np.ndarray | None = None, suffixes: tuple[str, ...] = COLOUR_SUFFIXES) -> None:
+                 timestamps: np.ndarray | None = None, suffixes: tuple[str, ...] = COLOUR_SUFFIXES,
+                 memory_budget: int | None = None) -> None:
         folder = Path(folder)
         if not folder.is_dir():
             raise InputError(f"frame folder {folder} does not exist or is not a folder")
@@ -166,7 +188,8 @@ class ImageFolderFrames(FrameSource):
                             key=_natural_key)
         if not self.paths:
             raise InputError(f"{folder}: no {'/'.join(s[1:].upper() for s in suffixes)} frames")
-        super().__init__(folder.name, len(self.paths), image_file_size(self.paths[0]), frame_rate, timestamps)
+        super().__init__(folder.name, len(self.paths), image_file_size(self.paths[0]), frame_rate, timestamps,
+                         memory_budget)
         self.frame(0)
 
     def _read(self, index: int, flags: int) -> np.ndarray:
@@ -175,7 +198,11 @@ class ImageFolderFrames(FrameSource):
         if size != self.size:
             raise InputError(f"{path.name}: {size[0]}×{size[1]} px, but the first frame is "
                              f"{self.size[0]}×{self.size[1]}")
-        image = cv2.imdecode(np.fromfile(path, dtype=np.uint8), flags)
+        try:
+            data = np.fromfile(path, dtype=np.uint8)
+        except OSError as error:
+            raise InputError(f"cannot read {path} ({error.strerror or error})") from None
+        image = cv2.imdecode(data, flags)
         if image is None:
             raise InputError(f"{path.name}: OpenCV cannot decode this image")
         return image
@@ -188,13 +215,14 @@ class DepthFolderFrames(ImageFolderFrames):
     """A folder of 16-bit PNG depth frames; a value ``v`` is ``v * unit_mm`` mm (0 = no depth)."""
 
     kind = "depth"
+    bytes_per_pixel = 6   # the 16-bit PNG decoded, then its float32 millimetres
 
     def __init__(self, folder: str | Path, unit_mm: float, frame_rate: float = DEFAULT_FRAME_RATE,
-                 timestamps: np.ndarray | None = None) -> None:
+                 timestamps: np.ndarray | None = None, memory_budget: int | None = None) -> None:
         if not (np.isfinite(unit_mm) and 0 < unit_mm <= 100):
             raise InputError(f"depth unit must be within 0..100 mm, got {unit_mm}")
         self.unit_mm = float(unit_mm)
-        super().__init__(folder, frame_rate, timestamps, suffixes=(".png",))
+        super().__init__(folder, frame_rate, timestamps, suffixes=(".png",), memory_budget=memory_budget)
 
     def _decode(self, index: int) -> np.ndarray:
         image = self._read(index, cv2.IMREAD_UNCHANGED)
@@ -205,17 +233,18 @@ class DepthFolderFrames(ImageFolderFrames):
 
 
 def open_frames(path: str | Path, depth_unit_mm: float | None = None,
-                frame_rate: float | None = None) -> FrameSource:
-    """A video file, or a folder of colour frames, or (with ``depth_unit_mm``) a folder of depth frames."""
+                frame_rate: float | None = None, memory_budget: int | None = None) -> FrameSource:
+    """A video file, or a folder of colour frames, or (with ``depth_unit_mm``) a folder of depth frames;
+    ``memory_budget``: bytes of decoded frames it keeps (default :data:`FRAME_MEMORY_BUDGET`)."""
     path = Path(path)
     if path.is_dir():
         rate = frame_rate or DEFAULT_FRAME_RATE
         if depth_unit_mm is not None:
-            return DepthFolderFrames(path, depth_unit_mm, rate)
-        return ImageFolderFrames(path, rate)
+            return DepthFolderFrames(path, depth_unit_mm, rate, memory_budget=memory_budget)
+        return ImageFolderFrames(path, rate, memory_budget=memory_budget)
     if depth_unit_mm is not None:
         raise InputError(f"{path}: depth frames must be a folder of 16-bit PNG files")
-    return VideoFrames(path, frame_rate)
+    return VideoFrames(path, frame_rate, memory_budget)
 
 
 def _natural_key(path: Path) -> list:
