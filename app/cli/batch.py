@@ -59,14 +59,23 @@ def command_batch(args: argparse.Namespace) -> int:
     exit 1 when a take failed, 2 on bad input or an interruption."""
     from core.batch.pipeline import load_pipeline
     from core.batch.report import write_study_report
-    from core.batch.runner import open_study, plan_batch, run_batch
+    from core.batch.runner import check_pipeline_inputs, open_study, plan_batch, run_batch
+    from core.batch.scheduler import check_scheduler_address
     from core.batch.state import read_state
 
+    # everything that can be checked is, before a session, an output folder or a cluster is made
+    if args.scheduler is not None:
+        args.scheduler = check_scheduler_address(args.scheduler)
+    elif args.workers < 1:
+        raise InputError(f"--workers must be at least 1, got {args.workers}")
     pipeline = load_pipeline(args.pipeline)
-    session = open_study(args.study, pipeline)
-    plan = plan_batch(session, pipeline, args.only, args.redo, args.overwrite)
+    check_pipeline_inputs(pipeline)
+    rejected: dict[str, str] = {}
+    session = open_study(args.study, pipeline, rejected)
+    plan = plan_batch(session, pipeline, args.only, args.redo, args.overwrite, rejected)
+    unreadable = len(plan.failed) + len(plan.rejected)
     print(f"session {session.folder}: {len(plan.jobs)} takes to process, {len(plan.up_to_date)} up to date"
-          f"{f', {len(plan.failed)} cannot be read' if plan.failed else ''}; exports to {plan.output}")
+          f"{f', {unreadable} cannot be read' if unreadable else ''}; exports to {plan.output}")
     stop = {"asked": False}
 
     def interrupt(signum, frame) -> None:
@@ -89,6 +98,7 @@ def command_batch(args: argparse.Namespace) -> int:
              | {"status": "done"}
              for take_id in plan.up_to_date]
     rows += [progress.summaries[take_id] | {"name": session.take(take_id).name} for take_id in plan.failed]
+    rows += [progress.summaries[file] for file in plan.rejected]
     report = write_study_report(session.folder, session.name, rows)
     done, failed = progress.count("done"), progress.count("failed")
     print(f"{done} takes processed ({progress.frames} frames, {progress.frames_per_s:.0f} frames/s, "

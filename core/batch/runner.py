@@ -1,7 +1,10 @@
 """The driver of a batch: which takes to run, their tasks on a Dask cluster, progress and the batch state.
 
-:func:`plan_batch` picks the takes (``only`` glob on name or id; takes done with the same input key are
-skipped unless ``redo``) and checks the outputs; :func:`run_batch` submits one task per take
+:func:`plan_batch` picks the takes (``only`` glob on name or id; takes done with the same input key whose
+exports are still there unchanged, where this batch writes them, are skipped unless ``redo``) and checks the
+inputs (the layout, the objects spec, each take's id and raw file) and the outputs, all before a cluster or
+an output folder exists; a take that cannot be used fails alone with its reason. :func:`run_batch` checks
+the scheduler address (:mod:`core.batch.scheduler`), then submits one task per take
 (:func:`core.batch.task.process_take`) to a ``LocalCluster`` (``workers`` processes of one thread: the
 numba kernels are single-threaded, and one task per process makes a worker's death that task's) or to
 the scheduler at ``scheduler``, and reports progress as the tasks finish. Tasks return small summaries;
@@ -28,8 +31,9 @@ from pathlib import Path
 from typing import Any
 
 from core.batch.pipeline import Pipeline
-from core.batch.state import input_key, read_state, write_state
-from core.batch.task import process_take
+from core.batch.scheduler import check_scheduler_address
+from core.batch.state import file_sha256, input_key, read_state, valid_take_id, write_state
+from core.batch.task import exports_complete, process_take
 from core.errors import InputError
 from core.io import READ_SUFFIXES, FrameRateMissingError, recognised_format
 from core.session.session import Session
@@ -63,6 +67,9 @@ class BatchPlan:
     up_to_date: list[str]
     failed: dict[str, str]
     output: Path
+    #: take files of a folder of takes that could not be added to its session ({file: reason}); they fail
+    #: in the report like takes
+    rejected: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass
@@ -90,10 +97,12 @@ class BatchProgress:
         return frames_left / self.frames_per_s if self.frames else None
 
 
-def open_study(path: str | Path, pipeline: Pipeline) -> Session:
+def open_study(path: str | Path, pipeline: Pipeline, rejected: dict[str, str] | None = None) -> Session:
     """The session at ``path``; for a folder of take files that is not a session, the session
     ``<path>/handmocap-session`` (created when missing) with every take file of the folder added
-    (with the pipeline's layout and hands). InputError when there is neither."""
+    (with the pipeline's layout and hands). A file that cannot be added (empty, unreadable, a link to
+    something that is no take) goes into ``rejected`` ({file path: reason}) and the others are added; without
+    ``rejected`` its error is raised. InputError when there is neither a session nor take files."""
     folder = Path(path).expanduser().absolute()
     if (folder / "session.json").exists():
         return Session.open(folder)
@@ -108,9 +117,19 @@ def open_study(path: str | Path, pipeline: Pipeline) -> Session:
     known = {Path(entry.source) for entry in session.takes}
     hands = ["right", "left"] if pipeline.hands == "both" else [pipeline.hands if pipeline.hands != "auto" else "right"]
     for item in files:
-        if item not in known:
+        if item in known:
+            continue
+        try:
             _add_take(session, item, pipeline, hands)
+        except (InputError, OSError, ValueError) as error:
+            if rejected is None:
+                raise
+            rejected[str(item)] = _one_line(error)
     return session
+
+
+def _one_line(error: BaseException) -> str:
+    return (str(error).splitlines() or [type(error).__name__])[0][:300] or type(error).__name__
 
 
 def _is_take_file(path: Path) -> bool:
@@ -133,10 +152,26 @@ def _add_take(session: Session, path: Path, pipeline: Pipeline, hands: list[str]
         session.add_take(path, layout=Path(pipeline.layout).stem, hands=hands, frame_rate=pipeline.rate)
 
 
+def check_pipeline_inputs(pipeline: Pipeline) -> None:
+    """InputError (one line) when the pipeline's layout (or lab template) or objects spec cannot be read,
+    so that a bad one stops the batch before anything starts rather than failing every take."""
+    from core.model import load_layout
+    from core.model.lab_template import load_lab_template
+    from core.model.objects import load_scene_spec
+
+    if pipeline.runs("label") or pipeline.runs("calibrate") or pipeline.runs("solve"):
+        load_layout(pipeline.layout)
+        load_lab_template(pipeline.layout)
+    if pipeline.objects:
+        load_scene_spec(pipeline.objects)
+
+
 def plan_batch(session: Session, pipeline: Pipeline, only: str | None = None, redo: bool = False,
-               overwrite: bool = False) -> BatchPlan:
-    """The takes of ``session`` to run (module docstring). InputError when ``only`` matches no take or
-    an output file exists that no earlier batch of that take wrote (unless ``overwrite``)."""
+               overwrite: bool = False, rejected: dict[str, str] | None = None) -> BatchPlan:
+    """The takes of ``session`` to run (module docstring); ``rejected``: files :func:`open_study` could not
+    add. InputError when the pipeline's inputs cannot be read, ``only`` matches no take or an output file
+    exists that no earlier batch of that take wrote (unless ``overwrite``)."""
+    check_pipeline_inputs(pipeline)
     takes = [entry for entry in session.takes
              if only is None or fnmatch.fnmatchcase(entry.name, only) or fnmatch.fnmatchcase(entry.id, only)]
     if not takes:
@@ -147,19 +182,54 @@ def plan_batch(session: Session, pipeline: Pipeline, only: str | None = None, re
     pipeline_key = pipeline.key()
     jobs, up_to_date, failed = [], [], {}
     for entry in takes:
+        if not valid_take_id(entry.id):
+            failed[entry.id] = (f"take id {entry.id[:40]!r} is not a valid take id (letters, digits, '.', '_', "
+                                "'-'); the session manifest is damaged")
+            continue
         try:
             key = input_key(session.source_path(entry.id), pipeline_key)
         except (InputError, OSError) as error:
-            failed[entry.id] = str(error).splitlines()[0] if str(error) else type(error).__name__
+            failed[entry.id] = _one_line(error)
             continue
         known = state.get(entry.id, {})
-        if known.get("state") == "done" and known.get("key") == key and not redo:
+        stem = _stem(entry.id, entry.name)
+        if (known.get("state") == "done" and known.get("key") == key and not redo
+                and _outputs_current(known, pipeline, output, stem)):
             up_to_date.append(entry.id)
             continue
-        jobs.append(TakeJob(entry.id, entry.name, entry.frames, key, _stem(entry.id, entry.name)))
+        jobs.append(TakeJob(entry.id, entry.name, entry.frames, key, stem))
     if pipeline.runs("export") and not overwrite:
         _check_outputs(jobs, pipeline, output, state)
-    return BatchPlan(session, pipeline, jobs, up_to_date, failed, output)
+    if pipeline.runs("export") and output.exists() and not output.is_dir():
+        raise InputError(f"the output folder {output} exists and is not a folder")
+    return BatchPlan(session, pipeline, jobs, up_to_date, failed, output, dict(rejected or {}))
+
+
+def _outputs_current(known: dict[str, Any], pipeline: Pipeline, output: Path, stem: str) -> bool:
+    """Whether the exports a done take's state records are those this batch writes (same kinds, same paths
+    in ``output``) and are still there with the content they were written with (sha256)."""
+    from core.batch.steps import output_paths
+
+    if not pipeline.runs("export"):
+        return True
+    summary = known.get("summary")
+    recorded = summary.get("outputs") if isinstance(summary, dict) else None
+    hashes = summary.get("output_sha256") if isinstance(summary, dict) else None
+    if not isinstance(recorded, dict) or not isinstance(hashes, dict):
+        return False
+    expected = output_paths(pipeline, output, stem)
+    present = {kind: expected[kind] for kind in recorded if kind in expected}
+    if len(present) != len(recorded) or not exports_complete(pipeline, present):
+        return False
+    for kind, path in present.items():
+        if recorded[kind] != str(path):
+            return False
+        try:
+            if file_sha256(path, "export") != hashes.get(kind):
+                return False
+        except InputError:
+            return False
+    return True
 
 
 def _stem(take_id: str, name: str) -> str:
@@ -187,20 +257,28 @@ def run_batch(plan: BatchPlan, workers: int = 2, scheduler: str | None = None,
     import dask
     from distributed import Client
 
-    if not scheduler and workers < 1:
+    if scheduler:
+        scheduler = check_scheduler_address(scheduler)
+    elif workers < 1:
         raise InputError(f"--workers must be at least 1, got {workers}")
     folder = plan.session.folder
-    progress = BatchProgress(len(plan.jobs) + len(plan.failed))
-    if plan.failed:
-        for take_id, reason in plan.failed.items():
+    progress = BatchProgress(len(plan.jobs) + len(plan.failed) + len(plan.rejected))
+    for take_id, reason in plan.failed.items():
+        if valid_take_id(take_id):   # a damaged id gets no state file (it would name a path)
             write_state(folder, take_id, "failed", reason=reason)
-        progress.states |= dict.fromkeys(plan.failed, "failed")
-        progress.summaries |= {take_id: {"take": take_id, "status": "failed", "reason": reason}
-                               for take_id, reason in plan.failed.items()}
+        progress.states[take_id] = "failed"
+        progress.summaries[take_id] = {"take": take_id, "status": "failed", "reason": reason}
+    for file, reason in plan.rejected.items():
+        progress.states[file] = "failed"
+        progress.summaries[file] = {"take": Path(file).name, "name": Path(file).name, "status": "failed",
+                                    "reason": reason}
     if not plan.jobs:
         return progress
     if plan.pipeline.runs("export"):
-        plan.output.mkdir(parents=True, exist_ok=True)
+        try:
+            plan.output.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise InputError(f"cannot create the output folder {plan.output} ({error.strerror or error})") from None
     progress.states |= {job.take_id: "queued" for job in plan.jobs}
     logging.getLogger("distributed").setLevel(logging.ERROR)
     started = time.perf_counter()
@@ -214,8 +292,9 @@ def run_batch(plan: BatchPlan, workers: int = 2, scheduler: str | None = None,
             else:
                 cluster = _local_cluster(workers)
                 client = Client(cluster)
-        except OSError as error:
-            raise InputError(f"cannot reach the Dask scheduler {scheduler or '(local)'} ({error})") from None
+        except (OSError, TypeError, ValueError) as error:
+            raise InputError(f"cannot reach the Dask scheduler {scheduler or '(local)'} "
+                             f"({_one_line(error)[:200]})") from None
         try:
             progress.dashboard = client.dashboard_link or ""
             _drive(client, plan, progress, started, on_progress, stop)
@@ -306,7 +385,11 @@ def _finished(plan: BatchPlan, progress: BatchProgress, job: TakeJob, future: An
     if status == "done":
         progress.frames += job.frames
     else:
-        write_state(plan.session.folder, job.take_id, status, reason=summary["reason"], summary=_json_ready(summary))
+        try:
+            write_state(plan.session.folder, job.take_id, status, reason=summary["reason"],
+                        summary=_json_ready(summary))
+        except InputError as error:   # the state cannot be written: the take still fails alone
+            summary["reason"] += f" (and its batch state could not be written: {_one_line(error)})"
 
 
 def _json_ready(summary: dict[str, Any]) -> dict[str, Any]:

@@ -10,9 +10,11 @@ A take already open for editing elsewhere is skipped with that reason.
 Order, so that a take is either fully processed or untouched: the steps are done on the review, the
 exports written (each atomically), the steps undone and pushed again as ONE compound review step
 (one journal record: undoable in the GUI as "batch …"), the take saved, then the batch state says
-"done". A worker killed before the push leaves the review as it was (the exports are rewritten on the
-next run); killed after it, the next run finds its step on top of the take's history and only
-records it as done.
+"done" with each export's path and sha256. A worker killed before the push leaves the review as it was
+(the exports are rewritten on the next run); killed after it, the next run finds its step on top of the
+take's history and, when every export is there, only records it as done. A take run again after it was
+done (``--redo``, another output folder, an export deleted or changed) has that step undone and the
+pipeline run afresh, so that every export is written again from the same review.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ from typing import Any
 from numba.core import event
 
 from core.batch.pipeline import Pipeline, pipeline_from_dict
-from core.batch.state import write_state
+from core.batch.state import file_sha256, read_state, write_state
 from core.batch.steps import export_take, output_paths, review_figures, run_steps, undo_all
 from core.errors import HandMocapError
 from core.review import CompoundCommand
@@ -77,21 +79,32 @@ def _process(folder: Path, take_id: str, pipeline: Pipeline, key: str, output: P
     try:
         if opened.read_only:
             return {"status": "skipped", "reason": opened.read_only_reason()}
+        before = read_state(folder, [take_id]).get(take_id, {})
         write_state(folder, take_id, "running", key)  # from now on its exports are the batch's to replace
         description = step_description(pipeline, key)
         review = opened.review
         outputs: dict[str, Path] = {}
         fills: dict[str, int] = {}
-        if opened.stack.undo_text() == description:  # done by a run stopped before it said so
-            outputs = {kind: path for kind, path in output_paths(pipeline, output, stem).items()
-                       if pipeline.runs("export") and path.exists()}
+        present = {kind: path for kind, path in output_paths(pipeline, output, stem).items()
+                   if pipeline.runs("export") and path.is_file()}
+        interrupted = opened.stack.undo_text() == description and before.get("state") != "done"
+        if interrupted and exports_complete(pipeline, present):  # done by a run stopped before it said so
+            outputs = present
         else:
-            done = run_steps(review, pipeline)
+            undone = opened.stack.undo_text() == description
+            if undone:  # done before: run afresh from the review before it
+                opened.undo()
             try:
-                if pipeline.runs("export"):
-                    outputs = export_take(review, pipeline, done, output_paths(pipeline, output, stem))
-            finally:
-                undo_all(review, done.commands)
+                done = run_steps(review, pipeline)
+                try:
+                    if pipeline.runs("export"):
+                        outputs = export_take(review, pipeline, done, output_paths(pipeline, output, stem))
+                finally:
+                    undo_all(review, done.commands)
+            except BaseException:
+                if undone:  # the take keeps its earlier batch result
+                    opened.redo()
+                raise
             if done.commands:
                 opened.push(CompoundCommand(done.commands, description))
             fills = done.fills
@@ -99,7 +112,9 @@ def _process(folder: Path, take_id: str, pipeline: Pipeline, key: str, output: P
         if opened.is_modified():
             opened.save()
         summary = {"take": take_id, "status": "done", "reason": "", "name": opened.entry.name, "fills": fills,
-                   "outputs": {kind: str(path) for kind, path in outputs.items()}} | review_figures(review)
+                   "outputs": {kind: str(path) for kind, path in outputs.items()},
+                   "output_sha256": {kind: file_sha256(path, "export") for kind, path in outputs.items()}
+                   } | review_figures(review)
         summary["seconds"] = round(time.perf_counter() - started, 3)
         summary["compilations"] = compilations()
         write_state(folder, take_id, "done", key, summary=summary)
@@ -107,6 +122,14 @@ def _process(folder: Path, take_id: str, pipeline: Pipeline, key: str, output: P
     finally:
         opened.close(save=False)
         session.close()
+
+
+def exports_complete(pipeline: Pipeline, present: dict[str, Path]) -> bool:
+    """Whether the exports ``present`` are every one the pipeline writes (a BVH per hand: at least one)."""
+    if not pipeline.runs("export"):
+        return True
+    return all(any(kind.startswith("bvh-") for kind in present) if kind == "bvh" else kind in present
+               for kind in pipeline.exports)
 
 
 def _record_take(session: Session, opened: OpenTake, outputs: dict[str, Path]) -> None:
