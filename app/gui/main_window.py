@@ -222,8 +222,9 @@ class MainWindow(QMainWindow):
 
         menus = self.menuBar()
         file_menu = self.file_menu = menus.addMenu("&File")
-        for action in (self.open_action, self.demo_action, None, self.export_action, self.screenshot_action,
-                       None, quit_action):
+        self.live_action = self._action("Connect to &live capture…", self.open_live_capture)
+        for action in (self.open_action, self.demo_action, None, self.live_action, None, self.export_action,
+                       self.screenshot_action, None, quit_action):
             if action is None:
                 file_menu.addSeparator()
             else:
@@ -841,6 +842,15 @@ class MainWindow(QMainWindow):
         session = self.sessions.session
         self._layout_window = open_layout_view(self, session=session,
                                                save_to_session=self.sessions.save_layout if session else None)
+
+    def open_live_capture(self) -> None:
+        """Connect to QTM or Motive and supervise a capture live; the take enters the open session."""
+        from app.gui.live_window import open_live_capture
+        from core.model import layout_names
+
+        session = self.app.session
+        folder = session.folder if session is not None else None
+        self._live_window = open_live_capture(self, folder, layout_names())
 
     def open_learn_template(self) -> None:
         """Learn a lab's labelling template from labelled takes; it is saved into the session's layouts."""

@@ -53,6 +53,8 @@ class Snapshot:
     statuses: list[ModelStatus]
     alarms: list[str]
     figures: dict[str, Any] = field(default_factory=dict)
+    #: (M,) the model (index into ``statuses``) each marker belongs to
+    model_of_marker: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
 
 
 @dataclass
@@ -102,6 +104,7 @@ class LiveCapture:
         self.events: list[str] = []
         self.recording_error = ""
         self._snapshot: Snapshot | None = None
+        self._owners = np.empty(0, dtype=np.int64)
         self._lock = threading.Lock()
         self._worker: threading.Thread | None = None
         self._stopping = threading.Event()
@@ -249,7 +252,7 @@ class LiveCapture:
                 self._stop_recording(str(error))
         snapshot = Snapshot(result.frame, self._points[result.frame], result.assignment,
                             self.labeller.marker_names, result.states, self.supervisor.status(),
-                            list(self.supervisor.alarms), self.figures())
+                            list(self.supervisor.alarms), self.figures(), self._owners)
         with self._lock:
             self._snapshot = snapshot
 
@@ -258,6 +261,7 @@ class LiveCapture:
         assert run is not None
         models = [(track.name, track.kind, run.columns(number)) for number, track in enumerate(run.tracks)]
         self.supervisor = Supervisor(models, self.labeller.marker_names, self.frame_rate or 100.0, self.unseen_seconds)
+        self._owners = np.concatenate([np.full(track.count, number) for number, track in enumerate(run.tracks)])
 
     def _publish_unlabelled(self, index: int, points: np.ndarray) -> None:
         with self._lock:

@@ -15,7 +15,8 @@ client address that connected, in metres with Y up as Motive streams.
 
 ``unlabelled``: every point goes out unlabelled, shuffled per frame; otherwise the take's labelled columns
 go out as labelled markers (QTM's 3D component, NatNet marker set 1) and the rest unlabelled. The take
-loops unless ``loop=False``; the replay starts with the first client that asks for frames. ``garbage`` (tests): after that many frames, send bytes no client can read.
+loops unless ``loop=False``; the replay starts with the first client that asks for frames.
+``garbage`` (tests): after that many frames, send bytes no client can read.
 """
 
 from __future__ import annotations

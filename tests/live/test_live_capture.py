@@ -31,8 +31,6 @@ from core.session.session import Session
 from core.simulate.take import simulate_take
 
 
-
-
 @pytest.fixture(scope="module")
 def take():
     return simulate_take("glove-13", n_frames=400, seed=4, noise_mm=0.3, ghost_rate=0.05, occlusion=True,
@@ -171,7 +169,7 @@ def test_recording_follows_qtm_start_and_stop(take, tmp_path):
         capture.control("start")
         time.sleep(1.0)
         capture.control("stop")
-        assert wait_for(lambda: capture._stopping.is_set())
+        assert wait_for(capture._stopping.is_set)
     finally:
         result = capture.stop(tmp_path / "followed.c3d")
         server.stop()

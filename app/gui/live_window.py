@@ -1,0 +1,289 @@
+"""File ▸ Connect to live capture…: a window that connects to QTM or Motive, labels each frame live and shows
+the labelled points and a supervision panel per hand and object.
+
+The capture (:class:`core.live.capture.LiveCapture`) runs on threads of its own: the source's and the
+capture worker's, which journal and label every frame. This window never waits for them: a timer reads the
+latest labelled frame (:meth:`LiveCapture.snapshot`) :data:`DRAW_HZ` times a second and draws it, so when
+drawing is slower than the stream, draws are dropped, never frames. Stop ends the recording: the take is
+written and enters the session (the live labels as its first review step) on a worker, and the end summary
+("ring tip missing 38 % of the take: retake?") is shown.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pyvista as pv
+from PySide6.QtCore import Qt, QTimer, Signal
+from PySide6.QtGui import QColor
+from PySide6.QtWidgets import (
+    QComboBox,
+    QDialog,
+    QDialogButtonBox,
+    QFileDialog,
+    QFormLayout,
+    QHBoxLayout,
+    QHeaderView,
+    QLabel,
+    QLineEdit,
+    QListWidget,
+    QMainWindow,
+    QMessageBox,
+    QPushButton,
+    QSplitter,
+    QTableWidget,
+    QTableWidgetItem,
+    QVBoxLayout,
+    QWidget,
+)
+from pyvistaqt import QtInteractor
+
+from core.errors import InputError
+
+DRAW_HZ = 30
+LIGHT_COLOURS = {"green": "#2e9d44", "amber": "#e0a020", "red": "#d03030"}
+MODEL_COLOURS = ["#3b7ddd", "#dd6b3b", "#8e44ad", "#16a085", "#c0392b"]
+UNLABELLED = "#9a9a9a"
+
+
+class ConnectDialog(QDialog):
+    """The capture system, its address, the layout and hands, the session and the take's name."""
+
+    def __init__(self, parent: QWidget | None, session: Path | None, layouts: list[str]) -> None:
+        super().__init__(parent)
+        self.setWindowTitle("Connect to live capture")
+        form = QFormLayout(self)
+        self.system = QComboBox(self)
+        self.system.addItem("Qualisys QTM (real-time protocol)", "qtm")
+        self.system.addItem("OptiTrack Motive (NatNet, unicast)", "natnet")
+        self.address = QLineEdit("127.0.0.1:22223", self)
+        self.system.currentIndexChanged.connect(self._default_address)
+        self.layout_box = QComboBox(self)
+        self.layout_box.setEditable(True)
+        self.layout_box.addItems(layouts)
+        self.hands = QComboBox(self)
+        self.hands.addItems(["auto", "right", "left", "both"])
+        self.session = QLineEdit(str(session) if session else str(Path.home() / "handmocap-live"), self)
+        browse = QPushButton("…", self)
+        browse.clicked.connect(self._browse)
+        row = QHBoxLayout()
+        row.addWidget(self.session)
+        row.addWidget(browse)
+        self.name = QLineEdit(time.strftime("live-%Y%m%d-%H%M%S"), self)
+        form.addRow("System", self.system)
+        form.addRow("Address (host:port)", self.address)
+        form.addRow("Layout or template", self.layout_box)
+        form.addRow("Hands", self.hands)
+        form.addRow("Session folder", row)
+        form.addRow("Take name", self.name)
+        buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok | QDialogButtonBox.StandardButton.Cancel, self)
+        buttons.button(QDialogButtonBox.StandardButton.Ok).setText("Connect")
+        buttons.accepted.connect(self.accept)
+        buttons.rejected.connect(self.reject)
+        form.addRow(buttons)
+
+    def _default_address(self) -> None:
+        host = self.address.text().rpartition(":")[0] or "127.0.0.1"
+        self.address.setText(f"{host}:{22223 if self.system.currentData() == 'qtm' else 1510}")
+
+    def _browse(self) -> None:
+        folder = QFileDialog.getExistingDirectory(self, "Session folder", self.session.text())
+        if folder:
+            self.session.setText(folder)
+
+
+class LiveWindow(QMainWindow):
+    """The live view and supervision panel of one capture (module docstring)."""
+
+    finished = Signal(object)
+
+    def __init__(self, capture, session: Path, name: str, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.capture, self.session, self.name = capture, session, name
+        self.setWindowTitle(f"Live capture — {capture.source.label} at {capture.source.address}")
+        self.drawn = 0
+        self.last_frame = -1
+        self._stopping = False
+        splitter = QSplitter(Qt.Orientation.Horizontal, self)
+        self.view = QtInteractor(splitter)
+        self.view.set_background("#20242a")
+        self.view.add_axes()
+        self.cloud = pv.PolyData(np.zeros((1, 3)))
+        self.cloud["colour"] = np.zeros((1, 3), dtype=np.uint8)
+        self.view.add_mesh(self.cloud, scalars="colour", rgb=True, point_size=8, render_points_as_spheres=False)
+        panel = QWidget(splitter)
+        column = QVBoxLayout(panel)
+        self.status = QLabel("connecting…", panel)
+        self.status.setWordWrap(True)
+        column.addWidget(self.status)
+        self.table = QTableWidget(0, 6, panel)
+        self.table.setHorizontalHeaderLabels(["", "Model", "Labelled now", "Missing now", "Swap suspects",
+                                              "Noise (mm)"])
+        self.table.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeMode.ResizeToContents)
+        self.table.horizontalHeader().setStretchLastSection(True)
+        self.table.verticalHeader().setVisible(False)
+        column.addWidget(self.table, 2)
+        column.addWidget(QLabel("Alarms", panel))
+        self.alarms = QListWidget(panel)
+        column.addWidget(self.alarms, 1)
+        buttons = QHBoxLayout()
+        self.control_buttons = []
+        if capture.source.kind == "qtm":
+            for text, command in (("Take control", "takecontrol"), ("New", "new"), ("Start", "start"),
+                                  ("Stop", "stop")):
+                button = QPushButton(f"QTM: {text}", panel)
+                button.clicked.connect(lambda _checked=False, command=command: self._control(command))
+                buttons.addWidget(button)
+                self.control_buttons.append(button)
+        self.stop_button = QPushButton("Stop and save the take", panel)
+        self.stop_button.clicked.connect(self.stop)
+        buttons.addWidget(self.stop_button)
+        column.addLayout(buttons)
+        splitter.addWidget(self.view)
+        splitter.addWidget(panel)
+        splitter.setSizes([760, 520])
+        self.setCentralWidget(splitter)
+        self.resize(1320, 760)
+        self.timer = QTimer(self)
+        self.timer.timeout.connect(self.draw_latest)
+        self.timer.start(int(1000 / DRAW_HZ))
+        self._framed = False
+
+    # --- drawing at the window's pace ---------------------------------------------------------------------
+
+    def draw_latest(self) -> None:
+        """Draw the latest labelled frame (frames between two draws are skipped, never lost)."""
+        snapshot = self.capture.snapshot()
+        if snapshot is None or snapshot.frame == self.last_frame:
+            return
+        self.last_frame = snapshot.frame
+        points = np.asarray(snapshot.points, dtype=float).reshape(-1, 3)
+        colours = np.tile(_rgb(UNLABELLED), (max(len(points), 1), 1))
+        owners = snapshot.model_of_marker
+        for marker, point in enumerate(snapshot.assignment):
+            if 0 <= point < len(points) and marker < len(owners):
+                colours[point] = _rgb(MODEL_COLOURS[int(owners[marker]) % len(MODEL_COLOURS)])
+        if len(points):
+            cloud = pv.PolyData(points)
+            cloud["colour"] = colours[:len(points)]
+            self.cloud.shallow_copy(cloud)
+            if not self._framed:
+                self.view.reset_camera()
+                self._framed = True
+            self.view.render()
+            self.drawn += 1
+        self._panel(snapshot)
+
+    def _panel(self, snapshot) -> None:
+        figures = snapshot.figures
+        latency = figures.get("latency_ms_p99")
+        text = (f"frame {snapshot.frame + 1} · received {figures.get('frames_received', 0)} · dropped "
+                f"{figures.get('frames_dropped', 0)}"
+                + (f" · latency p99 {latency:.1f} ms" if latency is not None else
+                   " · labelling the start-up window…" if snapshot.statuses else " · finding the hands…")
+                + (f" · {figures['frame_rate_hz']:g} Hz" if figures.get("frame_rate_hz") else ""))
+        self.status.setText(text)
+        self.table.setRowCount(len(snapshot.statuses))
+        for row, status in enumerate(snapshot.statuses):
+            light = QTableWidgetItem("●")
+            light.setForeground(QColor(LIGHT_COLOURS[status.light]))
+            light.setToolTip(status.light)
+            missing = ", ".join(f"{name.replace('_', ' ')} {seconds:.1f} s" for name, seconds in
+                                sorted(status.missing.items(), key=lambda item: -item[1])[:4]) or "—"
+            cells = [light, QTableWidgetItem(status.name), QTableWidgetItem(f"{100 * status.labelled_share:.0f} %"),
+                     QTableWidgetItem(missing), QTableWidgetItem(", ".join(status.swap_suspects) or "—"),
+                     QTableWidgetItem("—" if status.noise_mm is None else f"{status.noise_mm:.2f}")]
+            for column, cell in enumerate(cells):
+                self.table.setItem(row, column, cell)
+        if self.alarms.count() != len(snapshot.alarms):
+            self.alarms.clear()
+            self.alarms.addItems(snapshot.alarms[-50:])
+            self.alarms.scrollToBottom()
+
+    # --- control and the end --------------------------------------------------------------------------------
+
+    def _control(self, command: str) -> None:
+        try:
+            answer = self.capture.control(command)
+        except InputError as error:
+            QMessageBox.warning(self, "QTM", str(error))
+            return
+        self.statusBar().showMessage(f"QTM: {answer}", 4000)
+
+    def stop(self) -> None:
+        """Stop the capture; the take is written and enters the session on a worker thread."""
+        if self._stopping:
+            return
+        self._stopping = True
+        self.stop_button.setEnabled(False)
+        self.stop_button.setText("saving…")
+        out = self.session / f"{self.name}.c3d"
+        result: dict = {}
+
+        def work() -> None:
+            result["value"] = self.capture.stop(out)
+
+        thread = threading.Thread(target=work, name="live-stop", daemon=True)
+        thread.start()
+
+        def wait() -> None:
+            if thread.is_alive():
+                QTimer.singleShot(100, wait)
+                return
+            self.timer.stop()
+            self._show_result(result.get("value"))
+        wait()
+
+    def _show_result(self, result) -> None:
+        if result is None:
+            return
+        lines = list(result.messages) + list(result.summary)
+        figures = result.figures
+        head = (f"{figures['frames_received']} frames received, {figures['frames_dropped']} dropped, labelled "
+                f"{100 * figures.get('labelled_share', 0):.1f} %")
+        where = f"take written to {result.out} and entered into the session" if result.out else "no take written"
+        self.status.setText(head + "\n" + where)
+        self.stop_button.setText("Stopped")
+        if lines:
+            self.alarms.addItems(["— end of capture —", *lines])
+            self.alarms.scrollToBottom()
+        self.finished.emit(result)
+
+    def closeEvent(self, event) -> None:  # noqa: N802 - Qt's name
+        if not self._stopping:
+            self.stop()
+        self.timer.stop()
+        self.view.close()
+        super().closeEvent(event)
+
+
+def _rgb(colour: str) -> np.ndarray:
+    value = QColor(colour)
+    return np.array([value.red(), value.green(), value.blue()], dtype=np.uint8)
+
+
+def open_live_capture(parent: QWidget, session: Path | None, layouts: list[str]) -> LiveWindow | None:
+    """Ask where to connect, connect (one line when it cannot) and show the live window."""
+    from core.live.capture import LiveCapture
+    from core.live.systems import make_source
+    from core.model.lab_template import load_lab_template
+
+    dialog = ConnectDialog(parent, session, layouts)
+    if dialog.exec() != QDialog.DialogCode.Accepted:
+        return None
+    try:
+        source = make_source(dialog.system.currentData(), dialog.address.text())
+        layout_name = dialog.layout_box.currentText().strip() or "dense"
+        layout = load_lab_template(layout_name) or layout_name
+        folder = Path(dialog.session.text()).expanduser()
+        capture = LiveCapture(source, layout, dialog.hands.currentText(), session=folder, name=dialog.name.text())
+        capture.start()
+    except InputError as error:
+        QMessageBox.warning(parent, "Connect to live capture", str(error))
+        return None
+    window = LiveWindow(capture, folder, capture.name, parent)
+    window.show()
+    return window
