@@ -72,7 +72,8 @@ def row(case: str, figures: dict) -> dict:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, nargs="*", default=[11, 12, 13], help="simulated seeds (none: the guitar only)")
+    parser.add_argument("--seeds", type=int, nargs="*", default=[11, 12, 13],
+                        help="simulated seeds (none: the guitar take only)")
     parser.add_argument("--frames", type=int, default=1200)
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
