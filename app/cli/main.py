@@ -6,6 +6,8 @@ Errors are one line on stderr and exit code 2, never a traceback.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
 import signal
 import sys
 from pathlib import Path
@@ -306,6 +308,11 @@ def main(argv: list[str] | None = None) -> int:
         return args.handler(args)
     except HandMocapError as error:
         print(f"handmocap: error: {error}", file=sys.stderr)
+    except BrokenPipeError:
+        # the reader went away (``handmocap info … | head``): stop quietly, as other command-line tools do
+        with contextlib.suppress(OSError):
+            sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - replaces the closed stream until exit
+        return EXIT_ERROR
     except (OSError, ValueError) as error:
         print(f"handmocap: error: {error}", file=sys.stderr)
     except KeyboardInterrupt:
