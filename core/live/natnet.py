@@ -20,6 +20,7 @@ from __future__ import annotations
 import contextlib
 import io
 import select
+import socket
 import struct
 import threading
 import time
@@ -36,6 +37,7 @@ DEFAULT_PORT = 1510
 OLDEST, NEWEST = Version(3, 0), Version(4, 99)
 SILENCE_S = 2.0
 UNLABELLED_FLAG = 0x10
+RECEIVE_BUFFER = 8 << 20
 
 
 def motive_to_lab(points: np.ndarray) -> np.ndarray:
@@ -85,6 +87,9 @@ class NatNetSource(LiveSource):
                               f"NatNet {OLDEST} to 4.x")
         self.server_version = f"{info.application_name} {info.server_version} (NatNet {version})"
         self.client = client
+        for sock in _sockets(client):      # room for a few seconds of frames while the labeller is busy
+            with contextlib.suppress(OSError):
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER)
         with contextlib.suppress(OSError):
             client.request_modeldef()
         self._last = time.perf_counter()
@@ -95,8 +100,7 @@ class NatNetSource(LiveSource):
     def _run(self) -> None:
         client = self.client
         assert client is not None
-        sockets = [sock for sock in (getattr(client, "_NatNetClient__command_socket", None),
-                                     getattr(client, "_NatNetClient__data_socket", None)) if sock is not None]
+        sockets = _sockets(client)
         message = ""
         while not self._stop.is_set():
             try:
@@ -159,6 +163,12 @@ class NatNetSource(LiveSource):
             self.client.shutdown()
         self.client = None
         self.connected = False
+
+
+def _sockets(client: NatNetClient) -> list[socket.socket]:
+    """The client's command and data sockets (it keeps them private; frames arrive on the command socket)."""
+    return [sock for sock in (getattr(client, "_NatNetClient__command_socket", None),
+                              getattr(client, "_NatNetClient__data_socket", None)) if sock is not None]
 
 
 def _reason(error: Any) -> str:

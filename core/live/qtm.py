@@ -48,6 +48,17 @@ class _CheckedProtocol(QTMProtocol):
         self._pending = b""
         self.on_garbage = on_garbage
         self.broken = False
+        self.last_error = ""
+        self.closed: asyncio.Future = self.loop.create_future()
+
+    def _on_error(self, response: Any) -> None:
+        self.last_error = _text(response)
+        super()._on_error(response)
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        if not self.closed.done():
+            self.closed.set_result(None)
+        super().connection_lost(exc)
 
     def data_received(self, data: bytes) -> None:
         if self.broken:
@@ -134,7 +145,7 @@ class QtmSource(LiveSource):
                 loop.run_until_complete(self._connect(timeout))
             except SourceError as error:
                 ready["error"] = str(error)
-            except (TimeoutError, OSError) as error:
+            except (TimeoutError, OSError, RuntimeError) as error:
                 ready["error"] = f"cannot connect to QTM at {self.address}: {_reason(error)}"
             started.set()
             if "error" not in ready:
@@ -161,11 +172,21 @@ class QtmSource(LiveSource):
                               "output on that port?") from None
         assert isinstance(protocol, _CheckedProtocol)
         try:
-            await asyncio.wait_for(protocol.set_version(self.version), timeout)
+            version = asyncio.ensure_future(protocol.set_version(self.version))
+            await asyncio.wait([version, protocol.closed], timeout=timeout, return_when=asyncio.FIRST_COMPLETED)
+            if not version.done():
+                version.cancel()
+                raise SourceError(f"QTM at {self.address} refused the connection: {protocol.last_error}"
+                                  if protocol.last_error else f"QTM at {self.address} did not answer")
+            version.result()
         except QRTCommandException as error:
-            protocol.transport.close()
+            if protocol.transport is not None:
+                protocol.transport.close()
+            answer = _text(error.value)
+            if "version" not in answer.lower():
+                raise SourceError(f"QTM at {self.address} refused the connection: {answer}") from None
             raise SourceError(f"QTM at {self.address} does not speak RT protocol version {self.version} "
-                              f"({_text(error.value)})") from None
+                              f"({answer})") from None
         connection = qtm_rt.QRTConnection(protocol, timeout=timeout)
         self._connection = connection
         try:
@@ -209,15 +230,15 @@ class QtmSource(LiveSource):
             self._sink.event(EVENT_NAMES.get(event, str(event)))
 
     def _on_disconnect(self, error: Exception | None) -> None:
-        self.connected = False
         if not self._stopping:
             self._fail(f"QTM at {self.address} closed the connection"
                        + (f" ({_reason(error)})" if error is not None else ""))
 
     def _fail(self, message: str) -> None:
-        if self._failed or self._stopping:
+        if self._failed or self._stopping or not self.connected:    # while connecting, start() says why
             return
         self._failed = True
+        self.connected = False
         if self._sink is not None:
             self._sink.failed(message)
         if self._loop is not None:
