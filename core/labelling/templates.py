@@ -350,7 +350,8 @@ def _chains(names: list[str], fingers: list[int], mean: np.ndarray, sd: np.ndarr
             by_digit.setdefault(str(digit), []).append(index)
         if all(len(group) <= 4 for group in by_digit.values()):
             return list(by_digit.values())
-    for key in (_stem, *(partial(_prefix, cut=cut) for cut in (1, 2))):
+    keys: list[Callable[[str], str]] = [_stem, partial(_prefix, cut=1), partial(_prefix, cut=2)]
+    for key in keys:
         by_key: dict[str, list[int]] = {}
         for index in fingers:
             by_key.setdefault(key(name_side(names[index])[1]).lower(), []).append(index)
