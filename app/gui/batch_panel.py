@@ -4,8 +4,14 @@ The batch runs as ``handmocap batch`` does (:mod:`core.batch`: a local Dask clus
 from a Python thread, so the window stays live; progress arrives through a queued Qt signal. Each
 take's state is listed as it changes; a take that finishes is announced through the
 :class:`~app.gui.application.Application`, so the session browser shows its new state at once. Cancel
-stops the batch: finished takes are kept, the others are untouched. A take open in this window is
-held by it, so the batch skips it and says so.
+stops the batch: finished takes are kept, the others are untouched.
+
+A take open for editing in this window is held by it, so no batch worker may change it: the panel runs the
+pipeline on a copy of its review on the batch thread (:mod:`core.batch.open_take`) and pushes the result
+through the open document, as ONE undoable, journalled step ("batch …" in the Edit menu), unless the take
+was edited meanwhile (then nothing is applied and the row says so). Every take has a row and a state —
+queued, running, done (applied to the open take, or by a worker), failed, skipped or up to date — with its
+reason, and the status line counts every state.
 """
 
 from __future__ import annotations
@@ -33,11 +39,15 @@ from PySide6.QtWidgets import (
 )
 
 from app.gui.application import Application
+from app.gui.document import TakeDocument
+from core.batch.open_take import OpenTakeResult, process_review_copy, record_done
 from core.batch.pipeline import EXPORTS, HANDS, SOLVE_METHODS, STEPS, Pipeline, load_pipeline, save_pipeline
-from core.batch.runner import BatchProgress, plan_batch, run_batch
+from core.batch.runner import BatchPlan, BatchProgress, TakeJob, plan_batch, run_batch
+from core.batch.task import step_description
 from core.errors import HandMocapError
 from core.gaps import FILL_METHODS
 from core.model import layout_names
+from core.review import ReviewTake
 
 
 class BatchPanel(QDialog):
@@ -45,6 +55,8 @@ class BatchPanel(QDialog):
 
     progressed = Signal(object)   # BatchProgress, from the batch thread
     batch_ended = Signal(object, str)  # final BatchProgress (or None), error text ("" when none)
+    open_take_started = Signal(str)    # take id of a take open here whose copy the batch thread processes now
+    open_take_done = Signal(str, object, str)  # take id, OpenTakeResult (None when it failed), error text
 
     def __init__(self, app: Application, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -53,6 +65,10 @@ class BatchPanel(QDialog):
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
         self._announced: set[str] = set()
+        self._states: dict[str, str] = {}
+        self._summaries: dict[str, dict] = {}
+        self._open_jobs: list[tuple[TakeJob, TakeDocument, ReviewTake, int, bool]] = []
+        self._plan: BatchPlan | None = None
         self.steps = {step: QCheckBox(step) for step in STEPS}
         self.exports = {kind: QCheckBox(kind) for kind in EXPORTS}
         self.layout_box = QComboBox()
@@ -82,6 +98,8 @@ class BatchPanel(QDialog):
         self.set_pipeline(Pipeline())
         self.progressed.connect(self._show_progress, Qt.ConnectionType.QueuedConnection)
         self.batch_ended.connect(self._done, Qt.ConnectionType.QueuedConnection)
+        self.open_take_started.connect(self._open_started, Qt.ConnectionType.QueuedConnection)
+        self.open_take_done.connect(self._open_done, Qt.ConnectionType.QueuedConnection)
         self._list_takes()
 
     def _build(self) -> None:
@@ -161,38 +179,86 @@ class BatchPanel(QDialog):
         return True
 
     # ---------------------------------------------------------------------------- running
-    def _list_takes(self, states: dict[str, str] | None = None, summaries: dict | None = None) -> None:
-        """One row per session take: name, batch state, reason or figures."""
+    def _list_takes(self) -> None:
+        """One row per session take: name, state, reason or figures (states as the batch and the open takes
+        report them)."""
         takes = self.app.session.takes if self.app.session is not None else []
         self.table.setRowCount(len(takes))
         for row, entry in enumerate(takes):
-            state = (states or {}).get(entry.id, "")
-            summary = (summaries or {}).get(entry.id, {})
+            state = self._states.get(entry.id, "")
+            summary = self._summaries.get(entry.id, {})
             if summary.get("status") == "done":
                 detail = (f"{100 * summary.get('labelled_share', 0):.1f} % labelled, longest gap "
-                          f"{summary.get('longest_gap', 0)}, {summary.get('seconds', 0):.1f} s")
+                          f"{summary.get('longest_gap', 0)} frames, {summary.get('seconds', 0):.1f} s")
+                if summary.get("applied"):
+                    detail = f"applied to the open take as one step (Edit ▸ Undo undoes it); {detail}"
             else:
                 detail = summary.get("reason", "")
             for column, text in enumerate((entry.name, state, detail)):
-                self.table.setItem(row, column, QTableWidgetItem(text))
+                item = QTableWidgetItem(text)
+                item.setToolTip(text)
+                self.table.setItem(row, column, item)
+
+    def _set_state(self, take_id: str, state: str, summary: dict | None = None) -> None:
+        self._states[take_id] = state
+        if summary is not None:
+            self._summaries[take_id] = summary
 
     def start(self) -> None:
-        """Plan the batch of the open session and run it on a thread."""
+        """Plan the batch of the open session and run it on a thread; takes open in this window are processed
+        on a copy of their review and their result is pushed through the open document (module docstring)."""
         if self.app.session is None or self._thread is not None:
             return
         session, workers = self.app.session, self.workers.value()
-        plans = []
-        if not self._try(lambda: plans.append(plan_batch(session, self.pipeline()))):
+        plans: list[BatchPlan] = []
+        pipelines: list[Pipeline] = []
+        if not self._try(lambda: pipelines.append(self.pipeline())) or \
+                not self._try(lambda: plans.append(plan_batch(session, pipelines[0]))):
             return
-        plan = plans[0]
-        self.status.setText(f"{len(plan.jobs)} takes to process, {len(plan.up_to_date)} up to date")
+        plan, pipeline = plans[0], pipelines[0]
+        self._states, self._summaries = {}, {}
+        self._open_jobs = []
+        for take_id in plan.up_to_date:
+            self._set_state(take_id, "up to date", {"status": "up to date", "reason": "done before with this "
+                                                    "pipeline and this raw file; its exports are unchanged"})
+        workers_jobs = []
+        for job in plan.jobs:
+            document = self.app.document_of_session_take(job.take_id)
+            if document is None:
+                workers_jobs.append(job)
+                self._set_state(job.take_id, "queued")
+            else:
+                self._prepare_open(document, job, pipeline)
+        plan.jobs = workers_jobs
+        self._plan = plan
         self._stop.clear()
         self._announced.clear()
         self.start_button.setEnabled(False)
         self.cancel_button.setEnabled(True)
+        open_jobs = [(job, review) for job, _document, review, _version, _undone in self._open_jobs]
+        self._list_takes()
+        self._show_counts()
 
         def work() -> None:
             try:
+                if open_jobs and pipeline.runs("export"):
+                    plan.output.mkdir(parents=True, exist_ok=True)
+                for job, review in open_jobs:
+                    if self._stop.is_set():
+                        break
+                    self.open_take_started.emit(job.take_id)
+                    try:
+                        outcome = process_review_copy(review, pipeline, job.key, plan.output, job.stem,
+                                                      cancelled=self._stop.is_set)
+                    except HandMocapError as error:
+                        self.open_take_done.emit(job.take_id, None, _first_line(str(error)))
+                    except OSError as error:
+                        self.open_take_done.emit(job.take_id, None, f"cannot write: {error.strerror or error}")
+                    except Exception as error:  # noqa: BLE001 - one take fails, the window stays up
+                        self.open_take_done.emit(job.take_id, None,
+                                                 f"internal error: {type(error).__name__}: {error}")
+                    else:
+                        self.open_take_done.emit(job.take_id, outcome, "")
                 progress = run_batch(plan, workers, on_progress=self.progressed.emit, stop=self._stop.is_set)
             except HandMocapError as error:
                 self.batch_ended.emit(None, str(error))
@@ -204,21 +270,99 @@ class BatchPanel(QDialog):
         self._thread = threading.Thread(target=work, name="batch", daemon=True)
         self._thread.start()
 
+    def _prepare_open(self, document: TakeDocument, job: TakeJob, pipeline: Pipeline) -> None:
+        """A take open in this window: read-only here (another program edits it) it is skipped with that reason;
+        else its earlier batch step of this pipeline is undone (it is run afresh, as a worker does) and a copy of
+        its review is processed on the batch thread."""
+        opened = document.open_take
+        if opened is not None and opened.read_only:
+            reason = (f"open here read-only: another program is editing it ({opened.held_by}); close it there, "
+                      "then process it again" if opened.held_by else opened.read_only_reason())
+            self._set_state(job.take_id, "skipped", {"status": "skipped", "reason": reason})
+            return
+        undone = False
+        if document.stack is not None and document.stack.undo_text() == step_description(pipeline, job.key):
+            try:
+                document.undo()
+                undone = True
+            except HandMocapError as error:
+                self._set_state(job.take_id, "failed", {"status": "failed", "reason": _first_line(str(error))})
+                return
+        review = document.ensure_review()
+        self._open_jobs.append((job, document, review.copy(), review.version, undone))
+        self._set_state(job.take_id, "queued", {"status": "queued", "reason": "open in this window: its result "
+                                                "will be applied to it as one undoable step"})
+
+    def _open_started(self, take_id: str) -> None:
+        self._set_state(take_id, "running")
+        self._list_takes()
+        self._show_counts()
+
+    def _open_done(self, take_id: str, outcome: OpenTakeResult | None, error: str) -> None:
+        """Apply the result of an open take's pipeline through its open document (GUI thread)."""
+        entry = next((item for item in self._open_jobs if item[0].take_id == take_id), None)
+        if entry is None:
+            return
+        job, _, _, version, undone = entry
+        document = self.app.document_of_session_take(take_id)
+        if document is not entry[1]:
+            self._set_state(take_id, "failed", {"status": "failed", "reason": "the take was closed before its "
+                                                "result could be applied; process it again"})
+        elif outcome is None:
+            if undone:
+                document.redo()         # the take keeps its earlier batch result
+            self._set_state(take_id, "failed", {"status": "failed", "reason": error})
+        elif document.review.version != version:
+            self._set_state(take_id, "skipped", {"status": "skipped", "reason": "not applied: the take was edited "
+                                                 "while it was processed; process it again"})
+        else:
+            self._apply_open(document, job, outcome)
+        self._list_takes()
+        self._show_counts()
+
+    def _apply_open(self, document: TakeDocument, job: TakeJob, outcome: OpenTakeResult) -> None:
+        take_id, session = job.take_id, self.app.session
+        try:
+            if outcome.command is not None:
+                document.push(outcome.command)
+            document.hand_models.update(outcome.models)
+            document.marker_sets.update(outcome.marker_sets)
+            summary = outcome.summary | {"take": take_id, "name": job.name, "applied": outcome.command is not None}
+            record_done(session.folder, take_id, job.key, summary)
+            for kind, path in outcome.outputs.items():
+                self.app.record_export(take_id, kind, str(path))
+            entry = session.take(take_id)
+            if not outcome.outputs and entry.state == "raw" and document.has_labels():
+                self.app.set_take_state(take_id, "labelled")
+        except HandMocapError as error:
+            self._set_state(take_id, "failed", {"status": "failed", "reason": _first_line(str(error))})
+            return
+        self._set_state(take_id, "done", summary)
+
+    def _show_counts(self, extra: str = "") -> None:
+        """The status line: how many takes are in each state, of all the session's takes."""
+        total = len(self.app.session.takes) if self.app.session is not None else 0
+        counts = {state: sum(1 for value in self._states.values() if value == state) for state in STATE_ORDER}
+        applied = sum(1 for summary in self._summaries.values() if summary.get("applied"))
+        parts = [f"{counts['done']} done" + (f" ({applied} applied to takes open here)" if applied else "")]
+        parts += [f"{counts[state]} {state}" for state in STATE_ORDER[1:] if counts[state]]
+        self.status.setText(f"{', '.join(parts)} — of {total} takes{extra}")
+
     def cancel(self) -> None:
         """Stop the batch: finished takes are kept."""
         self._stop.set()
         self.status.setText("stopping: finished takes are kept…")
 
     def _show_progress(self, progress: BatchProgress) -> None:
-        self._list_takes(dict(progress.states), dict(progress.summaries))
+        for take_id, state in progress.states.items():
+            self._set_state(take_id, state, progress.summaries.get(take_id))
+        self._list_takes()
         for take_id, state in list(progress.states.items()):
             if state in ("done", "failed", "skipped") and take_id not in self._announced:
                 self._announced.add(take_id)
                 self.app.take_processed(take_id)
-        self.status.setText(f"{progress.count('done')} done, {progress.count('failed')} failed, "
-                            f"{progress.count('running')} running of {progress.total}; "
-                            f"{progress.frames_per_s:.0f} frames/s" +
-                            (f"; dashboard {progress.dashboard}" if progress.dashboard else ""))
+        rate = f"; {progress.frames_per_s:.0f} frames/s" if progress.frames else ""
+        self._show_counts(rate + (f"; dashboard {progress.dashboard}" if progress.dashboard else ""))
 
     def _done(self, progress: BatchProgress | None, error: str) -> None:
         if self._thread is not None:
@@ -226,9 +370,15 @@ class BatchPanel(QDialog):
         self._thread = None
         self.start_button.setEnabled(True)
         self.cancel_button.setEnabled(False)
+        for take_id, state in list(self._states.items()):
+            if state in ("queued", "running") and (progress is None or progress.interrupted or error):
+                self._set_state(take_id, "queued", {"status": "queued", "reason": "not run: the batch was "
+                                                    "stopped before it"})
         if progress is not None:
             self._show_progress(progress)
             self.status.setText(self.status.text() + ("; cancelled" if progress.interrupted else "; finished"))
+        else:
+            self._list_takes()
         if error:
             self.status.setText(f"⚠ {error}")
 
@@ -239,6 +389,14 @@ class BatchPanel(QDialog):
             self._thread.join()
             self._thread = None
         super().closeEvent(event)
+
+
+#: the states a take's row may show, in the order the status line counts them
+STATE_ORDER = ("done", "failed", "skipped", "up to date", "running", "queued")
+
+
+def _first_line(message: str) -> str:
+    return next((line.strip() for line in message.splitlines() if line.strip()), message.strip())
 
 
 def _side_by_side(widgets: Iterable[QWidget]) -> QHBoxLayout:

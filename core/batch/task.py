@@ -77,8 +77,10 @@ def _process(folder: Path, take_id: str, pipeline: Pipeline, key: str, output: P
     session = Session.open(folder)
     opened = session.open_take(take_id)
     try:
-        if opened.read_only:
-            return {"status": "skipped", "reason": opened.read_only_reason()}
+        if opened.read_only:   # another program (or window) holds the take: it is not ours to change
+            reason = (f"another program is editing it ({opened.held_by}): close it there, then process it again"
+                      if opened.held_by else opened.read_only_reason())
+            return {"status": "skipped", "reason": reason}
         before = read_state(folder, [take_id]).get(take_id, {})
         write_state(folder, take_id, "running", key)  # from now on its exports are the batch's to replace
         description = step_description(pipeline, key)

@@ -778,6 +778,15 @@ class ReviewTake:
             mine[key].shape == theirs[key].shape
             and np.array_equal(mine[key], theirs[key], equal_nan=mine[key].dtype.kind == "f") for key in mine)
 
+    def copy(self) -> ReviewTake:
+        """An independent copy of the review (the raw take is shared: it is never changed), e.g. for a worker
+        to run commands on while the original stays shown."""
+        return ReviewTake(take=self.take, label_names=list(self.label_names), assignment=self.assignment,
+                          provenance=self.provenance, edited=self.edited, filled_positions=self.filled_positions,
+                          confidence=self.confidence, residuals_mm=self.residuals_mm, ghost=self.ghost,
+                          hands=[hand.copy() for hand in self.hands], rigid_bodies=self.rigid_bodies,
+                          health=list(self.health), noise_mm=self.noise_mm, settings=self.settings)
+
     # --- change tracking ----------------------------------------------------------------------------
 
     def changed(self) -> None:
