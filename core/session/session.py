@@ -453,13 +453,17 @@ class Session:
         """The raw file of a take: the session-relative path if it exists, else the absolute one.
         InputError when neither exists (moved or deleted)."""
         entry = self.take(take_id)
-        if entry.source_relative is not None:
-            relative = (self.folder / entry.source_relative).resolve()
-            if relative.exists():
-                return relative
-        absolute = Path(entry.source)
-        if absolute.exists():
-            return absolute
+        try:
+            if entry.source_relative is not None:
+                relative = (self.folder / entry.source_relative).resolve()
+                if relative.exists():
+                    return relative
+            absolute = Path(entry.source)
+            if absolute.exists():
+                return absolute
+        except (OSError, RuntimeError, ValueError) as error:   # a link loop, a name the system refuses
+            raise InputError(f"the raw file of take '{entry.name}' cannot be reached: {entry.source} "
+                             f"({getattr(error, 'strerror', None) or error})") from None
         raise InputError(f"the raw file of take '{entry.name}' is missing: {entry.source} (relink it)")
 
     def relink_take(self, take_id: str, path: str | os.PathLike[str]) -> TakeEntry:

@@ -91,7 +91,10 @@ def check_npy(stream: Any, available: int, name: str) -> None:
         stream.seek(start)
     if dtype.hasobject:
         raise InputError(f"{name}: holds Python objects, which are never loaded")
-    size = int(np.prod([int(n) for n in shape], dtype=object)) * dtype.itemsize
+    if dtype.kind == "V":
+        raise InputError(f"{name}: holds raw records, which are never loaded")
+    # an element takes at least a byte: a zero-size type cannot claim 2**40 elements from a few bytes
+    size = int(np.prod([int(n) for n in shape], dtype=object)) * max(dtype.itemsize, 1)
     if size > available:
         raise InputError(f"{name}: its header asks for {size} bytes, more than the {available} it holds")
 
@@ -344,6 +347,8 @@ def load_snapshot(data: bytes, take: Take, name: str = SNAPSHOT_NAME) -> tuple[R
         text = str(error).splitlines()[0][:200] if str(error) else type(error).__name__
         raise InputError(f"{name}: damaged review snapshot ({'no ' if isinstance(error, KeyError) else ''}{text})"
                          ) from None
+    except MemoryError:   # an array far larger than its take (a deflated member of zeros): not this take's
+        raise InputError(f"{name}: damaged review snapshot (an array too large for its take)") from None
     return review, meta, commands
 
 
