@@ -1,5 +1,8 @@
 """Fuzz every file reader: seeded mutations of C3D, TSV, TRC, CSV (ours and the Vicon Nexus, Motive and NOKOV
-exports of ``tests/io/fixtures``), PLY, OBJ, glTF, GLB and .npz files.
+exports of ``tests/io/fixtures``), PLY, OBJ, glTF, GLB and .npz files; and of the inputs of issue 22
+(:data:`INPUT_FORMATS`): OpenCV camera files (YAML, XML) and our camera JSON, videos, folders of colour and of
+depth frames, batch pipelines (TOML, JSON), marker layouts and lab templates, scene specs, landmark files and
+session folders.
 
 Each case must load or raise :class:`core.errors.InputError`. Cases run in a worker process limited to
 ``--memory-gb`` of address space; a case that takes longer than ``--timeout`` seconds is a hang, a worker
@@ -7,12 +10,15 @@ killed by a signal is a crash, and either way a new worker goes on with the next
 
 Mutators are our own (atheris is not used).
 
-Run: python tests/bench/fuzz_readers.py [--cases 5400] [--seed 0] [--formats c3d,tsv,...] [--timeout 30]
+Run: python tests/bench/fuzz_readers.py [--cases 5400] [--seed 0] [--formats c3d,tsv,...|inputs|all] [--timeout 30]
+(``--formats inputs``: the formats of :data:`INPUT_FORMATS`; the default is the file formats of :data:`FORMATS`)
 """
 
 import argparse
 import json
+import os
 import random
+import re
 import resource
 import select
 import struct
@@ -32,6 +38,9 @@ import numpy as np  # noqa: E402
 from core.evaluation.data import SHARED_DATA  # noqa: E402
 
 FORMATS = ("c3d", "tsv", "trc", "csv", "ply", "obj", "gltf", "glb", "npz")
+#: the inputs of issue 22 (each read by its own reader; see :func:`read_input`)
+INPUT_FORMATS = ("camera_yaml", "camera_xml", "camera_json", "video", "frames", "depth", "pipeline", "layout",
+                 "scene", "landmarks", "session")
 #: the vendor text exports (Vicon Nexus, OptiTrack Motive, NOKOV) the CSV cases also start from
 VENDOR_FIXTURES = Path(__file__).resolve().parents[1] / "io" / "fixtures"
 INTERESTING_TEXT = ["", "0", "-1", "1e308", "-1e308", "nan", "inf", "9" * 30, "18446744073709551616",
@@ -293,8 +302,294 @@ def mutate_npz(data: bytes, rng: random.Random) -> bytes:
     return out.getvalue()
 
 
+# --------------------------------------------------------------------------- the inputs of issue 22
+
+INTERESTING_YAML = ["[", "]", "{", "}", "- ", "-", ",", ":", "!!binary AAAA", "!!opencv-matrix", "!!str", "!x",
+                    "&a", "*a", "|", ">", "? ", "%YAML:1.0", "---", "...", "'", '"', "#", "rows: 99999999",
+                    "cols: 2147483647", "rows: -1", "dt: 3d", "dt: z", "dt: 9f", "data: [ ]", "data: 1", "1e999",
+                    "-0", ".nan", ".inf", "9" * 400, "\t", "   ", "\n   ", "\n- ", "x" * 20000, "[" * 50000,
+                    "{a: [" * 40, "0x7fffffffffffffff", "sizes: [ 99999, 99999, 99999 ]", "!!opencv-nd-matrix"]
+INTERESTING_XML = ["<", ">", "</", "<a>", "</a>", "<_>", "</_>", "<!DOCTYPE x [<!ENTITY a 'b'>]>", "&a;", "&#0;",
+                   "&#x110000;", "&", "<![CDATA[x]]>", "<?x?>", ' type_id="opencv-matrix"', ' type_id="x"',
+                   "<rows>99999999</rows>", "<cols>-1</cols>", "<dt>3u</dt>", "<dt>q</dt>", '"', "<!--", "-->",
+                   "1e999", "nan", "9" * 400, "<a>" * 50000, "<a/>", "<opencv_storage>", "</opencv_storage>",
+                   "<sizes>99999 99999 99999</sizes>", ' type_id="opencv-nd-matrix"', "x" * 20000]
+INTERESTING_TOML = ["[", "]", "{", "}", "[[a]]", "[steps]", "a.b.c.d = 1", '"""', "'" * 3, "nan", "inf", "-inf",
+                    "1979-05-27T07:32:00Z", "= ", "\\u0000", "0x7f", "9" * 5000, "true", "[[[[[[[[1]]]]]]]]",
+                    "=" * 40, "x = [" * 2000, "steps = " + "[" * 50000, '"\\"', "\x7f", "#", "\r\n"]
+
+
+def mutate_markup(data: bytes, rng: random.Random, interesting: list[str]) -> bytes:
+    """One text mutation of a YAML, XML or TOML file: an interesting token replaces a word or goes in
+    somewhere, a line is repeated or dropped, the file is cut, or nested deeply."""
+    text = data.decode("utf-8", "replace")
+    kind = rng.choice(["replace", "replace", "insert", "insert", "repeat", "drop", "cut", "nest", "number"])
+    if kind == "replace":
+        words = list(re.finditer(r"[^\s\[\]{}<>,:=\"']+", text))
+        if words:
+            word = rng.choice(words)
+            return (text[:word.start()] + rng.choice(interesting) + text[word.end():]).encode()
+    if kind == "number":
+        numbers = list(re.finditer(r"-?[0-9][0-9.e+-]*", text))
+        if numbers:
+            number = rng.choice(numbers)
+            value = rng.choice(["1e309", "-1", "0", "99999999999", "2147483648", "nan", "1" * 4400, "0.5", "-0."])
+            return (text[:number.start()] + value + text[number.end():]).encode()
+    lines = text.split("\n")
+    index = rng.randrange(len(lines))
+    if kind == "repeat":
+        lines[index:index] = [lines[index]] * rng.randrange(1, 3000)
+    elif kind == "drop":
+        del lines[index]
+    elif kind == "cut":
+        return data[:rng.randrange(len(data) + 1)]
+    elif kind == "nest":
+        opener = rng.choice([token for token in interesting if len(token) <= 4 and token[:1] in "[{<"] or ["["])
+        lines[index] = lines[index] + opener * rng.choice([20, 200, 5000, 60000])
+    else:
+        position = rng.randrange(len(lines[index]) + 1)
+        lines[index] = lines[index][:position] + rng.choice(interesting) + lines[index][position:]
+    return "\n".join(lines).encode()
+
+
+def _deepen(document: object, rng: random.Random) -> object:
+    """``document`` with a deeply nested list or object put in one of its places."""
+    deep: object = [] if rng.random() < 0.5 else {}
+    for _ in range(rng.choice([40, 1000, 20000])):
+        deep = [deep] if rng.random() < 0.5 else {"a": deep}
+    if isinstance(document, dict) and document:
+        document[rng.choice(list(document))] = deep
+        return document
+    return deep
+
+
+def _deep_json(document: object, rng: random.Random) -> bytes:
+    """JSON text of ``document`` with a deep nesting in it, written without recursion."""
+    depth = rng.choice([40, 1000, 20000])
+    opener, closer = ("[", "]") if rng.random() < 0.5 else ('{"a": ', "}")
+    deep = opener * depth + "0" + closer * depth
+    if isinstance(document, dict) and document:
+        key = rng.choice(list(document))
+        document = dict(document)
+        document[key] = "@@DEEP@@"
+        return json.dumps(document).replace('"@@DEEP@@"', deep).encode()
+    return deep.encode()
+
+
+def write_input_seeds(folder: Path) -> dict[str, list[Path]]:
+    """Seeds of :data:`INPUT_FORMATS` in ``folder``: files, or folders (frames, depth, sessions)."""
+    import cv2
+
+    from core.batch.pipeline import Pipeline, save_pipeline
+    from core.batch.state import write_state
+    from core.calibration.landmarks import save_landmarks
+    from core.camera.files import save_camera
+    from core.camera.writers import write_depth_frames, write_video
+    from core.io import save_take
+    from core.model import load_layout
+    from core.model.objects import object_from_json, save_scene_spec
+    from core.model.template_mesh import LANDMARK_NAMES
+    from core.session.cameras import add_camera
+    from core.session.session import Session
+    from core.simulate.camera import random_camera
+    from core.simulate.take import simulate_take
+
+    seeds: dict[str, list[Path]] = {fmt: [] for fmt in INPUT_FORMATS}
+    rng = np.random.default_rng(22)
+    camera = random_camera(3)
+    for suffix, fmt in ((".yaml", "camera_yaml"), (".xml", "camera_xml"), (".json", "camera_json")):
+        save_camera(camera, folder / f"registered{suffix}")
+        seeds[fmt].append(folder / f"registered{suffix}")
+    for suffix, fmt in ((".yaml", "camera_yaml"), (".xml", "camera_xml")):   # as OpenCV writes them
+        storage = cv2.FileStorage(str(folder / f"opencv{suffix}"), cv2.FILE_STORAGE_WRITE)
+        storage.write("calibration_time", "Mon Jan 1 2024")
+        storage.write("image_width", 640)
+        storage.write("image_height", 480)
+        storage.write("camera_matrix", camera.matrix)
+        storage.write("distortion_coefficients", camera.distortion.reshape(1, -1))
+        storage.write("per_view_errors", rng.random((12, 1)))
+        storage.startWriteStruct("board", cv2.FileNode_MAP)
+        storage.write("squares", 7)
+        storage.endWriteStruct()
+        storage.startWriteStruct("views", cv2.FileNode_SEQ)
+        for value in (1, 2.5, 3):
+            storage.write("", value)
+        storage.endWriteStruct()
+        storage.release()
+        seeds[fmt].append(folder / f"opencv{suffix}")
+    (folder / "flow.yaml").write_text("%YAML 1.2\n---\nimage_width: 640\nimage_height: 480\ncamera_matrix: "
+                                      "{ rows: 3, cols: 3, dt: d, data: [ 600, 0, 320, 0, 600, 240, 0, 0, 1 ] }\n"
+                                      "distortion_coefficients: [ 0.1, -0.2, 0, 0, 0 ]\nR:\n  - 0\n  - 0\n  - 0\n"
+                                      "T: [ 0, 0, 500 ]\n")
+    seeds["camera_yaml"].append(folder / "flow.yaml")
+
+    frames = [np.full((48, 64, 3), 40 * k, np.uint8) for k in range(4)]
+    for name in ("video.avi", "video.mp4"):
+        write_video(folder / name, frames, 30.0, (64, 48))
+        seeds["video"].append(folder / name)
+    for suffix in (".png", ".jpg"):
+        colour = folder / f"colour{suffix[1:]}"
+        colour.mkdir()
+        for k, image in enumerate(frames):
+            (colour / f"frame_{k}{suffix}").write_bytes(cv2.imencode(suffix, image)[1].tobytes())
+        seeds["frames"].append(colour)
+    depth = folder / "depth"
+    depth.mkdir()
+    write_depth_frames(depth, [rng.uniform(300, 900, (48, 64)) for _ in range(3)], 1.0)
+    seeds["depth"].append(depth)
+
+    objects = folder / "objects.json"
+    cup = object_from_json({"name": "cup", "type": "cylinder", "radius_mm": 40, "height_mm": 100,
+                            "markers": {"cup1": [40, 0, 30], "cup2": [0, 40, 10], "cup3": [-40, 0, -20]}})
+    box = object_from_json({"name": "block", "type": "box", "size_mm": [80, 60, 40],
+                            "markers": {"b1": [40, 0, 10], "b2": [0, 30, 0], "b3": [-40, 10, 20]}})
+    save_scene_spec([cup, box], objects)
+    seeds["scene"].append(objects)
+    for name in ("p.toml", "p.json"):
+        save_pipeline(Pipeline(layout="glove-13", hands="both", objects=str(objects), exports=("c3d", "bvh"),
+                               output=str(folder / "out"), rate=120.0), folder / name)
+        seeds["pipeline"].append(folder / name)
+
+    layout = load_layout("glove-13").to_json()
+    (folder / "layout.json").write_text(json.dumps(layout))
+    hand = [dict(marker, digit="index", segment=2) for marker in layout["markers"]]
+    names = [marker["name"] for marker in hand]
+
+    def side_hand(prefix: str) -> dict:
+        return {"markers": [dict(marker, name=f"{prefix}{marker['name']}") for marker in hand],
+                "statistics": {"pairs": [{"a": f"{prefix}{a}", "b": f"{prefix}{b}", "mean_mm": 30.0, "sd_mm": 1.5}
+                                         for a, b in zip(names, names[1:], strict=False)]}}
+
+    template = {"name": "lab", "description": "", "template_version": 1, "learned_from": ["a.csv"], "noise_mm": 0.2,
+                "markers": side_hand("R_")["markers"], "hands": {"right": side_hand("R_"), "left": side_hand("L_")},
+                "objects": [cup.to_json()]}
+    (folder / "template.json").write_text(json.dumps(template))
+    seeds["layout"] += [folder / "layout.json", folder / "template.json"]
+
+    save_landmarks({name: rng.normal(0, 50, 3) for name in LANDMARK_NAMES}, folder / "landmarks.json")
+    seeds["landmarks"].append(folder / "landmarks.json")
+
+    session_folder = folder / "session"
+    session = Session.create(session_folder)
+    (session_folder / "raw").mkdir()
+    save_take(simulate_take(layout="glove-13", n_frames=40, seed=1, unlabelled=True).take,
+              session_folder / "raw" / "take.c3d")
+    entry = session.add_take(session_folder / "raw" / "take.c3d", layout="glove-13")
+    opened = session.open_take(entry.id)
+    opened.save()
+    opened.close()
+    add_camera(session, entry.id, camera, folder / "video.avi", depth, 1.0)
+    write_state(session_folder, entry.id, "done", "k" * 64, summary={"outputs": {}})
+    session.close()
+    seeds["session"].append(session_folder)
+    return seeds
+
+
+def make_input_case(fmt: str, seeds: list[Path], seed: int, index: int, folder: Path) -> Path:
+    """Case ``index`` of an input format: a mutated copy of a seed file or folder, in ``folder``."""
+    import shutil
+
+    rng = random.Random(f"{seed}:{fmt}:{index}")
+    source = seeds[index % len(seeds)]
+    if source.is_dir():
+        target = folder / source.name
+        shutil.copytree(source, target, symlinks=True)
+        files = sorted(path for path in target.rglob("*") if path.is_file() and not path.name.endswith(".lock"))
+        victim = rng.choice(files)
+        if rng.random() < 0.12:   # a hostile entry in place of the file
+            victim.unlink()
+            hostile = rng.choice(["/proc/self/mem", "/etc/passwd", "/dev/zero", "fifo", "folder", "empty", "loop"])
+            if hostile == "fifo":
+                os.mkfifo(victim)
+            elif hostile == "folder":
+                victim.mkdir()
+            elif hostile == "empty":
+                victim.write_bytes(b"")
+            elif hostile == "loop":
+                victim.symlink_to(victim.name)
+            else:
+                victim.symlink_to(hostile)
+            return target
+        path = victim
+    else:
+        path = folder / f"case_{source.stem}{source.suffix}"
+        shutil.copyfile(source, path)
+    data = path.read_bytes()
+    suffix = path.suffix.lower()
+    for _ in range(rng.randrange(1, 4)):
+        if suffix in (".yaml", ".yml") and rng.random() < 0.8:
+            data = mutate_markup(data, rng, INTERESTING_YAML)
+        elif suffix == ".xml" and rng.random() < 0.8:
+            data = mutate_markup(data, rng, INTERESTING_XML)
+        elif suffix == ".toml" and rng.random() < 0.8:
+            data = mutate_markup(data, rng, INTERESTING_TOML)
+        elif suffix == ".json" and rng.random() < 0.85:
+            try:
+                document = json.loads(data)
+                data = _deep_json(document, rng) if rng.random() < 0.15 else json.dumps(
+                    mutate_json(document, rng)).encode()
+            except (ValueError, RecursionError):
+                data = mutate_bytes(data, rng)
+        elif suffix == ".npz":
+            try:
+                data = mutate_npz(data, rng)
+            except (zipfile.BadZipFile, ValueError, KeyError, EOFError, RuntimeError, zlib.error):
+                data = mutate_bytes(data, rng)
+        elif suffix == ".png" and len(data) >= 24 and rng.random() < 0.3:   # a header claiming another size
+            header = bytearray(data)
+            struct.pack_into(">II", header, 16, rng.choice([16384, 65535, 0, 1, 2 ** 31]),
+                             rng.choice([16384, 65535, 0, 1, 2 ** 31]))
+            data = bytes(header)
+        else:
+            data = mutate_bytes(data, rng)
+    path.write_bytes(data)
+    return folder / source.name if source.is_dir() else path
+
+
+def read_input(fmt: str, path: Path) -> None:
+    """Read an input case of ``fmt`` the way the program does."""
+    from core.batch.pipeline import load_pipeline
+    from core.batch.state import read_state
+    from core.calibration.landmarks import load_landmarks
+    from core.camera.files import load_camera
+    from core.camera.frames import open_frames
+    from core.model import load_layout
+    from core.model.lab_template import load_lab_template
+    from core.model.objects import load_scene_spec
+    from core.session.cameras import take_cameras
+    from core.session.session import Session
+
+    if fmt.startswith("camera"):
+        load_camera(path)
+    elif fmt in ("video", "frames", "depth"):
+        with open_frames(path, depth_unit_mm=1.0 if fmt == "depth" else None) as frames:
+            for index in range(min(len(frames), 6)):
+                frames.frame(index)
+    elif fmt == "pipeline":
+        load_pipeline(path)
+    elif fmt == "layout":
+        load_layout(path)
+        load_lab_template(path)
+    elif fmt == "scene":
+        load_scene_spec(path)
+    elif fmt == "landmarks":
+        load_landmarks(path)
+    else:
+        session = Session.open(path)
+        try:
+            for entry in session.takes:
+                read_state(session.folder, [entry.id])
+                take_cameras(session, entry.id)
+                opened = session.open_take(entry.id)
+                opened.close(save=False)
+        finally:
+            session.close()
+
+
 def make_case(fmt: str, seeds: list[Path], seed: int, index: int, folder: Path) -> Path:
     """Write case ``index`` of ``fmt`` into ``folder`` (empty) and return the file to read."""
+    if fmt in INPUT_FORMATS:
+        return make_input_case(fmt, seeds, seed, index, folder)
     rng = random.Random(f"{seed}:{fmt}:{index}")
     source = seeds[index % len(seeds)]
     data = source.read_bytes()
@@ -328,8 +623,11 @@ def make_case(fmt: str, seeds: list[Path], seed: int, index: int, folder: Path) 
 # --------------------------------------------------------------------------- worker
 
 
-def read_case(path: Path) -> None:
+def read_case(path: Path, fmt: str = "") -> None:
     """Read ``path`` with the reader its format and seed name call for."""
+    if fmt in INPUT_FORMATS:
+        read_input(fmt, path)
+        return
     from core.calibration.scan import load_scan
     from core.io.loader import load_take
     from core.model.gltf import load_gltf_hand
@@ -367,14 +665,21 @@ def worker(seed_folder: Path, seed: int, memory_bytes: int) -> None:
     warnings.simplefilter("ignore")
     seeds = json.loads((seed_folder / "seeds.json").read_text())
     seeds = {fmt: [Path(p) for p in paths] for fmt, paths in seeds.items()}
+    if set(seeds) & set(INPUT_FORMATS):   # the readers' imports are not the first case's time
+        import core.batch.pipeline
+        import core.calibration.landmarks
+        import core.camera.files
+        import core.camera.frames
+        import core.model.lab_template
+        import core.session.cameras  # noqa: F401
     for fmt, index in json.loads((seed_folder / "cases.json").read_text()):
         print(json.dumps(["start", fmt, index]), flush=True)
         with tempfile.TemporaryDirectory() as folder:
             path = make_case(fmt, seeds[fmt], seed, index, Path(folder))
-            size = path.stat().st_size
+            size = path.lstat().st_size
             started = time.perf_counter()
             try:
-                read_case(path)
+                read_case(path, fmt)
                 status, detail = "loaded", ""
             except InputError as error:
                 status, detail = "clean", str(error)
@@ -397,14 +702,19 @@ def run(cases: list[tuple[str, int]], seed: int, timeout: float, memory_bytes: i
     problems: list[str] = []
     peak_mb, slowest = 0.0, (0.0, "")
     with tempfile.TemporaryDirectory() as folder:
-        seeds = write_seeds(Path(folder))
+        formats = {fmt for fmt, _ in cases}
+        seeds = write_seeds(Path(folder)) if formats & set(FORMATS) else {}
+        if formats & set(INPUT_FORMATS):
+            (Path(folder) / "inputs").mkdir()
+            seeds |= write_input_seeds(Path(folder) / "inputs")
         (Path(folder) / "seeds.json").write_text(json.dumps({k: [str(p) for p in v] for k, v in seeds.items()}))
         remaining = list(cases)
         while remaining:
             (Path(folder) / "cases.json").write_text(json.dumps(remaining))
             process = subprocess.Popen(
                 [sys.executable, __file__, "--worker", folder, "--seed", str(seed), "--memory-bytes",
-                 str(memory_bytes)], stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, text=True)
+                 str(memory_bytes)], stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                text=True)  # FFmpeg, libpng and OpenCV talk on stderr about every damaged frame
             current = None
             deadline = time.monotonic() + 120.0  # the worker's start-up: imports and numba
             while True:
@@ -457,7 +767,8 @@ def main() -> None:
     if arguments.worker:
         worker(Path(arguments.worker), arguments.seed, arguments.memory_bytes)
         return
-    formats = arguments.formats.split(",")
+    formats = {"inputs": list(INPUT_FORMATS), "all": list(FORMATS + INPUT_FORMATS)}.get(
+        arguments.formats, arguments.formats.split(","))
     cases = [(fmt, index) for index in range(-(-arguments.cases // len(formats))) for fmt in formats]
     started = time.perf_counter()
     report = run(cases[:arguments.cases], arguments.seed, arguments.timeout, int(arguments.memory_gb * 2 ** 30))
