@@ -4,13 +4,16 @@ hidden at once in a labelled take.
 
 A *group* is a hand's labels in layout order (the model fill uses that hand's model, layout and solved
 joint angles), or the labels no hand owns (the model fill then applies only when their names are one hand's
-markers, :func:`core.model.detect_hands`, and solves IK around each gap itself).
+markers, :func:`core.model.detect_hands`, and solves IK around each gap itself). A group's gaps are those of
+its own labels, but the fills that reconstruct a marker from others (PCA, pattern, rigid body) and the fill
+check of its hidden stretches use every labelled marker of the take: the group's take holds the other labels
+after its own as read-only donor columns (a glove's fingers follow its arm, back and object markers too).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -26,14 +29,22 @@ from core.workflows.resolve import subject_markers
 
 @dataclass(eq=False)
 class GapGroup:
-    """Labels filled together: ``labels (K,)`` review label indices; ``take`` their measured positions
-    (fills left out) as a K-column take named by layout marker names; ``context`` for the model fill (or
-    None); ``joint_angles (F,26)`` of the hand when solved (or None)."""
+    """Labels filled together: ``labels (K,)`` review label indices; ``take`` the measured positions (fills
+    left out) of those K labels, named by layout marker names, followed by the ``donors (D,)``: every other
+    review label, by its own name, read-only (their gaps belong to their own group); ``context`` for the
+    model fill (or None; its columns are among the first K); ``joint_angles (F,26)`` of the hand when solved
+    (or None)."""
 
     labels: np.ndarray
     take: Take
     context: ModelContext | None
     joint_angles: np.ndarray | None
+    donors: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+    @property
+    def columns(self) -> np.ndarray:
+        """``(K + D,)`` the review label of each column of ``take``: the group's labels, then the donors."""
+        return np.concatenate([self.labels, self.donors]).astype(np.int64)
 
 
 @dataclass(frozen=True)
@@ -53,10 +64,16 @@ class ReviewGap:
     filled: tuple[bool, ...] = ()
 
 
-def _group_take(review: ReviewTake, labels: np.ndarray, names: list[str]) -> Take:
-    measured = review.measured_positions()[:, labels]
-    return Take(marker_names=names, marker_positions=measured.copy(), frame_rate=review.take.frame_rate,
+def _group(review: ReviewTake, measured: np.ndarray, labels: np.ndarray, names: list[str],
+           context: ModelContext | None, joint_angles: np.ndarray | None) -> GapGroup:
+    """The group of ``labels`` named ``names`` with every other label of ``review`` as its donor columns;
+    ``measured (F, L, 3)`` mm: the review's measured positions."""
+    donors = np.setdiff1d(np.arange(review.n_labels, dtype=np.int64), labels)
+    columns = np.concatenate([labels, donors]).astype(np.int64)
+    take = Take(marker_names=names + [review.label_names[label] for label in donors],
+                marker_positions=measured[:, columns], frame_rate=review.take.frame_rate,
                 first_frame=review.take.first_frame, vendor=review.take.vendor)
+    return GapGroup(labels, take, context, joint_angles, donors)
 
 
 def gap_groups(review: ReviewTake, models: dict[str, HandModel] | None = None,
@@ -64,6 +81,7 @@ def gap_groups(review: ReviewTake, models: dict[str, HandModel] | None = None,
     """The hands of ``review`` (model fill with their solved angles, the subject's ``models`` and calibrated
     ``marker_sets`` per side when given) and the remaining labels."""
     models, marker_sets = models or {}, marker_sets or {}
+    measured = review.measured_positions()
     groups = []
     owned = np.zeros(review.n_labels, dtype=bool)
     for hand in review.hands:
@@ -77,13 +95,12 @@ def gap_groups(review: ReviewTake, models: dict[str, HandModel] | None = None,
         except InputError:
             layout = None   # labels that are not the layout's markers: no model fill for this hand
         names = list(layout.names) if layout is not None else label_names
-        take = _group_take(review, labels, names)
         model = models.get(hand.side) or load_template(hand.side)
         context = (ModelContext.for_take(names, model, layout,
                                          subject_markers(model, layout, marker_sets.get(hand.side)))
                    if layout is not None else None)
         angles = hand.joint_angles.copy() if np.isfinite(hand.joint_angles).all(axis=1).any() else None
-        groups.append(GapGroup(labels, take, context, angles))
+        groups.append(_group(review, measured, labels, names, context, angles))
     rest = np.flatnonzero(~owned)
     if len(rest):
         names = [review.label_names[label] for label in rest]
@@ -95,16 +112,16 @@ def gap_groups(review: ReviewTake, models: dict[str, HandModel] | None = None,
             model = models.get(side) or load_template(side)
             context = ModelContext(model, layout, subject_markers(model, layout, marker_sets.get(side)),
                                    found[0].labels)
-        groups.append(GapGroup(rest, _group_take(review, rest, names), context, None))
+        groups.append(_group(review, measured, rest, names, context, None))
     return groups
 
 
 def find_review_gaps(review: ReviewTake, groups: list[GapGroup]) -> list[ReviewGap]:
-    """Every closed gap (observed on both sides) of every label, by label then frame."""
+    """Every closed gap (observed on both sides) of every label (in its own group), by label then frame."""
     found = []
     for number, group in enumerate(groups):
         for gap in find_gaps(group.take):
-            if gap.open:
+            if gap.open or gap.marker >= len(group.labels):   # a donor column: its own group has the gap
                 continue
             label = int(group.labels[gap.marker])
             codes = review.provenance[gap.start:gap.end, label]
@@ -117,17 +134,19 @@ def find_review_gaps(review: ReviewTake, groups: list[GapGroup]) -> list[ReviewG
 
 
 def check_review_gap(group: GapGroup, gap: ReviewGap) -> FillCheck:
-    """The fill check of ``gap``: each method's mean error (mm) on a hidden known stretch beside it."""
+    """The fill check of ``gap``: each method's mean error (mm) on a hidden known stretch beside it (the
+    fills with the same donors as :func:`preview_fill`: the group's labels and its donor columns)."""
     return check_gap(group.take, gap.gap, group.context)
 
 
 def preview_fill(group: GapGroup, gap: ReviewGap, method: str, donor: int | None = None) -> np.ndarray:
     """Positions ``(length, 3)`` mm of ``method`` over ``gap``; ``donor``: the review label a pattern fill
-    follows (default: the steadiest one). InputError when the method cannot apply."""
+    follows (default: the steadiest one, as for the rigid body and PCA fills among every labelled marker of
+    the take). InputError when the method cannot apply."""
     if method == "pattern" and donor is not None:
-        columns = np.flatnonzero(group.labels == donor)
+        columns = np.flatnonzero((group.columns == donor) & (donor != gap.label))
         if not columns.size:
-            raise InputError("the pattern donor must be a label of the same hand")
+            raise InputError("the pattern donor must be another labelled marker of the take")
         positions = group.take.marker_positions
         donor_trajectory = positions[:, columns[0]]
         span = donor_trajectory[max(0, gap.start - 1):gap.start + gap.length + 1]
