@@ -121,7 +121,7 @@ class TakeDocument:
 
     def has_solved_hands(self) -> bool:
         """Whether a hand of the review is solved in some frame."""
-        return self.review is not None and any(np.isfinite(hand.joint_angles).any() for hand in self.review.hands)
+        return self.review is not None and self.review.has_solved_hand()
 
     def record_solve(self, result: IKResult | list[IKResult]) -> None:
         """Keep an IK solve (one result per hand) in the review as one undoable (and, in a session, journalled)

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from PySide6.QtCore import QObject, Qt, Signal
+from PySide6.QtCore import QObject, Qt, QTimer, Signal
 from PySide6.QtGui import QCursor, QKeySequence
 from PySide6.QtWidgets import (
     QApplication,
@@ -208,7 +208,11 @@ class ReviewController(QObject):
         self._rows: list[GapRow] = []
         self._rejected: set[tuple[int, int]] = set()
         self._previews: dict[tuple[int, int, str, int], np.ndarray] = {}
-        self._pending_span = FrameSpan(0, 0)
+        # edits whose re-solve is not attached yet ({id: (step, frames)}) and, per step that carries a re-solve,
+        # the edits that re-solve covered (undoing the step makes them unsolved again, redoing it solved)
+        self._unsolved: dict[int, tuple[Command, FrameSpan]] = {}
+        self._carried: dict[int, list[tuple[Command, FrameSpan]]] = {}
+        self._job_covers: list[tuple[Command, FrameSpan]] = []
         self._job_document: TakeDocument | None = None
         self._job_kind = ""
         self._job_version = -1
@@ -224,6 +228,10 @@ class ReviewController(QObject):
         self.checks.succeeded.connect(self._check_done)
         self.checks.failed.connect(self._check_failed)
 
+        self._views_timer = QTimer(self)     # the whole-take views after a change, once the change is drawn
+        self._views_timer.setSingleShot(True)
+        self._views_timer.setInterval(0)
+        self._views_timer.timeout.connect(self._refresh_views)
         self._build_views()
         self._build_actions()
         viewport.marker_clicked.connect(self.point_clicked)
@@ -268,6 +276,7 @@ class ReviewController(QObject):
         self.auto_label_action.setToolTip("Label the take's raw points automatically (Ctrl+L)")
         self.undo_action = action("&Undo", self.undo, QKeySequence.StandardKey.Undo)
         self.redo_action = action("&Redo", self.redo, "Ctrl+Shift+Z")
+        self.redo_action.setShortcuts([QKeySequence("Ctrl+Shift+Z"), QKeySequence("Ctrl+Y")])
         self.undo_action.setIconText("Undo")     # the toolbar stays short; the menu and tooltip say what
         self.redo_action.setIconText("Redo")
         self.assign_action = action("&Assign label…", self.choose_label_to_assign, "L")
@@ -365,7 +374,7 @@ class ReviewController(QObject):
         """Show the review of ``document`` (None: no take is shown any more, the views are cleared)."""
         self._rejected = set()
         self._previews = {}
-        self._pending_span = FrameSpan(0, 0)
+        self._unsolved, self._carried = {}, {}
         if document is not None:
             self._refresh(structure=True)
             if document.review.health:
@@ -381,7 +390,31 @@ class ReviewController(QObject):
         self.update_enabled()
 
     def _refresh(self, structure: bool = False) -> None:
-        """Redraw the review views; ``structure``: labels or hands may have changed."""
+        """Redraw the review views; ``structure``: labels or hands may have changed (then at once). Otherwise
+        the views of the whole take (lanes, label table, gap list, problem count) follow once the window has
+        drawn the change (an undo on a 20 000-frame take shows in the 3D view at once; the whole-take views
+        take a few hundred ms more): changes in between are drawn once. :meth:`flush_views` brings them up
+        to date now."""
+        review = self.review
+        if review is None:
+            return
+        if structure or self.lanes.n_markers != review.n_labels or self.lanes.n_frames != review.n_frames:
+            self._views_timer.stop()
+            self._refresh_views(structure=True)
+            return
+        if self.document.has_solved_hands() and self.viewport.hand_count() != len(review.hands):
+            self._set_hand_meshes()     # the first solve of a hand: the view showed another surface
+        self.update_enabled()
+        self._views_timer.start()
+
+    def flush_views(self) -> None:
+        """Bring the whole-take views up to date now if a change is waiting to be shown in them."""
+        if self._views_timer.isActive():
+            self._views_timer.stop()
+            self._refresh_views()
+
+    def _refresh_views(self, structure: bool = False) -> None:
+        """The whole-take views of the review: lanes, label table, gap list and problem count."""
         review = self.review
         if review is None:
             return
@@ -389,7 +422,7 @@ class ReviewController(QObject):
         colours = label_colours(review.n_labels)
         stats = review.marker_stats()
         states = lanes_from_review(review.lane_states(), review.provenance)
-        if structure or self.lanes.n_markers != review.n_labels or self.lanes.n_frames != review.n_frames:
+        if structure:
             self.lanes.set_lanes(review.label_names, states, take.first_frame, take.frame_rate)
             self.table.set_markers(stats, colours)
             self._set_hand_meshes()
@@ -398,8 +431,6 @@ class ReviewController(QObject):
             self.lanes.set_states(states)
             self.lanes.set_x_range(*x_range)
             self.table.update_stats(stats)
-            if self.document.has_solved_hands() and self.viewport.hand_count() != len(review.hands):
-                self._set_hand_meshes()     # the first solve of a hand: the view showed another surface
         self.lanes.set_frame(self.app.frame)
         if self.selection.label >= 0:
             self.lanes.set_selected_marker(self.selection.label)
@@ -423,8 +454,9 @@ class ReviewController(QObject):
         self.auto_label_action.setEnabled(review is not None and not busy)
         self.rigid_body_action.setEnabled(review is not None and len(selection.rigid_points) >= 3)
         self.cancel_job_action.setEnabled(busy)
-        self.undo_action.setEnabled(stack is not None and stack.can_undo() and not busy)
-        self.redo_action.setEnabled(stack is not None and stack.can_redo() and not busy)
+        # never disabled by a job: undo cancels the review job running on the take and undoes at once
+        self.undo_action.setEnabled(stack is not None and stack.can_undo())
+        self.redo_action.setEnabled(stack is not None and stack.can_redo())
         self.undo_action.setText(f"&Undo {stack.undo_text()}" if stack is not None and stack.can_undo() else "&Undo")
         self.redo_action.setText(f"&Redo {stack.redo_text()}" if stack is not None and stack.can_redo() else "&Redo")
         editable = (document is not None and document.has_labels()
@@ -468,7 +500,7 @@ class ReviewController(QObject):
         fill_colours = palette[fills] * 0.5 + np.array(FILL_COLOUR) * 0.5
         viewport.set_loose_points(review.filled_positions[frame, fills], fill_colours)
         effectors, targets = [], []
-        labelled = review.labelled_positions()[frame]
+        labelled = review.labelled_positions_in(frame, frame + 1)[0]
         for number, hand in enumerate(review.hands):
             theta = hand.joint_angles[frame]
             if not np.isfinite(theta).all():
@@ -493,7 +525,7 @@ class ReviewController(QObject):
             self.viewport.set_trails([])
             return
         first, last = max(0, frame - TRAIL_FRAMES), min(review.n_frames, frame + TRAIL_FRAMES + 1)
-        trail = review.labelled_positions()[first:last, label]
+        trail = review.labelled_positions_in(first, last)[:, label]
         self.viewport.set_trails([trail], label_colours(review.n_labels)[[label]])
 
     # ------------------------------------------------------------------------------- selection
@@ -606,7 +638,7 @@ class ReviewController(QObject):
         except HandMocapError as error:
             self.error_raised.emit("Cannot edit", str(error))
             return None
-        self.queue_resolve(span)
+        self._needs_resolve(document, span)
         self.status_message.emit(command.text, 5000)
         return span
 
@@ -679,18 +711,53 @@ class ReviewController(QObject):
         self._label_menu("Swap with", self.swap_labels, exclude=self.selection.label)
 
     def undo(self) -> None:
-        self._step(self.document.undo if self.document else None)
+        """Undo the take's last step at once: a review job running on the take (a re-solve, a fill, auto-label)
+        and a solve of it are cancelled first, without waiting for them."""
+        self._step(True)
 
     def redo(self) -> None:
-        self._step(self.document.redo if self.document else None)
+        """Redo the next step at once (cancelling a review job or solve of the take, as :meth:`undo`); an edit
+        whose re-solve was cancelled is re-solved again."""
+        self._step(False)
 
-    def _step(self, operation: Callable[[], FrameSpan] | None) -> None:
-        if operation is None:
+    def _step(self, undo: bool) -> None:
+        document = self.document
+        if document is None or document.stack is None:
             return
+        stack = document.stack
+        if not (stack.can_undo() if undo else stack.can_redo()):
+            return
+        cancelled = self._cancel_jobs_of(document)
+        step = stack.commands[stack.index - 1] if undo else stack.commands[stack.index]
         try:
-            operation()
+            document.undo() if undo else document.redo()
         except HandMocapError as error:
-            self.error_raised.emit("Cannot undo", str(error))
+            self.error_raised.emit("Cannot undo" if undo else "Cannot redo", str(error))
+            return
+        for edit, span in self._carried.get(id(step), []):   # the re-solve that step carried went with it
+            if edit is not step:
+                if undo:
+                    self._unsolved[id(edit)] = (edit, span)
+                else:
+                    self._unsolved.pop(id(edit), None)
+        done = f"{'Undone' if undo else 'Redone'}: {step.text}"
+        self.status_message.emit(f"{cancelled} cancelled; {done[0].lower()}{done[1:]}" if cancelled else done, 5000)
+        self._start_resolve()
+
+    def _cancel_jobs_of(self, document: TakeDocument) -> str:
+        """Cancel, without waiting, the review job and the solve running on ``document``; what was cancelled
+        ("" for nothing)."""
+        cancelled = []
+        if self.jobs.is_busy() and self._job_document is document:
+            cancelled.append(self._job_kind)
+            self.jobs.abandon()
+            self._job_document = None
+            self.progress_ended.emit()
+        solve = self.app.jobs.get("solve")
+        if solve is not None and solve.document is document:
+            solve.cancel()
+            cancelled.append("solve")
+        return " and ".join(kind.capitalize() if number == 0 else kind for number, kind in enumerate(cancelled))
 
     def set_range_in(self) -> None:
         self.app.mark_range(self.app.frame, self.selection.range_out)
@@ -731,7 +798,7 @@ class ReviewController(QObject):
     # ----------------------------------------------------------------------------------- gaps
     def _refresh_gaps(self) -> None:
         document, review = self.document, self.review
-        self._groups = gap_groups(review, document.hand_models, document.marker_sets) if review.n_labels else []
+        self._groups = gap_groups(review, document.hand_models, self._marker_sets()) if review.n_labels else []
         self._gaps = find_review_gaps(review, self._groups) if self._groups else []
         old = {(row.marker, row.start, row.length): row for row in self._rows}
         rows = []
@@ -752,6 +819,18 @@ class ReviewController(QObject):
             self.gap_list.select_gap(selected)
         else:
             self.preview.clear()
+
+    def _marker_sets(self) -> dict:
+        """The marker set of each hand side of the shown take: the subject's calibrated one, else its layout
+        resolved on the hand model once (the document keeps it) rather than at every refresh of the gaps."""
+        document = self.document
+        sets = dict(document.marker_sets)
+        for hand in document.review.hands:
+            if hand.side not in sets and hand.layout:
+                resolved = document.marker_set_for(hand.side, hand.layout)
+                if resolved is not None:
+                    sets[hand.side] = resolved
+        return sets
 
     def _gap_selected(self, index: int) -> None:
         if not 0 <= index < len(self._gaps):
@@ -863,6 +942,7 @@ class ReviewController(QObject):
         review = self.review
         if review is None or self.jobs.is_busy():
             return
+        self.flush_views()
         try:
             gaps = [gap for gap in short_open_gaps(review, self._groups, max_length)
                     if (gap.label, gap.start) not in self._rejected]
@@ -902,30 +982,48 @@ class ReviewController(QObject):
         self._start_job("auto-label", task, document=document)
 
     # ------------------------------------------------------------------------------ re-solves
-    def queue_resolve(self, span: FrameSpan) -> None:
-        """Re-solve the hands over ``span`` (merged with frames still waiting) when the worker is free."""
-        self._pending_span = self._pending_span.union(span)
-        if not self.jobs.is_busy():
-            self._start_resolve()
+    def _needs_resolve(self, document: TakeDocument, span: FrameSpan) -> None:
+        """The step just pushed on ``document`` (an edit of frames ``span``) needs its hands re-solved: when the
+        worker is free, the frames of every edit still waiting for its re-solve are re-solved in one job."""
+        stack = document.stack
+        if document is not self.document or stack is None or not stack.can_undo() or span.empty:
+            return
+        step = stack.commands[stack.index - 1]
+        self._unsolved[id(step)] = (step, span)
+        self._start_resolve()
+
+    def _waiting_edits(self) -> list[tuple[Command, FrameSpan]]:
+        """The done steps of the shown take whose re-solve is not attached yet."""
+        stack = None if self.document is None else self.document.stack
+        if stack is None:
+            return []
+        done = {id(command) for command in stack.commands[:stack.index]}
+        return [entry for key, entry in self._unsolved.items() if key in done]
 
     def _start_resolve(self) -> None:
+        """Re-solve the frames of the edits waiting for it, unless a review job is running."""
         review, document = self.review, self.document
-        span = self._pending_span
-        if review is None or span.empty or not review.hands:
-            self._pending_span = FrameSpan(0, 0)
+        if review is None or self.jobs.is_busy():
+            return
+        covers = self._waiting_edits()
+        span = FrameSpan(0, 0)
+        for _edit, frames in covers:
+            span = span.union(frames)
+        if span.empty or not review.hands:
             return
         jobs = resolve_jobs(review, span, document.hand_models, marker_sets=document.marker_sets)
-        self._pending_span = FrameSpan(0, 0)
-        if jobs:
-            self._start_job("re-solve", lambda progress, cancelled: run_resolve_jobs(
-                jobs, progress=progress, cancelled=cancelled), keep_span=span)
+        if not jobs:
+            for edit, _frames in covers:
+                self._unsolved.pop(id(edit), None)
+            return
+        self._job_covers = covers
+        self._start_job("re-solve", lambda progress, cancelled: run_resolve_jobs(
+            jobs, progress=progress, cancelled=cancelled))
 
     # ----------------------------------------------------------------------------------- jobs
-    def _start_job(self, kind: str, task: Callable, keep_span: FrameSpan | None = None,
-                   document: TakeDocument | None = None) -> None:
+    def _start_job(self, kind: str, task: Callable, document: TakeDocument | None = None) -> None:
         self._job_document, self._job_kind = document or self.document, kind
         self._job_version = self._job_document.review.version
-        self._job_span = keep_span
         self.jobs.start(task)
         self.app.job_started(JOB_NAME, Job(kind, self._job_document, self.jobs.cancel))
         self.progress_started.emit(f"{kind.capitalize()}… %p %")
@@ -936,8 +1034,7 @@ class ReviewController(QObject):
 
     def _job_finished(self) -> None:
         self.progress_ended.emit()
-        if not self._pending_span.empty and self.document is self._job_document:
-            self._start_resolve()
+        self._start_resolve()
         self.update_enabled()
 
     def _job_succeeded(self, _request: int, result: object) -> None:
@@ -954,7 +1051,7 @@ class ReviewController(QObject):
                     document.subjects.pop(side, None)
                 document.subjects.update({subject.side: subject for subject in result.subjects})
                 if document is self.document:            # a new labelling: start afresh on it
-                    self._rejected, self._pending_span = set(), FrameSpan(0, 0)
+                    self._rejected = set()
                     self.app.clear_selection()
                 document.push(result.command)
                 report, known = result.report, result.report["file_labels"]
@@ -972,14 +1069,15 @@ class ReviewController(QObject):
             elif kind == "fill" and result is not None:
                 span = document.push(result)
                 self.status_message.emit(result.text, 8000)
-                if document is self.document:
-                    self.queue_resolve(span)
-            elif kind == "re-solve":
-                if document.review.version != self._job_version:
-                    self._pending_span = self._pending_span.union(self._job_span)
-                else:
-                    for command in result:
-                        document.attach(command)
+                self._needs_resolve(document, span)
+            elif kind == "re-solve" and document.review.version == self._job_version:
+                for command in result:       # else the review changed meanwhile: its edits are re-solved again
+                    document.attach(command)
+                stack = document.stack
+                if result and stack is not None and stack.can_undo():
+                    self._carried[id(stack.commands[stack.index - 1])] = list(self._job_covers)
+                for edit, _frames in self._job_covers:
+                    self._unsolved.pop(id(edit), None)
         except HandMocapError as error:
             self.error_raised.emit(f"Cannot apply the {kind}", str(error))
         self._job_finished()
@@ -992,8 +1090,6 @@ class ReviewController(QObject):
 
     def _job_cancelled(self, _request: int) -> None:
         kind = self._job_kind
-        if kind == "re-solve" and self._job_span is not None:
-            self._pending_span = self._pending_span.union(self._job_span)
         self._job_document = None
         self.progress_ended.emit()
         self.status_message.emit(f"{kind.capitalize()} cancelled; the take is unchanged", 5000)

@@ -85,6 +85,7 @@ class TaskRunner(QObject):
         self._thread: QThread | None = None
         self._worker: _Worker | None = None
         self._cancel_event = threading.Event()
+        self._retired: list[tuple[QThread, _Worker]] = []   # abandoned tasks still ending on their threads
         sys.setswitchinterval(min(sys.getswitchinterval(), GUI_SWITCH_INTERVAL_S))
 
     def is_busy(self) -> bool:
@@ -97,8 +98,11 @@ class TaskRunner(QObject):
         return self._next_id if self._thread is not None else 0
 
     def start(self, task: Task) -> int:
-        """Start ``task`` (cancelling and waiting for a running one first); returns its request id."""
-        self.stop()
+        """Start ``task`` (cancelling and waiting for a running one first; an abandoned one is not waited for);
+        returns its request id."""
+        if self._thread is not None:
+            self.cancel()
+            self._join()
         self._next_id += 1
         self._cancel_event = threading.Event()
         thread = QThread()
@@ -134,8 +138,38 @@ class TaskRunner(QObject):
         """Ask the running task to stop at its next check."""
         self._cancel_event.set()
 
+    def abandon(self) -> None:
+        """Cancel the running task without waiting for it: nothing it reports or returns is heard any more
+        and the runner is idle at once (a task may be started next); its thread ends by itself at the task's
+        next check of ``cancelled()``. For an operator's action that must take effect now (undo during a
+        re-solve)."""
+        if self._thread is None:
+            return
+        self._cancel_event.set()
+        thread, worker = self._thread, self._worker
+        self._thread = self._worker = None
+        for signal in (worker.progressed, worker.succeeded, worker.failed, worker.was_cancelled):
+            signal.disconnect()
+        for signal in (worker.succeeded, worker.failed, worker.was_cancelled):
+            signal.connect(thread.quit)     # the thread's event loop ends when the task returns
+        self._retired.append((thread, worker))
+        thread.finished.connect(self._release_finished)   # a bound slot: queued onto the GUI thread
+        self.busy_changed.emit(False)
+
+    @Slot()
+    def _release_finished(self) -> None:
+        """Release the threads of abandoned tasks that have ended."""
+        for entry in list(self._retired):
+            if entry[0].isFinished():
+                self._retired.remove(entry)
+                entry[1].deleteLater()
+
     def stop(self) -> None:
-        """Cancel the running task and wait for its thread to end."""
+        """Cancel the running task and wait for its thread (and those of abandoned tasks) to end."""
+        for thread, _worker in list(self._retired):
+            thread.quit()
+            thread.wait()
+        self._retired.clear()
         if self._thread is None:
             return
         self.cancel()

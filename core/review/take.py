@@ -442,10 +442,29 @@ class ReviewTake:
         positions = np.where((self.provenance > 0)[:, :, None], self.filled_positions, self.measured_positions())
         return self._store("labelled", positions)
 
+    def has_solved_hand(self) -> bool:
+        """Whether a hand is solved in some frame (cached until the next change)."""
+        cached = self._cached("solved")
+        if cached is None:
+            cached = self._store("solved", any(np.isfinite(hand.joint_angles).any() for hand in self.hands))
+        return bool(cached)
+
+    def labelled_positions_in(self, start: int, stop: int) -> np.ndarray:
+        """``(stop - start, M, 3)`` mm: :meth:`labelled_positions` over frames ``start .. stop - 1`` only (what
+        drawing one frame needs, without computing the whole take after each change)."""
+        cached = self._cached("labelled")
+        if cached is not None:
+            return cached[start:stop]
+        assignment = self.assignment[start:stop]
+        frames = np.arange(start, start + len(assignment))[:, None]
+        measured = self.take.marker_positions[frames, np.maximum(assignment, 0)]
+        measured = np.where((assignment >= 0)[:, :, None], measured, np.nan)
+        return np.where((self.provenance[start:stop] > 0)[:, :, None], self.filled_positions[start:stop], measured)
+
     def rigid_body_segments(self, frame: int) -> np.ndarray:
         """Lines ``(S, 2, 3)`` mm between every two labels of each rigid body that both have a
         position in ``frame`` (measured or filled): how the object is drawn."""
-        positions = self.labelled_positions()[frame]
+        positions = self.labelled_positions_in(frame, frame + 1)[0]
         segments = []
         for labels in self.rigid_bodies.values():
             present = np.array([label for label in labels if np.isfinite(positions[label]).all()], dtype=np.int64)

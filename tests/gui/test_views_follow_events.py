@@ -4,6 +4,7 @@ current frame and the changes of the session folder, and the views follow those 
 
 import numpy as np
 import pytest
+from PySide6.QtWidgets import QApplication
 
 from app.gui.application import (
     Application,
@@ -38,6 +39,8 @@ def labelled_document():
 
 
 def test_review_views_follow_an_edit_its_undo_and_its_redo(window, labelled_document):
+    """The 3D view follows a change at once; the whole-take views (table, lanes) once the window turned."""
+    settle = QApplication.processEvents
     window.add_document(labelled_document)
     window.timeline.set_frame(30)
     controller, document = window.review, labelled_document
@@ -46,19 +49,22 @@ def test_review_views_follow_an_edit_its_undo_and_its_redo(window, labelled_docu
     assert controller.table.model.value(label, OBSERVED_COLUMN) == pytest.approx(100.0)
     assert window.viewport.marker_names()[column] == name
     document.push(Unlabel(label=name, scope="range", start=20, stop=60))   # straight on the model
-    assert controller.table.model.value(label, OBSERVED_COLUMN) == pytest.approx(100.0 * (FRAMES - 40) / FRAMES)
-    assert (controller.lanes.states()[20:60, label] == EDITED).all()
     assert window.viewport.marker_names()[column] == f"*{column}"        # the 3D view: the point lost its label
     assert controller.undo_action.text() == f"&Undo unlabel '{name}' at frames 21-60"
+    settle()
+    assert controller.table.model.value(label, OBSERVED_COLUMN) == pytest.approx(100.0 * (FRAMES - 40) / FRAMES)
+    assert (controller.lanes.states()[20:60, label] == EDITED).all()
     document.undo()
-    assert controller.table.model.value(label, OBSERVED_COLUMN) == pytest.approx(100.0)
-    assert (controller.lanes.states()[20:60, label] != EDITED).all()
     assert window.viewport.marker_names()[column] == name
     assert controller.redo_action.isEnabled() and controller.undo_action.text() == "&Undo"
+    settle()
+    assert controller.table.model.value(label, OBSERVED_COLUMN) == pytest.approx(100.0)
+    assert (controller.lanes.states()[20:60, label] != EDITED).all()
     document.redo()
     assert window.viewport.marker_names()[column] == f"*{column}"
     fill = GapFill(name, 20, "linear", np.tile(document.review.take.marker_positions[19, column], (40, 1)))
     document.push(AcceptFills([fill]))
+    settle()
     assert controller.table.model.value(label, 2) == pytest.approx(100.0 * 40 / FRAMES)     # Filled %
     assert not window.messages, window.messages
 
@@ -70,6 +76,7 @@ def test_only_the_shown_take_reaches_the_views(window, labelled_document):
     assert window.document is other
     name = labelled_document.review.label_names[2]
     labelled_document.push(Unlabel(label=name, scope="take"))          # a take that is not shown
+    QApplication.processEvents()
     assert window.review.table.model.value(2, OBSERVED_COLUMN) == pytest.approx(100.0)
     window.take_box.setCurrentIndex(0)
     assert window.review.table.model.value(2, OBSERVED_COLUMN) == 0.0
