@@ -810,7 +810,7 @@ class ReviewController(QObject):
             if previous is not None:
                 row.recommended, row.errors_mm = previous.recommended, previous.errors_mm
                 row.reasons, row.check_error = previous.reasons, previous.check_error
-            row.donors = tuple(int(label) for label in self._groups[gap.group].labels if label != gap.label)
+            row.donors = tuple(int(label) for label in self._groups[gap.group].columns if label != gap.label)
             rows.append(row)
         self._rows = rows
         selected = self.gap_list.selected_gap()
