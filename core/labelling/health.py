@@ -59,13 +59,55 @@ GHOST_SHARE = 0.25
 """A window where more than this share of the points are left as ghosts (and twice the take's typical
 share) is flagged: with the noise-derived gates, real ghosts are a few per cent of the points."""
 RESIDUAL_RATIO = 2.0
-"""A window whose mean IK residual is this many times the take's typical one (and above the noise) is flagged."""
+"""A window whose mean IK residual is this many times the take's typical one is flagged, when it is also beyond
+the take's own spread of window residuals (:data:`SPREAD_FACTOR`) and above :data:`RESIDUAL_FLOOR_MM`."""
+RESIDUAL_FLOOR_MM = 1.5
+"""A window whose mean residual is below this (and below 4 noise σ) is never flagged: an IK fit within 1.5 mm
+of the markers is good, however it compares with the rest of the take."""
+SPREAD_FACTOR = 5.0
+"""A window is unusual when it is further than this many robust standard deviations (1.4826 x MAD) of the
+take's own windows from their median."""
+MERGE_WINDOWS = 3
+"""Flagged windows this close (windows between them) make one warning."""
+REINIT_MERGE_SECONDS = 5.0
+"""Re-initialisations of a hand within this many seconds of each other make one warning."""
 
 
-def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
-    """(first, last) window indices of the runs of True in ``flags``."""
+def _runs(flags: np.ndarray, merge: int = MERGE_WINDOWS) -> list[tuple[int, int]]:
+    """(first, last) window indices of the runs of True in ``flags``; runs at most ``merge`` windows apart
+    become one."""
     edges = np.flatnonzero(np.diff(np.concatenate([[0], flags.astype(np.int8), [0]])))
-    return [(int(start), int(stop) - 1) for start, stop in zip(edges[::2], edges[1::2], strict=True)]
+    merged: list[tuple[int, int]] = []
+    for start, stop in zip(edges[::2], edges[1::2], strict=True):
+        if merged and int(start) - merged[-1][1] - 1 <= merge:
+            merged[-1] = (merged[-1][0], int(stop) - 1)
+        else:
+            merged.append((int(start), int(stop) - 1))
+    return merged
+
+
+def _spread(values: np.ndarray) -> float:
+    """Robust standard deviation (1.4826 x MAD) of the finite ``values`` (0 when there are none)."""
+    finite = values[np.isfinite(values)]
+    if not finite.size:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(finite - np.median(finite))))
+
+
+def _mm(value: float) -> str:
+    """A distance for a message: two significant figures below 10 mm (0.31 mm, 2.4 mm), whole mm above."""
+    return f"{value:.2g} mm" if value < 10 else f"{value:.0f} mm"
+
+
+def _grouped(frames: list[int], gap: int) -> list[list[int]]:
+    """``frames`` (sorted) in groups whose neighbours are at most ``gap`` frames apart."""
+    groups: list[list[int]] = []
+    for frame in frames:
+        if groups and frame - groups[-1][-1] <= gap:
+            groups[-1].append(frame)
+        else:
+            groups.append([frame])
+    return groups
 
 
 def _windows(values: np.ndarray, size: int) -> np.ndarray:
@@ -103,15 +145,19 @@ def assess_labelling(result: SceneLabelling, frame_rate: float) -> list[HealthWa
             warnings.append(HealthWarning("no_hand", model.name, 0, frames - 1,
                                           f"the {model.name} hand was not found in any frame"))
             continue
-        for frame in sorted(model.reinitialised):
-            warnings.append(HealthWarning("reinitialised", model.name, frame, frame,
-                                          f"the {model.name} hand was fitted afresh here (it was lost, or fitted much "
-                                          "worse than elsewhere) and its labels changed: check them on either side"))
+        for group in _grouped(sorted(model.reinitialised), max(1, int(REINIT_MERGE_SECONDS * frame_rate))):
+            times = "" if len(group) == 1 else f" {len(group)} times"
+            warnings.append(HealthWarning(
+                "reinitialised", model.name, group[0], group[-1],
+                f"the {model.name} hand was fitted afresh here{times} (it was lost, or fitted much worse than "
+                "elsewhere) and its labels changed: check them on either side"))
         labelled = (result.assignment[:, model.markers] >= 0).mean(axis=1).astype(float)
         labelled[:model.init_frame] = np.nan
         shares = _windows(labelled, size)
         typical = float(np.nanmedian(shares)) if np.isfinite(shares).any() else 0.0
-        for first, last in _runs(shares < LOW_SHARE_RATIO * typical):
+        with np.errstate(invalid="ignore"):
+            low = (shares < LOW_SHARE_RATIO * typical) & (shares < typical - SPREAD_FACTOR * _spread(shares))
+        for first, last in _runs(low):
             warnings.append(HealthWarning(
                 "low_labelled_share", model.name, first * size, min(frames, (last + 1) * size) - 1,
                 f"the {model.name} hand labels {100 * float(np.nanmean(shares[first:last + 1])):.0f} % of its markers "
@@ -123,17 +169,23 @@ def assess_labelling(result: SceneLabelling, frame_rate: float) -> list[HealthWa
         windows = _windows(residuals, size)
         if np.isfinite(windows).any():
             typical_residual = float(np.nanmedian(windows))
-            floor = 4.03 * (result.noise_mm or 0.0)
-            for first, last in _runs(windows > max(RESIDUAL_RATIO * typical_residual, floor)):
+            floor = max(RESIDUAL_FLOOR_MM, 4.03 * (result.noise_mm or 0.0))
+            limit = max(RESIDUAL_RATIO * typical_residual, typical_residual + SPREAD_FACTOR * _spread(windows), floor)
+            with np.errstate(invalid="ignore"):
+                high = windows > limit
+            for first, last in _runs(high):
+                here = float(np.nanmax(windows[first:last + 1]))
                 warnings.append(HealthWarning(
                     "high_residual", model.name, first * size, min(frames, (last + 1) * size) - 1,
-                    f"the {model.name} hand fits with {float(np.nanmean(windows[first:last + 1])):.1f} mm mean "
-                    f"residual here against {typical_residual:.1f} mm elsewhere"))
+                    f"the {model.name} hand fits with up to {_mm(here)} mean residual here against "
+                    f"{_mm(typical_residual)} typically over the take"))
     points = np.isfinite(result.points).all(axis=2).sum(axis=1).astype(float)
     ghost_share = _windows(result.ghost_points.sum(axis=1) / np.maximum(points, 1), size)
     if len(ghost_share):
         typical_ghosts = float(np.nanmedian(ghost_share))
-        for first, last in _runs(ghost_share > max(GHOST_SHARE, 2.0 * typical_ghosts)):
+        with np.errstate(invalid="ignore"):
+            ghostly = ghost_share > max(GHOST_SHARE, 2.0 * typical_ghosts)
+        for first, last in _runs(ghostly):
             warnings.append(HealthWarning(
                 "many_ghosts", "", first * size, min(frames, (last + 1) * size) - 1,
                 f"{100 * float(np.nanmean(ghost_share[first:last + 1])):.0f} % of the points are left unlabelled "

@@ -62,8 +62,12 @@ class ReviewSettings:
     """Thresholds of the review views; distances in mm.
 
     ``low_confidence_mm``: a measured sample whose labelling margin is below this is "low confidence";
-    ``swap_jump_mm``: a label's position deviating this much from the constant-velocity prediction
-    of its two previous measured frames is a sudden jump (a swap suspect);
+    swap suspects (:meth:`ReviewTake.swap_suspects`) are judged from each marker's own speed: a label's jump
+    from the constant-velocity prediction of its two previous frames is a suspect when it exceeds
+    ``swap_speed_ratio`` times the marker's speed just before and just after it, and ``swap_jump_mm`` (and 10
+    times the take's noise) — and the label does not come back to its path the next frame (a one-frame spike
+    is no swap); or when two labels jump in the same frame by more than ``swap_pair_mm`` each and each lands
+    where the other was going (their prediction error exchanged is below ``swap_pair_ratio`` of their own);
     ``swap_close_mm``: a low-confidence sample with another label's point this close is a swap suspect;
     ``follow_gate_mm``: an unlabelled point is followed to the next frame's nearest point within this.
     """
@@ -72,6 +76,9 @@ class ReviewSettings:
     swap_jump_mm: float = 12.0
     swap_close_mm: float = 20.0
     follow_gate_mm: float = 15.0
+    swap_speed_ratio: float = 4.0
+    swap_pair_mm: float = 5.0
+    swap_pair_ratio: float = 0.5
 
 
 @dataclass
@@ -551,9 +558,50 @@ class ReviewTake:
         positions = self.measured_positions()
         result = np.full(self.assignment.shape, np.nan)
         if self.n_frames >= 3:
-            predicted = 2.0 * positions[1:-1] - positions[:-2]
-            result[2:] = np.linalg.norm(positions[2:] - predicted, axis=2)
+            result[2:] = _norms(positions[2:] - 2.0 * positions[1:-1] + positions[:-2])
         return result
+
+    def swap_suspects(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(F, M)`` bool: samples where a label jumps as a swap would make it (:class:`ReviewSettings`:
+        judged from the marker's own speed, a one-frame spike excluded, or two labels each landing where the
+        other was going), and ``(F, M)`` int64: the other label of such a pair (-1: none)."""
+        cached = self._cached("swap_suspects")
+        if cached is not None:
+            return cached
+        settings, positions = self.settings, self.measured_positions()
+        frames, count = self.assignment.shape
+        flags = np.zeros((frames, count), dtype=bool)
+        partners = np.full((frames, count), -1, dtype=np.int64)
+        if frames >= 4:
+            predicted = np.full(positions.shape, np.nan)
+            predicted[2:] = 2.0 * positions[1:-1] - positions[:-2]
+            jumps = _norms(positions - predicted)
+            speed = np.full((frames, count), np.nan)            # a frame's step, not touching the jumping sample
+            steps = _norms(positions[1:] - positions[:-1])
+            speed[2:] = steps[:-1]                               # |p[f-1] - p[f-2]|
+            speed[2:-2] = np.fmax(speed[2:-2], steps[3:])        # |p[f+2] - p[f+1]|
+            floor = max(settings.swap_jump_mm, 10.0 * (self.noise_mm or 0.0))
+            back = np.full((frames, count), np.nan)             # the next frame, from the path before the jump
+            back[2:-1] = _norms(positions[3:] - 3.0 * positions[1:-2] + 2.0 * positions[:-3])
+            with np.errstate(invalid="ignore"):
+                threshold = np.fmax(floor, settings.swap_speed_ratio * speed)
+                flags = (jumps > threshold) & ~(back < threshold)
+                candidates = jumps > max(settings.swap_pair_mm, 10.0 * (self.noise_mm or 0.0))
+            for frame in np.flatnonzero(candidates.sum(axis=1) >= 2):
+                labels = np.flatnonzero(candidates[frame])
+                # where each label is against where each other one was going: (a, b) = |p_a - pred_b|
+                crossed = _norms(positions[frame, labels][:, None] - predicted[frame, labels][None, :])
+                own = jumps[frame, labels]
+                exchanged = crossed + crossed.T
+                mine = own[:, None] + own[None, :]
+                np.fill_diagonal(exchanged, np.inf)
+                with np.errstate(invalid="ignore"):
+                    pairs = np.argwhere(exchanged < settings.swap_pair_ratio * mine)
+                for first, second in pairs:
+                    a, b = int(labels[first]), int(labels[second])
+                    flags[frame, [a, b]] = True
+                    partners[frame, a], partners[frame, b] = b, a
+        return self._store("swap_suspects", (flags, partners))
 
     def problems(self, kinds: tuple[str, ...] | list[str] = PROBLEM_KINDS) -> list[Problem]:
         """Every problem of the given kinds, ordered by first frame then label.
@@ -588,7 +636,6 @@ class ReviewTake:
         return earlier[-1] if earlier else candidates[-1]
 
     def _find_problems(self) -> list[Problem]:
-        settings = self.settings
         found: list[Problem] = []
         low = self.low_confidence()
         with np.errstate(invalid="ignore"):
@@ -598,17 +645,25 @@ class ReviewTake:
                                      text=f"{self.label_names[column]}: low labelling confidence "
                                           f"({score:.1f} mm) at frames {self._frames_text(start, stop)}"))
             jumps = self.jumps()
-            jumped = jumps > settings.swap_jump_mm
+        jumped, paired = self.swap_suspects()
         close = self._close_other(low)
         suspect = jumped | (close >= 0)
         for column, start, stop in zip(*(part.tolist() for part in runs(suspect)), strict=True):
-            partners = [int(p) for p in np.flatnonzero(jumped[start:stop].any(axis=0)) if p != column]
+            mates = paired[start:stop, column]
+            partners = [int(p) for p in mates[mates >= 0]] or \
+                [int(p) for p in np.flatnonzero(jumped[start:stop].any(axis=0)) if p != column]
             others = close[start:stop, column]
             other = partners[0] if partners else (int(others[others >= 0][0]) if (others >= 0).any() else -1)
             if other >= 0 and other < column and suspect[start:stop, other].any():
                 continue  # reported once, under the lower label
-            score = float(np.nanmax(np.where(jumped[start:stop, column], jumps[start:stop, column], 0.0)))
-            reason = f"jump of {score:.0f} mm" if score > 0 else "low confidence next to another label"
+            with np.errstate(invalid="ignore"):
+                score = float(np.nanmax(np.where(jumped[start:stop, column], jumps[start:stop, column], 0.0)))
+            if (mates >= 0).any():
+                reason = f"the two exchange points: a jump of {score:.0f} mm onto the other's path"
+            elif score > 0:
+                reason = f"a jump of {score:.0f} mm, far more than the marker moves in a frame around it"
+            else:
+                reason = "low confidence next to another label"
             pair = f" and {self.label_names[other]}" if other >= 0 else ""
             found.append(Problem("swap", column, start, stop, other=other, score=score,
                                  text=f"{self.label_names[column]}{pair}: swap suspect ({reason}) at frames "
@@ -822,6 +877,11 @@ class ReviewTake:
             value.setflags(write=False)
         self._cache[key] = (self.version, value)
         return value
+
+
+def _norms(vectors: np.ndarray) -> np.ndarray:
+    """Euclidean norms over the last axis (NaN where a component is)."""
+    return np.sqrt(np.einsum("...i,...i->...", vectors, vectors))
 
 
 def _array(values: Any, dtype: Any, shape: tuple[int, ...], what: str) -> np.ndarray:
