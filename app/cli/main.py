@@ -213,7 +213,8 @@ def build_parser() -> argparse.ArgumentParser:  # noqa: PLR0915 - a statement pe
     gui.add_argument("files", nargs="*", help="takes to open (C3D, TSV, TRC, CSV, TXT)")
     add_rate_argument(gui)
     gui.add_argument("--screenshot", metavar="PNG", help="wait for the solves, save a screenshot and exit")
-    gui.add_argument("--frame", type=int, help="0-based frame to show in the screenshot")
+    gui.add_argument("--frame", type=int, help="frame to show in the screenshot, numbered as in the file (as the "
+                     "timeline shows it; default a third of the take)")
     gui.add_argument("--solve", action="store_true", help="solve the opened takes at once")
     gui.add_argument("--demo", action="store_true", help="also open the demo session")
     gui.add_argument("--size", metavar="WxH", help="window size in pixels, e.g. 1366x768 (default 1500x950)")

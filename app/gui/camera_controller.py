@@ -336,7 +336,8 @@ class CameraController(QObject):
                 skeleton = camera.project(segments.reshape(-1, 3)).reshape(-1, 2, 2)
         else:
             pixels = np.full((take.n_markers, 2), np.nan)
-        text = f"camera frame {index} · {source.time(index):.3f} s"
+        text = (f"frame {take.first_frame + frame} · camera image {index + 1} of {len(source)} at "
+                f"{source.time(index):.3f} s")
         if not camera.registered:
             text += " · not registered: Tools ▸ Camera calibration… to overlay the markers"
         self.view.canvas.set_content(image, pixels, self.point_colours(frame), self.app.selection.column,

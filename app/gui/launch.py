@@ -40,8 +40,8 @@ def run_gui(files: list[str], screenshot: str | None = None, frame: int | None =
     """Open the main window on ``files`` (and the demo session when ``demo`` or when no file is given;
     ``solve``: solve the files at once; ``frame_rate``: their rate in Hz, asked for a file that states none
     when not given), ``size`` ``"WxH"`` pixels (default the window's own). With
-    ``screenshot``, wait until everything is opened and solved, go to ``frame`` (0-based; default a third
-    into the take), save a PNG and quit. Returns the process exit code."""
+    ``screenshot``, wait until everything is opened and solved, go to ``frame`` (the file's frame number, as
+    the timeline shows it; default a third into the take), save a PNG and quit. Returns the process exit code."""
     requested = window_size(size) if size else None
     app = QApplication.instance() or QApplication(sys.argv[:1])
     icon = application_icon()
@@ -87,7 +87,8 @@ def run_gui(files: list[str], screenshot: str | None = None, frame: int | None =
             return
         timer.stop()
         if window.document is not None:
-            window.app.set_frame(frame if frame is not None else window.document.take.n_frames // 3)
+            take = window.document.take
+            window.app.set_frame(frame - take.first_frame if frame is not None else take.n_frames // 3)
             window.frame_hand()
         app.processEvents()
         outcome["code"] = 0 if window.save_screenshot(Path(screenshot)) else 1
