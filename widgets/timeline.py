@@ -10,7 +10,7 @@ from collections.abc import Callable
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import QElapsedTimer, Qt, QTimer, Signal
-from PySide6.QtGui import QAction, QKeySequence
+from PySide6.QtGui import QAction
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -22,6 +22,8 @@ from PySide6.QtWidgets import (
     QVBoxLayout,
     QWidget,
 )
+
+from widgets.shortcuts import bind
 
 SPEEDS = (0.1, 0.25, 0.5, 1.0, 2.0, 4.0)
 TICK_MS = 15
@@ -51,10 +53,9 @@ class TimelineWidget(QWidget):
         self.set_take(0, 1, 100.0, np.zeros(0))
 
     # ------------------------------------------------------------------------------------ building
-    def _action(self, text: str, icon: QStyle.StandardPixmap, key: Qt.Key, slot: Callable[[], None]) -> QAction:
+    def _action(self, text: str, icon: QStyle.StandardPixmap, key: str, slot: Callable[[], None]) -> QAction:
         action = QAction(self.style().standardIcon(icon), text, self)
-        action.setShortcut(QKeySequence(key))
-        action.setToolTip(f"{text} ({QKeySequence(key).toString(QKeySequence.SequenceFormat.NativeText)})")
+        bind(action, key)                  # the keys of the one shortcut table (widgets.shortcuts)
         action.triggered.connect(slot)
         self.addAction(action)
         return action
@@ -67,15 +68,14 @@ class TimelineWidget(QWidget):
 
     def _build(self) -> None:
         pixmap = QStyle.StandardPixmap
-        self.first_action = self._action("First frame", pixmap.SP_MediaSkipBackward, Qt.Key.Key_Home,
+        self.first_action = self._action("First frame", pixmap.SP_MediaSkipBackward, "first_frame",
                                          lambda: self.set_frame(0))
-        self.step_back_action = self._action("Previous frame", pixmap.SP_MediaSeekBackward, Qt.Key.Key_Left,
+        self.step_back_action = self._action("Previous frame", pixmap.SP_MediaSeekBackward, "previous_frame",
                                              lambda: self.step(-1))
-        self.play_action = self._action("Play", pixmap.SP_MediaPlay, Qt.Key.Key_Space, self.toggle_playing)
-        self.play_action.setToolTip("Play / pause (Space)")
-        self.step_forward_action = self._action("Next frame", pixmap.SP_MediaSeekForward, Qt.Key.Key_Right,
+        self.play_action = self._action("Play", pixmap.SP_MediaPlay, "play", self.toggle_playing)
+        self.step_forward_action = self._action("Next frame", pixmap.SP_MediaSeekForward, "next_frame",
                                                 lambda: self.step(1))
-        self.last_action = self._action("Last frame", pixmap.SP_MediaSkipForward, Qt.Key.Key_End,
+        self.last_action = self._action("Last frame", pixmap.SP_MediaSkipForward, "last_frame",
                                         lambda: self.set_frame(self._n_frames - 1))
         self.transport_actions = (self.first_action, self.step_back_action, self.play_action,
                                   self.step_forward_action, self.last_action)

@@ -36,6 +36,7 @@ from PySide6.QtWidgets import (
     QWizardPage,
 )
 
+from app.gui.actions import make_action
 from app.gui.workers import TaskRunner
 from core.calibration.cleaning import clean_scan, skin_mask
 from core.calibration.landmarks import MIN_LANDMARKS, load_landmarks, save_landmarks
@@ -718,6 +719,11 @@ class CalibrationWizard(QWizard):
         }
         self.page_ids = {name: self.addPage(page) for name, page in self.pages.items()}
         self.pages["save"].saved.connect(self.model_saved)
+        landmarks = self.pages["landmarks"]
+        # Ctrl+Z anywhere in the wizard undoes the last landmark picked, skipped, re-picked or loaded
+        self.undo_action = make_action(self, "Undo landmark", landmarks.undo, "wizard_undo")
+        self.addAction(self.undo_action)
+        landmarks.undo_button.setToolTip(self.undo_action.toolTip())
 
     def done(self, result: int) -> None:
         self.runner.stop()

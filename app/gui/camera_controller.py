@@ -181,10 +181,10 @@ class CameraController(QObject):
         self.wizard_action = make_action(host, "Camera ca&libration…", self.open_wizard)
         self.nudge_actions = [
             make_action(host, text, lambda _checked=False, step=step: self.nudge(*step), shortcut)
-            for text, step, shortcut in (("Camera offset − one camera frame", (-1, 0), "Ctrl+Alt+Left"),
-                                         ("Camera offset + one camera frame", (1, 0), "Ctrl+Alt+Right"),
-                                         ("Camera offset − one mocap frame", (0, -1), "Alt+Left"),
-                                         ("Camera offset + one mocap frame", (0, 1), "Alt+Right"))]
+            for text, step, shortcut in (("Camera offset − one camera frame", (-1, 0), "camera_earlier"),
+                                         ("Camera offset + one camera frame", (1, 0), "camera_later"),
+                                         ("Camera offset − one mocap frame", (0, -1), "camera_earlier_fine"),
+                                         ("Camera offset + one mocap frame", (0, 1), "camera_later_fine"))]
         app.add_listener(self._follow)
         self.update_enabled()
 

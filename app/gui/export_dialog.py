@@ -35,6 +35,7 @@ from core.io.labelled_c3d import SubjectCalibration
 from core.model import HandModel
 from core.review import ReviewTake
 from core.review.export import EXPORT_FORMATS, export_review
+from widgets.shortcuts import bind
 
 #: format -> (menu text, file dialog filter)
 FORMAT_TEXTS = {
@@ -169,8 +170,7 @@ def export_action(host: QWidget, controller) -> QAction:
     """The File ▸ Export… action of ``host`` for the take ``controller`` (the review controller) shows;
     each written file is announced through ``controller.exported`` (the session records it)."""
     action = QAction("&Export…", host)
-    action.setShortcut("Ctrl+Shift+E")
-    action.setToolTip("Export the take as C3D, TRC, CSV, BVH or glTF")
+    bind(action, "export", "Export the take as C3D, TRC, CSV, BVH or glTF")
 
     def run() -> None:
         document = controller.document

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 from PySide6.QtCore import Qt, QTimer, Signal
-from PySide6.QtGui import QAction, QCloseEvent, QDragEnterEvent, QDropEvent, QImage, QKeySequence
+from PySide6.QtGui import QAction, QCloseEvent, QDragEnterEvent, QDropEvent, QImage
 from PySide6.QtWidgets import (
     QComboBox,
     QDockWidget,
@@ -65,6 +65,8 @@ from widgets.elided_combo import ElidedComboBox
 from widgets.frame_rate_dialog import FrameRatePrompt
 from widgets.marker_panel import MarkerPanel
 from widgets.message_panel import MessagePanel, PanelLogHandler
+from widgets.shortcuts import bind
+from widgets.shortcuts_dialog import ShortcutsDialog
 from widgets.timeline import TimelineWidget
 from widgets.viewport import HandViewport
 from widgets.window_image import save_screenshot, window_image
@@ -193,32 +195,30 @@ class MainWindow(QMainWindow):
         self.addDockWidget(area, dock)
         return dock
 
-    def _action(self, text: str, slot: Callable, shortcut: QKeySequence | str | None = None,
+    def _action(self, text: str, slot: Callable, shortcut: str | None = None,
                 checkable: bool = False, checked: bool = False,
-                icon: QStyle.StandardPixmap | None = None) -> QAction:
-        return make_action(self, text, slot, shortcut, checkable, checked, icon)
+                icon: QStyle.StandardPixmap | None = None, tooltip: str | None = None) -> QAction:
+        return make_action(self, text, slot, shortcut, checkable, checked, icon, tooltip)
 
     def _build_actions(self) -> None:
         pixmap = QStyle.StandardPixmap
-        self.open_action = self._action("&Open…", self.choose_files, QKeySequence.StandardKey.Open,
-                                        icon=pixmap.SP_DialogOpenButton)
-        self.demo_action = self._action("Open &demo session", self.open_demo, "Ctrl+D")
-        self.close_take_action = self._action("&Close take", self.close_current_document,
-                                              QKeySequence.StandardKey.Close)
-        self.screenshot_action = self._action("Save &screenshot…", self.choose_screenshot, "Ctrl+Shift+S")
-        self.export_action = self._action("&Export joint angles (CSV)…", self.choose_export, "Ctrl+E")
-        quit_action = self._action("&Quit", self.close, QKeySequence.StandardKey.Quit)
+        self.open_action = self._action("&Open…", self.choose_files, "open", icon=pixmap.SP_DialogOpenButton)
+        self.demo_action = self._action("Open &demo session", self.open_demo, "demo")
+        self.close_take_action = self._action("&Close take", self.close_current_document, "close_take")
+        self.screenshot_action = self._action("Save &screenshot…", self.choose_screenshot, "screenshot")
+        self.export_action = self._action("&Export joint angles (CSV)…", self.choose_export, "export_angles")
+        quit_action = self._action("&Quit", self.close, "quit")
         # the lambda drops Qt's `checked` argument, which solve() would take as its document
         self.solve_action = self._action("&Solve", lambda: self.solve(),  # noqa: PLW0108
-                                         "Ctrl+R", icon=pixmap.SP_BrowserReload)
-        self.solve_action.setToolTip("Solve the take with inverse kinematics (Ctrl+R)")
-        self.cancel_action = self._action("&Cancel", self.cancel_work, "Esc", icon=pixmap.SP_BrowserStop)
-        self.labels_action = self._action("Marker &names", self.viewport.set_labels_visible, "N", True, False)
-        self.mesh_action = self._action("Hand &mesh", self.viewport.set_mesh_visible, "M", True, True)
+                                         "solve", icon=pixmap.SP_BrowserReload)
+        self.cancel_action = self._action("&Cancel", self.cancel_work, "cancel", icon=pixmap.SP_BrowserStop)
+        self.labels_action = self._action("Marker &names", self.viewport.set_labels_visible, "marker_names", True,
+                                          False)
+        self.mesh_action = self._action("Hand &mesh", self.viewport.set_mesh_visible, "hand_mesh", True, True)
         self.effectors_action = self._action("&Effectors and residuals", self.viewport.set_effectors_visible,
-                                             "E", True, True)
-        self.grid_action = self._action("Ground &grid", self.viewport.set_grid_visible, "G", True, True)
-        self.frame_action = self._action("&Frame the hand", self.frame_hand, "F")
+                                             "effectors", True, True)
+        self.grid_action = self._action("Ground &grid", self.viewport.set_grid_visible, "grid", True, True)
+        self.frame_action = self._action("&Frame the hand", self.frame_hand, "frame_hand")
 
         menus = self.menuBar()
         file_menu = self.file_menu = menus.addMenu("&File")
@@ -248,12 +248,15 @@ class MainWindow(QMainWindow):
         playback_menu.addSeparator()
         playback_menu.addAction(loop_action)
         tools_menu = self.tools_menu = menus.addMenu("&Tools")
-        tools_menu.addAction(self._action("&Calibrate a hand scan…", self.open_calibration, "Ctrl+Shift+K"))
-        tools_menu.addAction(self._action("Marker &layouts…", self.open_layout_tools, "Ctrl+Shift+L"))
+        tools_menu.addAction(self._action("&Calibrate a hand scan…", self.open_calibration, "calibrate_scan"))
+        tools_menu.addAction(self._action("Marker &layouts…", self.open_layout_tools, "marker_layouts"))
         tools_menu.addAction(self._action("Learn a labelling &template…", self.open_learn_template))
         solve_menu = self.solve_menu = menus.addMenu("&Solve")
         solve_menu.addAction(self.solve_action)
         solve_menu.addAction(self.cancel_action)
+        self.help_menu = menus.addMenu("&Help")
+        self.shortcuts_action = self._action("&Keyboard shortcuts", self.show_shortcuts, "shortcuts")
+        self.help_menu.addAction(self.shortcuts_action)
 
     def _build_toolbar(self) -> None:
         toolbar = QToolBar("Main", self)
@@ -370,8 +373,7 @@ class MainWindow(QMainWindow):
         self.plots_dock = self._add_dock("Plots", self.plots.plots, Qt.DockWidgetArea.BottomDockWidgetArea)
         self.tabifyDockWidget(self.tracks_dock, self.plots_dock)
         self.plots_dock.hide()
-        self.plots_dock.toggleViewAction().setShortcut("Ctrl+Shift+P")
-        self.plots_dock.toggleViewAction().setToolTip("Trajectory plots of the selected labels (Ctrl+Shift+P)")
+        bind(self.plots_dock.toggleViewAction(), "plots", "Trajectory plots of the selected labels")
         self.view_menu.addAction(self.plots_dock.toggleViewAction())
 
     def _place_messages(self) -> None:
@@ -865,6 +867,13 @@ class MainWindow(QMainWindow):
         session = self.app.session
         self._calibration_wizard = open_calibration_wizard(
             self, session, save_subject=self.app.save_subject_model if session is not None else None)
+
+    def show_shortcuts(self) -> None:
+        """Help ▸ Keyboard shortcuts: every key of the one shortcut table (:mod:`widgets.shortcuts`)."""
+        if getattr(self, "_shortcuts_dialog", None) is None:
+            self._shortcuts_dialog = ShortcutsDialog(self)
+        self._shortcuts_dialog.show()
+        self._shortcuts_dialog.raise_()
 
     def close_current_document(self) -> None:
         if self.document is not None:

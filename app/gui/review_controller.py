@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 from PySide6.QtCore import QObject, Qt, QTimer, Signal
-from PySide6.QtGui import QCursor, QKeySequence
+from PySide6.QtGui import QCursor
 from PySide6.QtWidgets import (
     QApplication,
     QCheckBox,
@@ -88,6 +88,7 @@ from core.workflows import (
 )
 from widgets.fill_preview import FillPreview
 from widgets.gap_list import GapList, GapRow
+from widgets.label_picker import LabelPicker
 from widgets.marker_lanes import MarkerLanes, lanes_from_review
 from widgets.review_table import ReviewTable
 from widgets.timeline import TimelineWidget
@@ -269,31 +270,29 @@ class ReviewController(QObject):
     def _build_actions(self) -> None:
         host = self.host
 
-        def action(text: str, slot: Callable, shortcut: QKeySequence | str | None = None):
-            return make_action(host, text, slot, shortcut)
+        def action(text: str, slot: Callable, shortcut: str | None = None, tooltip: str | None = None):
+            return make_action(host, text, slot, shortcut, tooltip=tooltip)
 
-        self.auto_label_action = action("&Auto-label…", self.choose_auto_label, "Ctrl+L")
-        self.auto_label_action.setToolTip("Label the take's raw points automatically (Ctrl+L)")
-        self.undo_action = action("&Undo", self.undo, QKeySequence.StandardKey.Undo)
-        self.redo_action = action("&Redo", self.redo, "Ctrl+Shift+Z")
-        self.redo_action.setShortcuts([QKeySequence("Ctrl+Shift+Z"), QKeySequence("Ctrl+Y")])
+        self.auto_label_action = action("&Auto-label…", self.choose_auto_label, "auto_label")
+        self.undo_action = action("&Undo", self.undo, "undo")
+        self.redo_action = action("&Redo", self.redo, "redo")
         self.undo_action.setIconText("Undo")     # the toolbar stays short; the menu and tooltip say what
         self.redo_action.setIconText("Redo")
-        self.assign_action = action("&Assign label…", self.choose_label_to_assign, "L")
-        self.swap_action = action("S&wap labels…", self.choose_label_to_swap, "W")
-        self.ghost_action = action("Mark as &ghost", self.mark_ghost, "Shift+G")
-        self.unlabel_action = action("&Unlabel", self.unlabel, "U")
-        self.range_in_action = action("Set range &start here", self.set_range_in, "I")
-        self.range_out_action = action("Set range &end here", self.set_range_out, "O")
-        self.clear_range_action = action("&Clear range", self.clear_range, "Shift+I")
-        self.next_problem_action = action("&Next problem", lambda: self.go_to_problem(True), "F3")
-        self.previous_problem_action = action("&Previous problem", lambda: self.go_to_problem(False), "Shift+F3")
+        self.assign_action = action("&Assign label…", self.choose_label_to_assign, "assign")
+        self.swap_action = action("S&wap labels…", self.choose_label_to_swap, "swap")
+        self.ghost_action = action("Mark as &ghost", self.mark_ghost, "ghost")
+        self.unlabel_action = action("&Unlabel", self.unlabel, "unlabel")
+        self.range_in_action = action("Set range &start here", self.set_range_in, "range_in")
+        self.range_out_action = action("Set range &end here", self.set_range_out, "range_out")
+        self.clear_range_action = action("&Clear range", self.clear_range, "clear_range")
+        self.next_problem_action = action("&Next problem", lambda: self.go_to_problem(True), "next_problem")
+        self.previous_problem_action = action("&Previous problem", lambda: self.go_to_problem(False),
+                                              "previous_problem")
         self.rigid_body_action = action("Define &rigid body from selected points…", self.choose_rigid_body_name,
-                                        "Ctrl+B")
-        self.rigid_body_action.setToolTip("Ctrl+click three or more points of an object in the 3D view, then "
-                                          "name it: auto-label then tracks it as a rigid body")
+                                        "rigid_body", "Ctrl+click three or more points of an object in the 3D "
+                                        "view, then name it: auto-label then tracks it as a rigid body")
         self.fill_all_action = action("&Fill short gaps…", lambda: self.fill_all(self.gap_list.max_length_box.value()),
-                                      "Ctrl+Shift+F")
+                                      "fill_short_gaps")
         self.cancel_job_action = action("Cancel review &job", self.jobs.cancel)
         self.export_c3d_action = action("Labelled &C3D…", self.choose_export_c3d)
         self.export_csv_action = action("Joint angles (CS&V)…", self.choose_export_csv)
@@ -681,25 +680,22 @@ class ReviewController(QObject):
         return self.run_edit(make)
 
     def _label_menu(self, title: str, slot: Callable[[str], object], exclude: int = -1) -> None:
+        """Ask for a label (grouped by hand; typing finds it: :class:`widgets.label_picker.LabelPicker`) and
+        call ``slot`` with its name."""
         review = self.review
         if review is None or not review.n_labels:
             return
-        menu = QMenu(title, self.host)
-        groups: dict[str, QMenu] = {}
+        groups: dict[str, list[str]] = {}
         for label, name in enumerate(review.label_names):
             if label == exclude:
                 continue
             hand = review.hand_of_label(label)
-            group = review.hands[hand].name if hand >= 0 else "other"
-            if len(review.hands) > 1 or (hand < 0 and review.hands):
-                if group not in groups:
-                    groups[group] = menu.addMenu(group)
-                target = groups[group]
-            else:
-                target = menu
-            item = target.addAction(name)
-            item.triggered.connect(lambda _checked=False, chosen=name: slot(chosen))
-        menu.exec(QCursor.pos())
+            grouped = len(review.hands) > 1 or (hand < 0 and bool(review.hands))
+            group = (review.hands[hand].name if hand >= 0 else "other") if grouped else ""
+            groups.setdefault(group, []).append(name)
+        chosen = LabelPicker.choose(self.host, title, list(groups.items()), QCursor.pos())
+        if chosen is not None:
+            slot(chosen)
 
     def choose_label_to_assign(self) -> None:
         self._label_menu("Assign label", self.assign_label)
