@@ -1,9 +1,10 @@
 """``handmocap batch``: run a pipeline on every take of a session (or a folder of takes) on Dask.
 
-Progress is one line (rewritten in place on a terminal, one line per finished take otherwise); no
-progress library is needed for that. Ctrl+C stops cleanly: finished takes are kept, the others are
-untouched, and the same command resumes. Exit status: 0 when every take is done (or up to date), 1 when
-some failed (the reasons are printed and in the report), 2 on an error or when interrupted.
+Progress is the one progress line of every long command (:mod:`app.cli.progress`: the take counts, a bar of
+the frames processed, frames/s, the time spent and left, in place; quiet when stderr is not a terminal).
+Ctrl+C stops cleanly: finished takes are kept, the others are untouched, and the same command resumes.
+Exit status: 0 when every take is done (or up to date), 1 when some failed (the reasons are printed and in
+the report), 2 on an error or when interrupted.
 """
 
 from __future__ import annotations
@@ -13,7 +14,8 @@ import json
 import signal
 import sys
 
-from app.cli.common import add_json_flag
+from app.cli.common import OVERWRITE_HELP, add_json_flag
+from app.cli.progress import ProgressLine
 from core.errors import InputError
 
 
@@ -26,32 +28,25 @@ def _duration(seconds: float | None) -> str:
 
 
 class _ProgressLine:
-    """Prints the batch's progress to stderr: in place on a terminal, else when a take finishes."""
+    """The batch's progress on the one progress line (:mod:`app.cli.progress`): the take counts as its text,
+    the frames of the finished takes as its bar."""
 
     def __init__(self, plan) -> None:
-        self.frames_total = sum(job.frames for job in plan.jobs)
-        self.terminal = sys.stderr.isatty()
-        self.finished = 0
+        self.frames_total = max(sum(job.frames for job in plan.jobs), 1)
+        self.line = ProgressLine(f"takes 0/{len(plan.jobs)}", self.frames_total)
         self.dashboard_told = False
 
     def __call__(self, progress) -> None:
-        if progress.dashboard and not self.dashboard_told:
-            print(f"Dask dashboard: {progress.dashboard}", file=sys.stderr)
+        if progress.dashboard and not self.dashboard_told and self.line.enabled:
+            self.line.console.print(f"Dask dashboard: {progress.dashboard}")
             self.dashboard_told = True
         done, failed, skipped = (progress.count(state) for state in ("done", "failed", "skipped"))
-        left = progress.seconds_left(self.frames_total - progress.frames)
-        line = (f"takes {done + failed + skipped}/{progress.total}: {done} done, {failed} failed, "
-                f"{skipped} skipped, {progress.count('running')} running; {progress.frames_per_s:.0f} frames/s, "
-                f"{_duration(left)} left")
-        if self.terminal:
-            print(f"\r{line}\033[K", end="", file=sys.stderr, flush=True)
-        elif done + failed + skipped != self.finished:
-            print(line, file=sys.stderr, flush=True)
-        self.finished = done + failed + skipped
+        self.line.describe(f"takes {done + failed + skipped}/{progress.total}: {done} done, {failed} failed, "
+                           f"{skipped} skipped, {progress.count('running')} running")
+        self.line(min(progress.frames / self.frames_total, 0.999))
 
     def close(self) -> None:
-        if self.terminal:
-            print(file=sys.stderr)
+        self.line.close()
 
 
 def command_batch(args: argparse.Namespace) -> int:
@@ -134,6 +129,8 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     batch.add_argument("--scheduler", metavar="tcp://HOST:8786",
                        help="use this Dask scheduler instead of a local cluster (its workers must see the session "
                             "and the takes at the same paths)")
-    batch.add_argument("--overwrite", action="store_true", help="replace export files no earlier batch wrote")
+    batch.add_argument("--overwrite", action="store_true",
+                       help=f"{OVERWRITE_HELP}; the exports an earlier batch of a take wrote are its own, replaced "
+                            "when the take runs again")
     add_json_flag(batch)
     batch.set_defaults(handler=command_batch)

@@ -16,8 +16,8 @@ def command_calibrate(args: argparse.Namespace) -> int:
 
     template = load_template_file(args.template, side=args.side)
     result = calibrate_scan(args.scan, args.landmarks, template=template,
-                            progress=None if args.quiet else progress_printer(), clean=not args.no_clean,
-                            strictness=args.strictness)
+                            progress=None if args.quiet else progress_printer("fitting the scan"),
+                            clean=not args.no_clean, strictness=args.strictness)
     result.save(args.out, args.report)
     if args.gltf:
         from core.model.gltf import save_gltf_hand

@@ -6,7 +6,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from app.cli.common import add_json_flag, add_outputs, add_rate_argument, check_outputs, print_figures
+from app.cli.common import (
+    OVERWRITE_HELP,
+    add_json_flag,
+    add_outputs,
+    add_rate_argument,
+    check_outputs,
+    print_figures,
+)
 from core.errors import InputError
 
 
@@ -159,13 +166,14 @@ def register(commands, bench_commands, evaluate_commands) -> None:
 
     calibrate = actions.add_parser("calibrate", help="intrinsics from images of a ChArUco board or a chessboard")
     calibrate.add_argument("images", nargs="+", help="board images (PNG/JPG)")
-    calibrate.add_argument("--board", choices=["charuco", "chessboard"], default="charuco")
+    calibrate.add_argument("--board", choices=["charuco", "chessboard"], default="charuco",
+                           help="the calibration board in the images (default charuco)")
     calibrate.add_argument("--squares", type=_squares, default=(7, 5), metavar="CxR",
                            help="squares across x down (default 7x5)")
     calibrate.add_argument("--square-mm", type=float, default=30.0, help="square side in mm (default 30)")
     calibrate.add_argument("--marker-mm", type=float, default=22.0, help="ArUco marker side in mm (default 22)")
     calibrate.add_argument("--dictionary", default="DICT_4X4_50", help="ArUco dictionary (default DICT_4X4_50)")
-    calibrate.add_argument("--out", required=True, metavar="CAMERA.json")
+    calibrate.add_argument("--out", required=True, metavar="CAMERA.json", help="the camera to write")
     add_outputs(calibrate, "out")
     calibrate.set_defaults(handler=command_calibrate)
 
@@ -179,30 +187,33 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     registration.add_argument("--offset", type=float, metavar="S", help="guess of the clock offset (s)")
     registration.add_argument("--window", type=float, default=0.5, metavar="S",
                               help="offset search half-width around the guess (s, default 0.5)")
-    registration.add_argument("--marker-radius", type=float, default=3.0, metavar="MM")
-    registration.add_argument("--out", required=True, metavar="CAMERA.json")
+    registration.add_argument("--marker-radius", type=float, default=3.0, metavar="MM",
+                              help="radius of the markers in mm (default 3)")
+    registration.add_argument("--out", required=True, metavar="CAMERA.json", help="the registered camera to write")
     add_outputs(registration, "out")
     registration.set_defaults(handler=command_register)
 
     overlay = actions.add_parser("overlay", help="write the video with the take's markers drawn on it")
-    overlay.add_argument("take")
+    overlay.add_argument("take", help="the take whose markers are drawn")
     add_rate_argument(overlay)
-    overlay.add_argument("video")
-    overlay.add_argument("--camera", required=True, metavar="CAMERA.json")
-    overlay.add_argument("--out", required=True, metavar="OVERLAY.mp4|.avi")
+    overlay.add_argument("video", help="the camera's video or folder of frames")
+    overlay.add_argument("--camera", required=True, metavar="CAMERA.json",
+                         help="the camera (calibrated and registered)")
+    overlay.add_argument("--out", required=True, metavar="OVERLAY.mp4|.avi", help="the video to write")
     add_outputs(overlay, "out")
     overlay.set_defaults(handler=command_overlay)
 
     simulate = actions.add_parser("simulate", help="write a synthetic camera take to try the workflow")
     simulate.add_argument("--out", dest="out_folder", required=True, metavar="FOLDER",
                           help="a new or empty folder (its files are replaced only with --overwrite)")
-    simulate.add_argument("--seed", type=int, default=0)
+    simulate.add_argument("--seed", type=int, default=0, help="seed of the simulated take and camera (default 0)")
     simulate.add_argument("--frames", type=int, default=400, help="mocap frames (default 400)")
-    simulate.add_argument("--mocap-rate", type=float, default=100.0, metavar="HZ")
+    simulate.add_argument("--mocap-rate", type=float, default=100.0, metavar="HZ",
+                          help="frame rate of the simulated take (default 100 Hz)")
     simulate.add_argument("--offset", type=float, metavar="S", help="camera clock offset (default random)")
     simulate.add_argument("--depth", action="store_true", help="also write depth frames")
     simulate.add_argument("--boards", type=int, default=15, help="board images for calibration (default 15)")
-    simulate.add_argument("--overwrite", action="store_true", help="replace files in a non-empty folder")
+    simulate.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     simulate.set_defaults(handler=command_simulate)
 
     evaluate = evaluate_commands.add_parser("camera", help="camera calibration accuracy on synthetic cameras")

@@ -6,18 +6,20 @@ import argparse
 import json
 import math
 import os
-import sys
-from collections.abc import Callable
 from pathlib import Path
 
+from app.cli.progress import ProgressLine
 from core.errors import InputError
 from core.io.durable import check_target
+
+OVERWRITE_HELP = "replace output files that already exist (without it the command stops before any work)"
+"""The one meaning of ``--overwrite`` in every command."""
 
 
 def add_outputs(parser: argparse.ArgumentParser, *options: str) -> None:
     """Declare the options of ``parser`` that name files the command writes (e.g. ``"out"``, ``"report"``),
     checked by :func:`check_outputs` before the command starts, and add its ``--overwrite`` flag."""
-    parser.add_argument("--overwrite", action="store_true", help="replace output files that already exist")
+    parser.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     parser.set_defaults(outputs=options)
 
 
@@ -63,17 +65,11 @@ def print_summary(summary: str, figures: dict, as_json: bool) -> None:
         print_json(figures)
 
 
-def progress_printer() -> Callable[[float], None]:
-    """A progress callback that prints every 10 % to stderr."""
-    state = {"last": -1}
-
-    def report(fraction: float) -> None:
-        percent = int(fraction * 100)
-        if percent // 10 != state["last"] // 10:
-            state["last"] = percent
-            print(f"  {percent:3d} %", file=sys.stderr, flush=True)
-
-    return report
+def progress_printer(what: str = "working", total: float | None = None, unit: str = "frames") -> ProgressLine:
+    """The progress callback of a long command: one in-place line on stderr with what is done, the share, the
+    rate in ``unit``/s (of ``total``; percent when None), the time spent and left; nothing when stderr is
+    not a terminal (:mod:`app.cli.progress`)."""
+    return ProgressLine(what, total, unit)
 
 
 def add_json_flag(parser: argparse.ArgumentParser) -> None:

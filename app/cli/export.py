@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.cli.common import add_outputs, add_rate_argument
+from app.cli.common import add_outputs, add_rate_argument, progress_printer
 from core.errors import InputError
 
 
@@ -50,14 +50,14 @@ def _file_review(path: str, frame_rate: float | None = None):
 
 def _solve_missing_hands(review, models: dict, marker_sets: dict, quiet: bool) -> None:
     """Solve, in memory, every hand of ``review`` that has no solved frame (layered IK over the take)."""
-    from core.workflows.resolve import resolve_hands
+    from core.workflows.resolve import resolve_jobs, run_resolve_jobs
 
     if all(np.isfinite(hand.joint_angles).all(axis=1).any() for hand in review.hands):
         return
-    if not quiet:
-        print("solving the hands (layered IK) for the joint-angle export", flush=True)
-    for command in resolve_hands(review, (0, review.n_frames), models, pad=0, marker_sets=marker_sets):
-        if not np.isfinite(review.hands[command.hand].joint_angles).all(axis=1).any():
+    jobs = [job for job in resolve_jobs(review, (0, review.n_frames), models, pad=0, marker_sets=marker_sets)
+            if not np.isfinite(review.hands[job.hand].joint_angles).all(axis=1).any()]
+    with progress_printer("solving the hands for the export", sum(len(job.targets) for job in jobs)) as line:
+        for command in run_resolve_jobs(jobs, progress=None if quiet else line):
             command.do(review)
 
 
@@ -119,8 +119,9 @@ def register(commands, bench_commands, evaluate_commands) -> None:
                         "SESSION_FOLDER with --take")
     add_rate_argument(export)
     export.add_argument("--take", dest="take_name", metavar="NAME", help="the take (id or name) of the session")
-    export.add_argument("--format", required=True, choices=["c3d", "trc", "csv", "bvh", "gltf"])
-    export.add_argument("--out", required=True, metavar="FILE")
+    export.add_argument("--format", required=True, choices=["c3d", "trc", "csv", "bvh", "gltf"],
+                        help="c3d, trc, csv: labelled points; bvh, gltf: the solved hands")
+    export.add_argument("--out", required=True, metavar="FILE", help="the file to write")
     export.add_argument("--units", choices=["mm", "cm", "m"], help="trc and bvh lengths (default mm)")
     export.add_argument("--up", choices=["y", "z"], help="trc and bvh up axis (default z, the lab frame)")
     export.add_argument("--hand", choices=["right", "left"], help="bvh and gltf: that hand only (default: every "

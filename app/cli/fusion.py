@@ -78,7 +78,8 @@ def command_fuse(args: argparse.Namespace) -> int:
     print(f"fusing {Path(args.take).name} ({take.n_frames} frames, layout {layout}) with {len(frames.depth)} RGB-D "
           f"frames ({'colour + depth' if frames.colour is not None else 'depth only'}), optimiser {args.optimiser}",
           file=sys.stderr)
-    result = fuse_take(take, camera, frames, settings, progress_printer(), layout=layout)
+    result = fuse_take(take, camera, frames, settings, progress_printer("fusing", len(frames.depth), "RGB-D frames"),
+                       layout=layout)
     result.save(args.out)
     print(f"fused {len(result.rgbd_frames)} RGB-D frames ({1.0 / result.seconds_per_rgbd_frame:.2f} frames/s, "
           f"{args.optimiser}), {take.n_frames} mocap frames -> {args.out}")
@@ -114,7 +115,7 @@ def register(commands, bench_commands, evaluate_commands) -> None:
                       help="icp: swarm-seeded articulated ICP (fast, default); pso: the paper's swarm")
     fuse.add_argument("--particles", type=int, default=48, help="swarm particles (pso, default 48)")
     fuse.add_argument("--generations", type=int, default=200, help="swarm generations (pso, default 200)")
-    fuse.add_argument("--out", required=True, metavar="RESULT.npz")
+    fuse.add_argument("--out", required=True, metavar="RESULT.npz", help="the fused solve to write")
     add_outputs(fuse, "out")
     fuse.set_defaults(handler=command_fuse)
 

@@ -20,7 +20,7 @@ def command_layout_optimise(args: argparse.Namespace) -> int:
     from core.layout.workflow import optimise_layout
     from core.model import load_template, save_layout
 
-    report = progress_printer()
+    report = progress_printer(f"optimising the layout ({args.method})")
     settings = PSOSettings(particles=args.particles, iterations=args.iterations)
     layout, result = optimise_layout(load_template(), _motions(args.motions), args.markers, method=args.method,
                                      base_layout=args.base, subspace_dims=args.dims, seed=args.seed,
@@ -88,7 +88,8 @@ def command_layout_learn(args: argparse.Namespace) -> int:
 
     takes = [load_take(path, frame_rate=args.rate) for path in args.takes]
     name = args.name or Path(args.out).stem
-    learned = learn_template(takes, name=name, progress=None if args.quiet else progress_printer())
+    learned = learn_template(takes, name=name, progress=None if args.quiet else progress_printer(
+        "learning the template", sum(take.n_frames for take in takes)))
     save_lab_template(learned.template, args.out)
     report = learned.report
     print(f"template '{name}' from {len(takes)} take(s), {report['frames']} frames, marker noise σ "
@@ -182,8 +183,8 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     fit.add_argument("--side", choices=["right", "left"], default="right",
                      help="the hand to fit (of a two-hand take: the markers whose names say this side)")
     add_rate_argument(fit)
-    fit.add_argument("--iterations", type=int, default=3)
-    fit.add_argument("--out", required=True, metavar="LAYOUT.json")
+    fit.add_argument("--iterations", type=int, default=3, help="rounds of fitting the placements (default 3)")
+    fit.add_argument("--out", required=True, metavar="LAYOUT.json", help="the fitted layout to write")
     add_outputs(fit, "out")
     fit.set_defaults(handler=command_layout_fit)
 
@@ -211,9 +212,9 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     optimise.add_argument("--keyframes", type=int, default=10, help="keyframes of the motion (3 to 10)")
     optimise.add_argument("--particles", type=int, default=1000, help="PSO particles (default 1000)")
     optimise.add_argument("--iterations", type=int, default=100, help="PSO iterations (default 100)")
-    optimise.add_argument("--seed", type=int, default=0)
+    optimise.add_argument("--seed", type=int, default=0, help="seed of the swarm (default 0)")
     optimise.add_argument("--name", help="layout name (default METHOD-K)")
-    optimise.add_argument("--out", required=True, metavar="LAYOUT.json")
+    optimise.add_argument("--out", required=True, metavar="LAYOUT.json", help="the layout to write")
     add_outputs(optimise, "out")
     optimise.set_defaults(handler=command_layout_optimise)
     evaluate_layout = layout_commands.add_parser("evaluate", help="metrics and held-out reconstruction error")
@@ -227,8 +228,9 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     sheet = layout_commands.add_parser(
         "sheet", help="printable placement sheet (A4 PNG, or PDF with a second page at 1:1)")
     sheet.add_argument("layout", help="layout JSON file or shipped layout name")
-    sheet.add_argument("--side", choices=["right", "left"], default="right")
-    sheet.add_argument("--out", required=True, metavar="SHEET.png|SHEET.pdf")
+    sheet.add_argument("--side", choices=["right", "left"], default="right", help="the hand drawn (default right)")
+    sheet.add_argument("--out", required=True, metavar="SHEET.png|SHEET.pdf",
+                       help="the sheet to write: A4 PNG, or PDF with the back of the hand at 1:1")
     add_outputs(sheet, "out")
     sheet.set_defaults(handler=command_layout_sheet)
 
@@ -244,15 +246,15 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     table.add_argument("--counts", type=int, nargs="+", default=list(range(4, 13)), help="marker counts (4..12)")
     table.add_argument("--specific", default="grasps", help="motion set of the specific layouts (default grasps)")
     table.add_argument("--generic", default="gestures", help="motion set of the generic layouts (default gestures)")
-    table.add_argument("--particles", type=int, default=1000)
-    table.add_argument("--iterations", type=int, default=100)
+    table.add_argument("--particles", type=int, default=1000, help="PSO particles (default 1000)")
+    table.add_argument("--iterations", type=int, default=100, help="PSO iterations (default 100)")
     table.add_argument("--frames", type=int, default=1500, help="held-out frames reconstructed per layout")
-    table.add_argument("--seed", type=int, default=0)
+    table.add_argument("--seed", type=int, default=0, help="seed of the swarm (default 0)")
     add_json_flag(table)
     table.set_defaults(handler=command_layout_table)
 
     pso = bench_commands.add_parser("pso", help="PSO against greedy layout optimisation")
-    pso.add_argument("--markers", type=int, default=6)
+    pso.add_argument("--markers", type=int, default=6, help="markers of the layout optimised (default 6)")
     pso.add_argument("--seeds", type=int, default=1, help="PSO runs with seeds 0..n-1 for the energy spread")
     add_json_flag(pso)
     pso.set_defaults(handler=command_bench_pso)

@@ -119,7 +119,8 @@ def register(commands, bench_commands, evaluate_commands) -> None:
 
     serve = sub.add_parser("serve", help="replay a take over QTM's real-time protocol or NatNet on 127.0.0.1")
     serve.add_argument("take", metavar="TAKE", help="the take to replay (any format handmocap reads)")
-    serve.add_argument("--protocol", choices=("qtm", "natnet"), required=True)
+    serve.add_argument("--protocol", choices=("qtm", "natnet"), required=True,
+                       help="qtm: Qualisys real-time protocol; natnet: OptiTrack NatNet")
     serve.add_argument("--port", type=int, required=True, help="QTM: the little-endian port (clients use it as "
                        "given); NatNet: the command port")
     add_rate_argument(serve)
@@ -135,7 +136,8 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     where.add_argument("--qtm", metavar="HOST:PORT", help="Qualisys QTM (the little-endian RT port, 22223)")
     where.add_argument("--natnet", metavar="HOST[:PORT]", help="OptiTrack Motive, NatNet unicast (command port 1510)")
     record.add_argument("--layout", default="dense", help="marker layout or lab template (name or JSON file)")
-    record.add_argument("--hands", choices=("auto", "right", "left", "both"), default="auto")
+    record.add_argument("--hands", choices=("auto", "right", "left", "both"), default="auto",
+                        help="auto (default): the labeller decides which hands the capture shows")
     record.add_argument("--objects", metavar="SPEC.json", help="rigid objects of the scene")
     record.add_argument("--seconds", type=float, help="record this long (default: until Ctrl+C)")
     record.add_argument("--out", required=True, metavar="TAKE.c3d", help="the take written (raw points as received)")
@@ -156,7 +158,7 @@ def register(commands, bench_commands, evaluate_commands) -> None:
 
     recover = sub.add_parser("recover", help="write the take of a recording's journal (after a crash)")
     recover.add_argument("journal", metavar="JOURNAL.hmlj", help="<session>/live/<name>.hmlj")
-    recover.add_argument("--out", required=True, metavar="TAKE.c3d")
+    recover.add_argument("--out", required=True, metavar="TAKE.c3d", help="the take to write from the journal")
     add_outputs(recover, "out")
     add_json_flag(recover)
     recover.set_defaults(handler=command_recover)

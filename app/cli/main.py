@@ -15,6 +15,7 @@ from pathlib import Path
 from app.cli import batch as batch_commands
 from app.cli import calibrate as calibrate_commands
 from app.cli import camera as camera_commands
+from app.cli import depth as depth_commands
 from app.cli import export as export_commands
 from app.cli import fusion as fusion_commands
 from app.cli import layout as layout_commands
@@ -31,11 +32,12 @@ from app.cli.common import (
     print_summary,
     progress_printer,
 )
+from app.cli.progress import close_all as close_progress
 from core.errors import HandMocapError, InputError
 
 #: modules that add their own subcommands (``register(commands, bench_commands, evaluate_commands)``)
 SUBCOMMAND_MODULES = (layout_commands, review_commands, calibrate_commands, camera_commands, export_commands,
-                      batch_commands, fusion_commands, live_commands)
+                      batch_commands, fusion_commands, live_commands, depth_commands)
 
 EXIT_ERROR = 2
 
@@ -89,13 +91,17 @@ def command_simulate(args: argparse.Namespace) -> int:
 
     if args.frames <= 0:
         raise InputError("--frames must be positive")
-    simulated = simulate_take(layout=args.layout, n_frames=args.frames, seed=args.seed, noise_mm=args.noise,
-                              ghost_rate=args.ghosts, occlusion=args.occlusion, unlabelled=args.unlabelled)
-    save_take(simulated.take, args.out)
-    save_truth(simulated.truth, args.truth)
+    with progress_printer("simulating", args.frames) as progress:
+        simulated = simulate_take(layout=args.layout, n_frames=args.frames, seed=args.seed, noise_mm=args.noise,
+                                  ghost_rate=args.ghosts, occlusion=args.occlusion, unlabelled=args.unlabelled,
+                                  progress=lambda fraction: progress(0.9 * fraction))
+        save_take(simulated.take, args.out)
+        if args.truth:
+            save_truth(simulated.truth, args.truth)
+        progress(1.0)
     take = simulated.take
     print(f"wrote {args.out} ({take.n_frames} frames, {take.n_markers} point columns, "
-          f"{100 * take.missing_fraction:.1f} % missing) and truth {args.truth}")
+          f"{100 * take.missing_fraction:.1f} % missing)" + (f" and truth {args.truth}" if args.truth else ""))
     return 0
 
 
@@ -125,7 +131,7 @@ def command_solve(args: argparse.Namespace) -> int:
             for hand in hands:
                 check_output(per_hand_path(output, hand.side), args.overwrite)
     prior = PosturePrior.load(args.prior) if args.prior else None
-    progress = progress_printer() if not args.quiet else None
+    progress = progress_printer("solving", take.n_frames * len(hands)) if not args.quiet else None
     for number, hand in enumerate(hands):
         subject = subjects.get(hand.side)
         model, calibrated, what = load_template(hand.side), None, f"the {hand.side} template hand"
@@ -222,32 +228,38 @@ def build_parser() -> argparse.ArgumentParser:  # noqa: PLR0915 - a statement pe
     gui.set_defaults(handler=command_gui)
 
     info = commands.add_parser("info", help="frames, rate, units, markers, vendor and missing share of a take")
-    info.add_argument("file")
+    info.add_argument("file", help="the take file (C3D, TSV, TRC, CSV, TXT)")
     add_rate_argument(info)
     info.add_argument("--json", action="store_true", help="print one JSON object")
     info.set_defaults(handler=command_info)
 
     simulate = commands.add_parser("simulate", help="write a synthetic take with ground truth")
     simulate.add_argument("--layout", default="dense", help="marker layout name or JSON file (default dense)")
-    simulate.add_argument("--frames", type=int, default=1000)
-    simulate.add_argument("--seed", type=int, default=0)
+    simulate.add_argument("--frames", type=int, default=1000, help="frames to simulate (default 1000, at 100 Hz)")
+    simulate.add_argument("--seed", type=int, default=0,
+                          help="seed of the random motion, noise and ghosts (the same seed gives the same take)")
     simulate.add_argument("--noise", type=float, default=0.0, metavar="MM", help="marker noise σ in mm")
     simulate.add_argument("--ghosts", type=float, default=0.0, metavar="RATE",
                           help="share of frames with ghost points (0..1)")
     simulate.add_argument("--occlusion", action="store_true", help="hide markers the cameras cannot see")
     simulate.add_argument("--unlabelled", action="store_true", help="per-frame shuffled, unnamed points")
-    simulate.add_argument("--out", required=True, metavar="TAKE.c3d")
-    simulate.add_argument("--truth", required=True, metavar="TRUTH.npz")
+    simulate.add_argument("--out", required=True, metavar="TAKE.c3d",
+                          help="the take file to write (.c3d, .trc, .csv or .tsv)")
+    simulate.add_argument("--truth", metavar="TRUTH.npz",
+                          help="also write the ground truth (joint angles, marker positions, visibility, which point "
+                               "is which marker) for evaluations")
     add_outputs(simulate, "out", "truth")
     simulate.set_defaults(handler=command_simulate)
 
     solve = commands.add_parser("solve", help="inverse kinematics of a labelled take")
-    solve.add_argument("take")
+    solve.add_argument("take", help="the labelled take (C3D, TSV, TRC, CSV)")
     add_rate_argument(solve)
     solve.add_argument("--layout", help="marker layout or lab template (name or JSON file) the take is labelled "
                        "with (default: the one its marker names match)")
     solve.add_argument("--prior", help="posture prior .npz (default: the shipped prior)")
-    solve.add_argument("--method", choices=["layered", "subspace", "full"], default="layered")
+    solve.add_argument("--method", choices=["layered", "subspace", "full"], default="layered",
+                       help="layered (default): the posture subspace, then all 26 parameters; subspace: the "
+                            "subspace only; full: all 26 parameters")
     solve.add_argument("--side", choices=["right", "left"],
                        help="solve this hand only; the side of a hand whose names do not say it (default: every "
                        "hand; the side auto-label calibrated in the file, else right)")
@@ -279,13 +291,14 @@ def build_parser() -> argparse.ArgumentParser:  # noqa: PLR0915 - a statement pe
     evaluate_ik.set_defaults(handler=command_evaluate_ik)
 
     template = commands.add_parser("template", help="regenerate the template hand mesh")
-    template.add_argument("action", choices=["build"])
+    template.add_argument("action", choices=["build"], help="build: generate the template hand mesh again")
     template.add_argument("--out", help="output .npz (default: resources/template/right_hand.npz)")
     add_outputs(template, "out")
     template.set_defaults(handler=command_template)
 
     prior = commands.add_parser("prior", help="build a posture prior")
-    prior.add_argument("action", choices=["build"])
+    prior.add_argument("action", choices=["build"],
+                       help="build: the posture prior from the canonical postures (or from --results)")
     prior.add_argument("--results", nargs="+", metavar="RESULT.npz",
                        help="solved takes to build from (default: the authored canonical postures)")
     prior.add_argument("--out", help="output .npz (default: resources/priors/default_prior.npz)")
@@ -305,8 +318,11 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(["gui"])
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # past a file-size limit (ulimit -f) a write fails: one line
     try:
-        check_outputs(args)
-        return args.handler(args)
+        try:
+            check_outputs(args)
+            return args.handler(args)
+        finally:
+            close_progress()        # a progress line still drawn ends before an error's one line
     except HandMocapError as error:
         print(f"handmocap: error: {error}", file=sys.stderr)
     except BrokenPipeError:

@@ -66,7 +66,7 @@ def command_label(args: argparse.Namespace) -> int:
     take = load_take(args.raw, frame_rate=args.rate)
     layout = load_lab_template(args.layout) or load_layout(args.layout)
     outcome = auto_label(take, layout, args.hands, args.objects, args.online, relabel=args.relabel,
-                         progress=None if args.quiet else progress_printer())
+                         progress=None if args.quiet else progress_printer("labelling", take.n_frames))
     review = ReviewTake.unlabelled(take)
     outcome.command.do(review)
     export_labelled_c3d(review, args.out, subjects=outcome.subjects)
@@ -87,8 +87,10 @@ def command_label(args: argparse.Namespace) -> int:
         first = model["first_frame_tracked"]
         share = "not used (no hand found)" if no_hand and model["kind"] in ("right", "left") else \
             f"{100 * model['labelled_share']:.1f} % labelled"
-        print(f"  {model['name']:<12} {model['kind']:<7} tracked from frame "
-              f"{'never' if first < 0 else first + take.first_frame}, {share}")
+        what = (f"{model['name']} hand" if model["kind"] == model["name"] else      # "right hand", not "right right"
+                f"{model['name']} ({model['kind']} hand)" if model["kind"] in ("right", "left") else
+                f"{model['name']} ({model['kind']})")
+        print(f"  {what:<20} tracked from frame {'never' if first < 0 else first + take.first_frame}, {share}")
     print(f"  marker noise σ {'n/a' if noise is None else f'{noise:.2f} mm'} per axis (estimated on the take)")
     figures = report["file_labels"]
     if figures["kept_labels"] or figures["file_label_samples"]:
@@ -124,7 +126,7 @@ def command_fill(args: argparse.Namespace) -> int:
     groups = gap_groups(review, *_subject_hands(review.take.parameters, args.labelled))
     gaps = find_review_gaps(review, groups)
     command = fill_review_gaps(review, groups, args.max_gap, args.method,
-                               progress=None if args.quiet else progress_printer())
+                               progress=None if args.quiet else progress_printer("filling gaps", len(gaps), "gaps"))
     counts: dict[str, int] = {}
     if command is not None:
         command.do(review)
@@ -199,7 +201,8 @@ def _evaluate_lab_take(args: argparse.Namespace) -> int:
     take = load_take(args.take, frame_rate=args.rate)
     figures = evaluate_take_labelling(take, args.layout, args.learn_on, hands=args.hands or "auto",
                                       seed=args.seed, ghost_rate=args.ghosts, online=args.online,
-                                      progress=None if args.json else progress_printer())
+                                      progress=None if args.json else progress_printer("relabelling",
+                                                                                        take.n_frames))
     learned = "" if figures["frames_learned_on"] == 0 else (
         f", {'template learned on' if args.layout is None else 'after'} the first {figures['frames_learned_on']} "
         "frames")
@@ -306,7 +309,8 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     label.add_argument("--relabel", action="store_true",
                        help="label from scratch: ignore the labels the file already has (by default labels "
                             "outside the layout are kept and the file's hand labels are kept where it has them)")
-    label.add_argument("--out", required=True, metavar="LABELLED.c3d")
+    label.add_argument("--out", required=True, metavar="LABELLED.c3d",
+                       help="the labelled take to write (C3D with the provenance of every sample)")
     label.add_argument("--report", metavar="REPORT.json", help="write what was found as JSON")
     label.add_argument("--quiet", action="store_true", help="no progress output")
     add_outputs(label, "out", "report")
@@ -320,7 +324,7 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     fill.add_argument("--method", choices=["auto", "pca", "model", "spline", "linear", "pattern", "rigid"],
                       default="auto", help="auto: per gap, the first method of its fill check that applies (pca: "
                       "marker intercorrelations, Gløersen & Federolf 2016)")
-    fill.add_argument("--out", required=True, metavar="FILLED.c3d")
+    fill.add_argument("--out", required=True, metavar="FILLED.c3d", help="the filled take to write (labelled C3D)")
     fill.add_argument("--quiet", action="store_true", help="no progress output")
     add_outputs(fill, "out")
     add_json_flag(fill)
@@ -365,7 +369,8 @@ def register(commands, bench_commands, evaluate_commands) -> None:
         "one at a time and many at once through 'fill'")
     evaluate_gaps.add_argument("take", nargs="?", help="labelled take (default: the real glove recording)")
     add_rate_argument(evaluate_gaps)
-    evaluate_gaps.add_argument("--layout", default="glove-13")
+    evaluate_gaps.add_argument("--layout", default="glove-13",
+                               help="marker layout the take is labelled with (default glove-13)")
     evaluate_gaps.add_argument("--lengths", type=int, nargs="+", default=[10, 20, 40, 80], metavar="FRAMES",
                                help="gap lengths (default 10 20 40 80)")
     evaluate_gaps.add_argument("--trials", type=int, default=200, help="hidden stretches per length, one at a time")

@@ -17,6 +17,7 @@ loses every marker (the best-facing one is kept).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -275,7 +276,8 @@ def _shuffled_points(observed: np.ndarray, marker_count: int, rng: np.random.Gen
 def simulate_take(layout: str | MarkerLayout = "dense", n_frames: int = 600, seed: int = 0,
                   noise_mm: float = 0.0, ghost_rate: float = 0.0, occlusion: bool = False,
                   unlabelled: bool = False, proportions: HandProportions | None = None,
-                  motion: str = "mixed", frame_rate: float = DEFAULT_FRAME_RATE) -> SimulatedTake:
+                  motion: str = "mixed", frame_rate: float = DEFAULT_FRAME_RATE,
+                  progress: Callable[[float], None] | None = None) -> SimulatedTake:
     """A synthetic take of ``n_frames`` frames with ground truth (deterministic per ``seed``).
 
     ``layout``: shipped layout name or a :class:`MarkerLayout`; ``noise_mm``: Gaussian σ per
@@ -284,8 +286,12 @@ def simulate_take(layout: str | MarkerLayout = "dense", n_frames: int = 600, see
     of per-frame shuffled points instead of named markers; ``proportions``: a re-proportioned hand
     (its template is generated, which takes seconds) instead of the shipped template; ``motion``:
     see :func:`simulate_joint_angles`, whose output for ``(n_frames, seed, motion, frame_rate)`` is
-    ``truth["joint_angles"]``.
+    ``truth["joint_angles"]``. ``progress(fraction)`` hears each stage done (motion, markers, occlusion, points).
     """
+    def report(fraction: float) -> None:
+        if progress is not None:
+            progress(fraction)
+
     if noise_mm < 0 or not 0.0 <= ghost_rate <= 1.0:
         raise InputError(f"noise must be >= 0 mm and the ghost rate within 0..1, "
                          f"got {noise_mm} mm and {ghost_rate}")
@@ -297,12 +303,15 @@ def simulate_take(layout: str | MarkerLayout = "dense", n_frames: int = 600, see
         model = build_template(proportions)
     markers = resolve_layout(model, layout)
     thetas = simulate_joint_angles(n_frames, seed, motion, frame_rate)
+    report(0.3)
     positions = marker_positions_batch(model, markers, thetas)
+    report(0.5)
     rng = np.random.default_rng([seed, 1])
     if occlusion:
         visible = _visibility(model, markers, proportions, thetas, positions)
     else:
         visible = np.ones(positions.shape[:2], dtype=bool)
+    report(0.8)
     ghosts = _ghosts(positions, ghost_rate, rng)
     observed = np.concatenate([np.where(visible[:, :, None], positions, np.nan), ghosts], axis=1)
     observed += rng.normal(0.0, noise_mm, observed.shape)
@@ -324,6 +333,7 @@ def simulate_take(layout: str | MarkerLayout = "dense", n_frames: int = 600, see
                                  "OCCLUSION": int(occlusion), "UNLABELLED": int(unlabelled)}}
     take = Take(marker_names=names, marker_positions=points, frame_rate=frame_rate, vendor="simulated",
                 parameters=parameters)
+    report(1.0)
     return SimulatedTake(take=take, truth=truth)
 
 
