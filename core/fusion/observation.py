@@ -88,11 +88,14 @@ def _majority(mask: np.ndarray, crop: Crop) -> np.ndarray:
 
 def observe(renderer: HandRenderer, guess: np.ndarray, depth: np.ndarray, colour: np.ndarray | None,
             background: np.ndarray | None, markers: np.ndarray, wristband_hue: tuple[int, int] | None = None,
-            max_side: int = 96, cut_wrist: bool = True, include: np.ndarray | None = None) -> Observation:
+            max_side: int = 96, cut_wrist: bool = True, include: np.ndarray | None = None,
+            segmented: np.ndarray | None = None) -> Observation:
     """The observation of one frame. ``guess (26,)``: a predicted pose (from the markers) that places the crop,
     the GrabCut initialisation and the wrist cut; ``depth (H,W)`` mm and ``colour (H,W,3)`` / ``background``
     ideal images (see :func:`ideal_image`); ``markers (M,3)`` mm; ``cut_wrist``: cut the arm at the guess's wrist
-    when no wristband is seen; ``include (N,2)`` px: image points the crop must hold too."""
+    when no wristband is seen; ``include (N,2)`` px: image points the crop must hold too; ``segmented (H,W)``
+    bool: the hand's pixels found beforehand (:func:`core.fusion.hand_segment.find_hands`) instead of the depth
+    band around the guess."""
     camera = renderer.camera
     pixels = renderer.pixels(guess)
     crop = crop_around(pixels if include is None else np.vstack([pixels, include]), camera, max_side=max_side)
@@ -106,7 +109,10 @@ def observe(renderer: HandRenderer, guess: np.ndarray, depth: np.ndarray, colour
     wrist, knuckle = camera.project(positions[[0, MIDDLE_MCP]]) - [crop.left, crop.top]
     towards_fingers = knuckle - wrist
     source = "depth"
-    silhouette = depth_silhouette(depth_window, model_depth)
+    if segmented is None:
+        silhouette = depth_silhouette(depth_window, model_depth)
+    else:
+        silhouette = full.window(segmented) & (depth_window > 0)
     if colour is not None and background is not None:
         colour_window = full.window(colour)
         from_colour = colour_silhouette(np.ascontiguousarray(colour_window), np.ascontiguousarray(
