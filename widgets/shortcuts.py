@@ -47,12 +47,16 @@ SHORTCUTS: dict[str, Shortcut] = {
     "range_in": Shortcut(("I",), "Edit", "Mark the start of a frame range here"),
     "range_out": Shortcut(("O",), "Edit", "Mark the end of a frame range here"),
     "clear_range": Shortcut(("Shift+I",), "Edit", "Clear the marked range"),
+    "trim": Shortcut(("Ctrl+T",), "Edit", "Trim the take to the marked range"),
     # Review
     "auto_label": Shortcut(("Ctrl+L",), "Review", "Label the take's raw points automatically"),
     "rigid_body": Shortcut(("Ctrl+B",), "Review", "Define a rigid body from the Ctrl+clicked points"),
     "next_problem": Shortcut(("F3",), "Review", "Go to the next problem (gap, swap suspect, doubt)"),
     "previous_problem": Shortcut(("Shift+F3",), "Review", "Go to the previous problem"),
     "fill_short_gaps": Shortcut(("Ctrl+Shift+F",), "Review", "Fill every open gap up to N frames"),
+    "add_event": Shortcut(("Ctrl+M",), "Review", "Add an event (a named frame) here"),
+    "next_event": Shortcut(("Ctrl+Right",), "Review", "Go to the next event"),
+    "previous_event": Shortcut(("Ctrl+Left",), "Review", "Go to the previous event"),
     # View
     "marker_names": Shortcut(("N",), "View", "Show every marker's name"),
     "hand_mesh": Shortcut(("M",), "View", "Show the hand's surface"),

@@ -28,6 +28,8 @@ from widgets.shortcuts import bind
 SPEEDS = (0.1, 0.25, 0.5, 1.0, 2.0, 4.0)
 TICK_MS = 15
 OBSERVED_PEN = (120, 190, 255)
+EVENT_PEN = (120, 230, 160)          # event lines and names
+TRIM_PEN = (200, 120, 60)            # the edges of the trim range
 RESIDUAL_PEN = (255, 150, 60)
 
 
@@ -44,6 +46,9 @@ class TimelineWidget(QWidget):
         self._first_frame = 1
         self._frame_rate = 100.0
         self._frame = 0
+        self._low, self._high = 0, 0                 # the frames shown and played: the trim range
+        self._event_items: list = []
+        self._trim_items: list = []
         self._play_origin_frame = 0
         self._clock = QElapsedTimer()
         self._timer = QTimer(self)
@@ -203,11 +208,61 @@ class TimelineWidget(QWidget):
             text += f'&nbsp;&nbsp;<span style="color:{_css(RESIDUAL_PEN)}">■</span> mean residual (mm)'
         self.legend_label.setText(text)
 
+    def set_events(self, events: list[tuple[int, str]]) -> None:
+        """Mark the take's events: ``(0-based frame, name)`` each, a dashed line named at its top."""
+        for item in self._event_items:
+            self.plot.removeItem(item)
+        self._event_items = []
+        for frame, name in events:
+            line = pg.InfiniteLine(self._first_frame + frame, angle=90, movable=False,
+                                   pen=pg.mkPen(EVENT_PEN, width=1.5, style=Qt.PenStyle.DashLine),
+                                   label=name, labelOpts={"position": 0.92, "color": EVENT_PEN,
+                                                          "anchors": [(0, 1), (0, 1)], "fill": (30, 32, 36, 200)})
+            line.setToolTip(f"{name} (frame {self._first_frame + frame})")
+            self.plot.addItem(line)
+            self._event_items.append(line)
+
+    def event_marks(self) -> list[tuple[int, str]]:
+        """The events marked now: ``(0-based frame, name)``."""
+        return [(int(round(item.value())) - self._first_frame, item.label.format) for item in self._event_items]
+
+    def set_trim(self, start: int | None, stop: int | None) -> None:
+        """Show and play only frames ``start .. stop - 1`` (0-based; None: the whole take): the frames outside
+        are shaded, the frame box and playback keep within the range."""
+        for item in self._trim_items:
+            self.plot.removeItem(item)
+        self._trim_items = []
+        self._low, self._high = (0, self._n_frames) if start is None or stop is None else (int(start), int(stop))
+        first = self._first_frame
+        for left, right in ((first - 1, first + self._low - 0.5), (first + self._high - 0.5, first + self._n_frames)):
+            if right > left + 0.5:
+                region = pg.LinearRegionItem((left, right), movable=False, brush=pg.mkBrush(0, 0, 0, 150),
+                                             pen=pg.mkPen(TRIM_PEN, width=1))
+                region.setZValue(5)
+                self.plot.addItem(region)
+                self._trim_items.append(region)
+        self.frame_box.blockSignals(True)
+        self.frame_box.setRange(first + self._low, first + max(self._high - 1, self._low))
+        self.frame_box.blockSignals(False)
+        if self._n_frames:
+            self.plot.setXRange(first + self._low, first + max(self._high - 1, self._low + 1), padding=0.01)
+            if not self._low <= self._frame < self._high:
+                self.set_frame(self._frame)
+
+    def trim_range(self) -> tuple[int, int]:
+        """The frames shown and played, ``start, stop`` (0-based, stop exclusive)."""
+        return self._low, self._high
+
     def set_take(self, n_frames: int, first_frame: int, frame_rate: float, markers_seen: np.ndarray) -> None:
         """Show a take of ``n_frames`` at ``frame_rate`` Hz whose first frame is numbered ``first_frame``;
         ``markers_seen (F,)``: observed marker count per frame for the overview plot."""
         self.pause()
         self._n_frames, self._first_frame, self._frame_rate = n_frames, first_frame, frame_rate
+        self._low, self._high = 0, n_frames
+        self.set_events([])
+        for item in self._trim_items:
+            self.plot.removeItem(item)
+        self._trim_items = []
         self.frame_box.blockSignals(True)
         self.frame_box.setRange(first_frame, first_frame + max(n_frames - 1, 0))
         self.frame_box.blockSignals(False)
@@ -235,7 +290,7 @@ class TimelineWidget(QWidget):
     def _show(self, frame: int) -> None:
         if self._n_frames == 0:
             return
-        frame = int(np.clip(frame, 0, self._n_frames - 1))
+        frame = int(np.clip(frame, self._low, max(self._high - 1, self._low)))
         if frame == self._frame:
             return
         self._frame = frame
@@ -255,10 +310,10 @@ class TimelineWidget(QWidget):
 
     def play(self) -> None:
         """Start playback from the current frame (from the start when at the end)."""
-        if self._n_frames < 2 or self.is_playing():
+        if self._high - self._low < 2 or self.is_playing():
             return
-        if self._frame >= self._n_frames - 1:
-            self.set_frame(0)
+        if self._frame >= self._high - 1:
+            self.set_frame(self._low)
         self._restart_clock()
         self._timer.start()
         self.play_action.setIcon(self.style().standardIcon(QStyle.StandardPixmap.SP_MediaPause))
@@ -289,12 +344,12 @@ class TimelineWidget(QWidget):
     def _advance(self) -> None:
         elapsed_s = self._clock.elapsed() / 1000.0
         target = self._play_origin_frame + int(elapsed_s * self._frame_rate * self.speed)
-        if target >= self._n_frames:
+        if target >= self._high:
             if not self.loop_box.isChecked():
-                self._show(self._n_frames - 1)
+                self._show(self._high - 1)
                 self.pause()
                 return
-            target %= self._n_frames
+            target = self._low + (target - self._low) % max(self._high - self._low, 1)
             self._play_origin_frame = target
             self._clock.restart()
         self._show(target)

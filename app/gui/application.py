@@ -210,9 +210,12 @@ class Application:
 
     # ---------------------------------------------------------------------------------- frame
     def set_frame(self, frame: int) -> None:
-        """Make ``frame`` (0-based, clamped to the shown take) the current one."""
-        n_frames = self.document.take.n_frames if self.document is not None else 1
-        frame = min(max(int(frame), 0), max(n_frames - 1, 0))
+        """Make ``frame`` (0-based, clamped to the shown take, to its trim range when it is trimmed) the
+        current one."""
+        low, high = 0, self.document.take.n_frames if self.document is not None else 1
+        if self.document is not None and self.document.review is not None:
+            low, high = self.document.review.frame_range()
+        frame = min(max(int(frame), low), max(high - 1, low))
         if frame != self.frame:
             self.frame = frame
             self._announce(FrameChanged(frame))

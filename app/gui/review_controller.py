@@ -54,25 +54,29 @@ from app.gui.document import TakeDocument
 from app.gui.workers import TaskRunner
 from core.errors import HandMocapError
 from core.gaps import FILL_METHODS, FillCheck
+from core.io.c3d_events import CONTEXTS
 from core.model import layout_names, marker_positions, skin_vertices
 from core.model.objects import load_scene_spec, rigid_body_from_points, save_scene_spec
 from core.review import (
     PROBLEM_KINDS,
     AcceptFills,
+    AddEvent,
     AssignLabel,
     Command,
     FrameSpan,
     GapFill,
     MarkGhost,
     RejectFills,
+    RemoveEvent,
     ReviewTake,
     SwapLabels,
+    TrimTake,
     Unlabel,
     export_bvh,
     export_joint_angles_csv,
     export_labelled_c3d,
 )
-from core.review.events import ReviewChanged
+from core.review.events import Change, ReviewChanged
 from core.workflows import (
     GapGroup,
     ReviewGap,
@@ -134,6 +138,40 @@ class AutoLabelSettings:
     objects: str = ""
     online: bool = False
     relabel: bool = False
+
+
+#: event names offered first (an operator types any other; the names used in the session come after)
+EVENT_NAMES = ("grasp on", "grasp off", "contact", "release", "start", "end")
+
+
+class EventDialog(QDialog):
+    """Name an event at a frame: a name (typed, or one used before) and its context (General, Left, Right,
+    as the C3D EVENT group has it)."""
+
+    def __init__(self, parent: QWidget, frame_number: int, names: list[str]) -> None:
+        super().__init__(parent)
+        self.setWindowTitle("Add event")
+        form = QFormLayout(self)
+        self.name_box = QComboBox(self)
+        self.name_box.setEditable(True)
+        self.name_box.addItems(list(dict.fromkeys([*names, *EVENT_NAMES])))
+        self.name_box.setCurrentText(names[0] if names else EVENT_NAMES[0])
+        self.name_box.lineEdit().selectAll()
+        self.context_box = QComboBox(self)
+        self.context_box.addItems(list(CONTEXTS))
+        self.context_box.setToolTip("Which side the event is about (the C3D EVENT group's context)")
+        form.addRow(QLabel(f"At frame {frame_number}"))
+        form.addRow("Name", self.name_box)
+        form.addRow("Side", self.context_box)
+        buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok | QDialogButtonBox.StandardButton.Cancel, self)
+        buttons.button(QDialogButtonBox.StandardButton.Ok).setText("Add event")
+        buttons.accepted.connect(self.accept)
+        buttons.rejected.connect(self.reject)
+        form.addRow(buttons)
+
+    def chosen(self) -> tuple[str, str]:
+        """The name and the context given."""
+        return self.name_box.currentText().strip(), self.context_box.currentText()
 
 
 class AutoLabelDialog(QDialog):
@@ -293,6 +331,16 @@ class ReviewController(QObject):
                                         "view, then name it: auto-label then tracks it as a rigid body")
         self.fill_all_action = action("&Fill short gaps…", lambda: self.fill_all(self.gap_list.max_length_box.value()),
                                       "fill_short_gaps")
+        self.add_event_action = action("Add &event here…", self.choose_event_to_add, "add_event")
+        self.remove_event_action = action("Remo&ve event here", self.remove_event_here,
+                                          tooltip="Remove the event at the current frame")
+        self.next_event_action = action("Next e&vent", lambda: self.go_to_event(True), "next_event")
+        self.previous_event_action = action("Previous ev&ent", lambda: self.go_to_event(False), "previous_event")
+        self.trim_action = action("&Trim to the marked range", self.trim_to_range, "trim",
+                                  "Trim the take to the range marked with I and O: the frames outside are no longer "
+                                  "shown, played or exported (undo brings them back)")
+        self.untrim_action = action("&Keep the whole take", self.keep_whole_take,
+                                    tooltip="Undo the trim: show, play and export every frame again")
         self.cancel_job_action = action("Cancel review &job", self.jobs.cancel)
         self.export_c3d_action = action("Labelled &C3D…", self.choose_export_c3d)
         self.export_csv_action = action("Joint angles (CS&V)…", self.choose_export_csv)
@@ -301,13 +349,16 @@ class ReviewController(QObject):
         self.edit_menu = QMenu("&Edit", host)
         for item in (self.undo_action, self.redo_action, None, self.assign_action, self.swap_action,
                      self.unlabel_action, self.ghost_action, None, self.range_in_action, self.range_out_action,
-                     self.clear_range_action):
+                     self.clear_range_action, None, self.trim_action, self.untrim_action):
             self.edit_menu.addSeparator() if item is None else self.edit_menu.addAction(item)
+        self.events_menu = QMenu("&Go to event", host)
         self.review_menu = QMenu("&Review", host)
         for item in (self.auto_label_action, self.cancel_job_action, self.rigid_body_action, None,
                      self.next_problem_action,
-                     self.previous_problem_action, None, self.fill_all_action):
+                     self.previous_problem_action, None, self.fill_all_action, None, self.add_event_action,
+                     self.remove_event_action, self.next_event_action, self.previous_event_action):
             self.review_menu.addSeparator() if item is None else self.review_menu.addAction(item)
+        self.review_menu.addMenu(self.events_menu)
         self.export_menu = QMenu("E&xport", host)
         for item in (self.export_c3d_action, self.export_csv_action, self.export_bvh_action):
             self.export_menu.addAction(item)
@@ -363,7 +414,12 @@ class ReviewController(QObject):
         elif isinstance(event, ReviewChanged) and event.operation != "clean":
             if event.operation != "attach":       # a re-solve attached to an edit leaves the gaps as they are
                 self._previews = {}
-            self._refresh(structure=event.structure)
+            if event.what & Change.TIMELINE:
+                self._show_timeline_marks()
+            if event.what & ~Change.TIMELINE:
+                self._refresh(structure=event.structure)
+            else:
+                self.update_enabled()
         elif isinstance(event, SelectionChanged):
             self._show_selection()
         elif isinstance(event, JobsChanged):
@@ -376,6 +432,7 @@ class ReviewController(QObject):
         self._unsolved, self._carried = {}, {}
         if document is not None:
             self._refresh(structure=True)
+            self._show_timeline_marks()
             if document.review.health:
                 self.status_message.emit(document.review.health_summary(), 0)
             return
@@ -466,6 +523,12 @@ class ReviewController(QObject):
             action.setEnabled(editable)
         for action in (self.export_csv_action, self.export_bvh_action):
             action.setEnabled(document is not None and document.has_solved_hands())
+        for action in (self.add_event_action, self.remove_event_action, self.next_event_action,
+                       self.previous_event_action):
+            action.setEnabled(review is not None)
+        self.trim_action.setEnabled(review is not None and selection.range_in is not None
+                                    and selection.range_out is not None)
+        self.untrim_action.setEnabled(review is not None and review.trim is not None)
         text = ""
         if selection.range_in is not None or selection.range_out is not None:
             first = review.take.first_frame if review is not None else 0
@@ -763,6 +826,80 @@ class ReviewController(QObject):
 
     def clear_range(self) -> None:
         self.app.mark_range(None, None)
+
+    # ------------------------------------------------------------------------------ events, trim
+    def _show_timeline_marks(self) -> None:
+        """The events on the timeline (and in Review ▸ Go to event), the trim range shaded; the current frame
+        kept inside the range."""
+        review = self.review
+        if review is None:
+            self.timeline.set_events([])
+            self.events_menu.clear()
+            return
+        marks = review.event_frames()
+        self.timeline.set_events([(frame, event.name) for frame, event in marks])
+        self.timeline.set_trim(*(review.trim or (None, None)))
+        self.events_menu.clear()
+        for frame, event in marks:
+            item = self.events_menu.addAction(f"{event.name} — frame {event.frame_number}"
+                                              + (f" ({event.context})" if event.context != "General" else ""))
+            item.triggered.connect(lambda _checked=False, target=frame: self.app.set_frame(target))
+        self.events_menu.setEnabled(bool(marks))
+        self.app.set_frame(self.app.frame)          # clamped into the trim range
+
+    def choose_event_to_add(self) -> None:
+        """Ask for an event's name and side, and add it at the current frame."""
+        review = self.review
+        if review is None:
+            return
+        names = list(dict.fromkeys(event.name for event in reversed(review.events or [])))
+        dialog = EventDialog(self.host, review.frame_number(self.app.frame), names)
+        if dialog.exec() == QDialog.DialogCode.Accepted:
+            self.add_event(*dialog.chosen())
+
+    def add_event(self, name: str, context: str = "General") -> FrameSpan | None:
+        """Name the current frame ``name`` (an undoable step)."""
+        review = self.review
+        if review is None:
+            return None
+        return self.run_edit(lambda: AddEvent(name, review.frame_number(self.app.frame), context))
+
+    def remove_event_here(self) -> FrameSpan | None:
+        """Remove the event at the current frame (the last one named, when there are several)."""
+        review = self.review
+        if review is None:
+            return None
+        number = review.frame_number(self.app.frame)
+        here = [event for event in review.events or [] if event.frame_number == number]
+        if not here:
+            self.status_message.emit(f"No event at frame {number}", 5000)
+            return None
+        return self.run_edit(lambda: RemoveEvent(here[-1].name, number))
+
+    def go_to_event(self, forward: bool = True) -> None:
+        """Go to the next (or previous) event, wrapping around the take."""
+        review = self.review
+        found = None if review is None else review.next_event(self.app.frame, forward)
+        if found is None:
+            self.status_message.emit("This take has no event (Review ▸ Add event here…)", 5000)
+            return
+        self.app.set_frame(found[0])
+        event = found[1]
+        self.status_message.emit(f"Event '{event.name}' at frame {event.frame_number}", 5000)
+
+    def trim_to_range(self) -> FrameSpan | None:
+        """Trim the take to the range marked with I and O (an undoable step)."""
+        def make() -> Command:
+            selection = self.selection
+            if selection.range_in is None or selection.range_out is None:
+                raise HandMocapError("mark the range to keep first: I at its first frame, O at its last")
+            start, stop = sorted((selection.range_in, selection.range_out))
+            return TrimTake(start, stop + 1)
+        return self.run_edit(make)
+
+    def keep_whole_take(self) -> FrameSpan | None:
+        """Undo the trim: every frame is shown, played and exported again (an undoable step)."""
+        return self.run_edit(lambda: TrimTake(None, None))
 
     # ------------------------------------------------------------------------------- problems
     def _refresh_problem_count(self) -> None:

@@ -14,9 +14,10 @@ from core.model.skeleton import N_PARAMS, PARAM_NAMES
 
 
 def write_joint_angles_csv(path: str | os.PathLike[str], hands: list[tuple[str, np.ndarray]], first_frame: int,
-                           frame_rate: float) -> None:
+                           frame_rate: float, events: dict[int, str] | None = None) -> None:
     """One CSV of ``frame, time_s`` then per hand ``(column prefix, joint_angles (F, 26))`` the 26 parameters:
-    translations in mm (``wrist_tx_mm``...), angles in degrees; unsolved samples are empty cells.
+    translations in mm (``wrist_tx_mm``...), angles in degrees; unsolved samples are empty cells. ``events``
+    ({frame number: names}) add a last column ``event`` holding the names at their frames.
     Durable (:mod:`core.io.durable`); WriteError (an InputError) naming the file when it cannot be written."""
     n_frames = len(hands[0][1])
     frames = np.arange(n_frames) + first_frame
@@ -28,9 +29,14 @@ def write_joint_angles_csv(path: str | os.PathLike[str], hands: list[tuple[str, 
         angles[:, 3:] = np.degrees(angles[:, 3:])
         blocks.append(angles)
     table = np.concatenate(blocks, axis=1)
+    if events:
+        header.append("event")
     rows = [",".join(header)]
     for row in table:
         cells = [f"{int(row[0])}", f"{row[1]:.6f}"] + ["" if not np.isfinite(v) else f"{v:.6f}" for v in row[2:]]
+        if events:
+            name = events.get(int(row[0]), "").replace('"', "'")
+            cells.append(f'"{name}"' if "," in name else name)
         rows.append(",".join(cells))
     write_atomic(path, ("\n".join(rows) + "\n").encode("utf-8"))
 

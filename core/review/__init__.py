@@ -10,6 +10,7 @@ from core.model.provenance import FILL_CODES, MEASURED, MISSING, PROVENANCE_NAME
 from core.review.commands import (
     SCOPES,
     AcceptFills,
+    AddEvent,
     ApplyLabelling,
     AssignLabel,
     Command,
@@ -20,8 +21,10 @@ from core.review.commands import (
     LabellingArrays,
     MarkGhost,
     RejectFills,
+    RemoveEvent,
     SetSolve,
     SwapLabels,
+    TrimTake,
     UndoStack,
     Unlabel,
     command_from_json,
@@ -54,9 +57,10 @@ from core.review.take import (
 __all__ = [
     "FILL_CODES", "LANE_EDITED", "LANE_FILLED", "LANE_GAP", "LANE_LOW_CONFIDENCE", "LANE_NAMES", "LANE_NONE",
     "LANE_OBSERVED", "MEASURED", "MISSING", "PROBLEM_KINDS", "PROVENANCE_NAMES", "SCOPES",
-    "AcceptFills", "ApplyLabelling", "AssignLabel", "Change", "Command", "CompoundCommand", "DefineHand", "FrameSpan",
-    "GapFill", "HandTrack", "LabellingArrays", "MarkGhost", "MarkerStats", "Problem", "RejectFills",
-    "ReviewChanged", "ReviewSettings", "ReviewTake", "SetSolve", "SwapLabels", "UndoStack", "Unlabel",
+    "AcceptFills", "AddEvent", "ApplyLabelling", "AssignLabel", "Change", "Command", "CompoundCommand", "DefineHand",
+    "FrameSpan",
+    "GapFill", "HandTrack", "LabellingArrays", "MarkGhost", "MarkerStats", "Problem", "RejectFills", "RemoveEvent",
+    "ReviewChanged", "ReviewSettings", "ReviewTake", "SetSolve", "SwapLabels", "TrimTake", "UndoStack", "Unlabel",
     "command_from_json", "detected_hands", "export_bvh", "export_joint_angles_csv", "export_labelled_c3d",
     "resolve_track", "review_from_labelled_c3d",
 ]

@@ -30,6 +30,7 @@ exclusive.
 from __future__ import annotations
 
 import base64
+import json
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -731,6 +732,143 @@ class DefineHand(Command):
 
     def params(self, blobs: BlobStore | None = None) -> dict[str, Any]:
         return {"name": self.name, "side": self.side, "labels": self.labels, "layout": self.layout}
+
+
+class _TimelineCommand(Command):
+    """A change of the take's events or trim range (:meth:`ReviewTake.timeline_state`): no frame of any label
+    changes, so nothing is re-solved; undo puts the events and the range back exactly."""
+
+    changes = Change.TIMELINE
+
+    def _extent(self, review: ReviewTake) -> FrameSpan:
+        self._check(review)
+        return EMPTY_SPAN
+
+    def _check(self, review: ReviewTake) -> None:
+        """InputError when the command cannot be done on ``review``."""
+
+    def do(self, review: ReviewTake) -> FrameSpan:
+        self._check(review)
+        self._text = self.describe(review)
+        before = review.timeline_state()
+        self._apply(review)
+        review.changed()
+        self._span, self._saved = EMPTY_SPAN, {"timeline": np.array(json.dumps(before))}
+        return EMPTY_SPAN
+
+    def undo(self, review: ReviewTake) -> FrameSpan:
+        if self._saved is None:
+            raise InputError(f"cannot undo '{self.text}': it was not done")
+        review.set_timeline_state(json.loads(str(self._saved["timeline"])))
+        review.changed()
+        self._saved = None
+        return EMPTY_SPAN
+
+
+def _frame_of(review: ReviewTake, frame_number: int) -> int:
+    """0-based frame of the file's ``frame_number``; InputError outside the take."""
+    frame = int(frame_number) - review.take.first_frame
+    if not 0 <= frame < review.n_frames:
+        first = review.take.first_frame
+        raise InputError(f"frame {frame_number} is outside the take ({first}..{first + review.n_frames - 1})")
+    return frame
+
+
+class AddEvent(_TimelineCommand):
+    """Name frame ``frame_number`` (the file's numbering) ``name`` (e.g. "grasp on"), in ``context``
+    ("General", "Left", "Right")."""
+
+    kind = "add_event"
+
+    def __init__(self, name: str, frame_number: int, context: str = "General", description: str = "") -> None:
+        super().__init__()
+        self.name, self.frame_number = str(name).strip(), int(frame_number)
+        self.context, self.description = str(context).strip() or "General", str(description)
+
+    def _check(self, review: ReviewTake) -> None:
+        if not self.name:
+            raise InputError("an event needs a name (e.g. grasp on)")
+        if len(self.name.encode()) > 120 or any(ord(character) < 32 for character in self.name):
+            raise InputError("an event name is one line of at most 120 bytes")
+        _frame_of(review, self.frame_number)
+        if any(event.name == self.name and event.frame_number == self.frame_number for event in review.events or []):
+            raise InputError(f"frame {self.frame_number} already has the event '{self.name}'")
+
+    def describe(self, review: ReviewTake) -> str:
+        return f"add event '{self.name}' at frame {self.frame_number}"
+
+    def _apply(self, review: ReviewTake) -> None:
+        from core.io.c3d_events import TakeEvent
+
+        review.events = sorted([*(review.events or []), TakeEvent(self.name, self.frame_number, self.context,
+                                                                  self.description)],
+                               key=lambda event: (event.frame_number, event.name))
+
+    def params(self, blobs: BlobStore | None = None) -> dict[str, Any]:
+        return {"name": self.name, "frame_number": self.frame_number, "context": self.context,
+                "description": self.description}
+
+
+class RemoveEvent(_TimelineCommand):
+    """Remove the event ``name`` at frame ``frame_number`` (the file's numbering)."""
+
+    kind = "remove_event"
+
+    def __init__(self, name: str, frame_number: int) -> None:
+        super().__init__()
+        self.name, self.frame_number = str(name), int(frame_number)
+
+    def _check(self, review: ReviewTake) -> None:
+        if not any(event.name == self.name and event.frame_number == self.frame_number
+                   for event in review.events or []):
+            raise InputError(f"there is no event '{self.name}' at frame {self.frame_number}")
+
+    def describe(self, review: ReviewTake) -> str:
+        return f"remove event '{self.name}' at frame {self.frame_number}"
+
+    def _apply(self, review: ReviewTake) -> None:
+        review.events = [event for event in review.events or []
+                         if not (event.name == self.name and event.frame_number == self.frame_number)]
+
+    def params(self, blobs: BlobStore | None = None) -> dict[str, Any]:
+        return {"name": self.name, "frame_number": self.frame_number}
+
+
+class TrimTake(_TimelineCommand):
+    """Trim the take to frames ``start .. stop - 1`` (0-based; both None: the whole take again). The frames
+    outside are kept (undo brings them back) but no longer shown, played or exported."""
+
+    kind = "trim_take"
+
+    def __init__(self, start: int | None, stop: int | None) -> None:
+        super().__init__()
+        self.start, self.stop = _int_or_none(start), _int_or_none(stop)
+
+    def _check(self, review: ReviewTake) -> None:
+        if (self.start is None) != (self.stop is None):
+            raise InputError("a trim needs a first and a last frame (or neither, to keep the whole take)")
+        if self.start is None:
+            if review.trim is None:
+                raise InputError("the take is not trimmed")
+            return
+        assert self.stop is not None
+        first = review.take.first_frame
+        if not 0 <= self.start < self.stop <= review.n_frames:
+            raise InputError(f"trim range {first + self.start}..{first + self.stop - 1} is outside the take "
+                             f"({first}..{first + review.n_frames - 1})")
+        if self.stop - self.start < 2:
+            raise InputError("a take trimmed to fewer than 2 frames would be no take: mark a longer range")
+
+    def describe(self, review: ReviewTake) -> str:
+        if self.start is None or self.stop is None:
+            return "keep the whole take (no trim)"
+        return f"trim the take to frames {frame_text(review.take.first_frame, self.start, self.stop)}"
+
+    def _apply(self, review: ReviewTake) -> None:
+        review.trim = None if self.start is None or self.stop is None else (self.start, self.stop)
+
+    def params(self, blobs: BlobStore | None = None) -> dict[str, Any]:
+        return {"start": self.start, "stop": self.stop}
 
 
 class CompoundCommand(Command):

@@ -25,7 +25,8 @@ class Change(enum.Flag):
     FILLS = enum.auto()       #: accepted gap fills
     SOLVE = enum.auto()       #: the hands' joint angles and the residuals
     STRUCTURE = enum.auto()   #: label names, hands, rigid bodies, health: the whole review
-    ALL = LABELS | FILLS | SOLVE | STRUCTURE
+    TIMELINE = enum.auto()    #: the take's events (named frames) and the range it is trimmed to
+    ALL = LABELS | FILLS | SOLVE | STRUCTURE | TIMELINE
 
 
 @dataclass(frozen=True)

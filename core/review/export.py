@@ -1,6 +1,9 @@
 """Exports of a review: labelled C3D (with provenance), joint angles as CSV and BVH; labelled C3D import.
 
-Exports show the file's own frame numbers (``take.first_frame`` onwards) and never change the review.
+Exports show the file's own frame numbers (``take.first_frame`` onwards) and never change the review. A
+trimmed review (:attr:`ReviewTake.trim`) exports its range only, numbered as in the file; its events go into
+the labelled C3D's ``EVENT`` group (:mod:`core.io.c3d_events`) and into an ``event`` column of the joint-angle
+CSV (TRC has no place for them; BVH and glTF neither).
 A review read from a labelled C3D keeps everything that file's provenance says when it is exported
 again (e.g. by ``handmocap fill``): the codes of measured and filled samples, edit and ghost flags, the
 measured residuals, the raw take it was labelled from (``SOURCE``), its hands (``HANDS``) and the names
@@ -17,6 +20,8 @@ import numpy as np
 
 from core.errors import InputError
 from core.io import Take
+from core.io.c3d_events import GROUP as EVENT_GROUP
+from core.io.c3d_events import event_group
 from core.io.csv_file import write_csv
 from core.io.labelled_c3d import (
     GROUP,
@@ -84,6 +89,7 @@ def export_review(review: ReviewTake, path: str | PathLike[str], format_name: st
     line) on options the format does not take."""
     if format_name not in EXPORT_FORMATS:
         raise InputError(f"unknown export format '{format_name}' (use {', '.join(EXPORT_FORMATS)})")
+    review = review.trimmed()
     suffixes, axes, angles = EXPORT_FORMATS[format_name]
     if not str(path).lower().endswith(suffixes):
         raise InputError(f"a {format_name} file name must end in {' or '.join(suffixes)}: {path}")
@@ -146,12 +152,16 @@ def export_labelled_c3d(review: ReviewTake, path: str | PathLike[str], unlabelle
     points and accepted fills, provenance per sample, edited samples, and the unlabelled raw points as
     ``*<column>`` (``unlabelled``: "all", "non-ghost" or "none"); ``subjects``: the hands' subject
     calibrations, written as the ``HAND_SUBJECT`` group (else the source's group, if any, is copied);
-    ``fills`` False writes the filled samples as missing. Atomic; InputError on failure."""
+    ``fills`` False writes the filled samples as missing. The events are the ``EVENT`` group (the review's,
+    replacing the file's). Atomic; InputError on failure."""
+    review = review.trimmed()
     columns, positions, ghost = unlabelled_columns(review, unlabelled)
     earlier = review.take.parameters.get(GROUP, {})
     hands = [f"{hand.name}:{hand.side}:{hand.layout or ''}" for hand in review.hands] or earlier.get("HANDS")
     parameters = {name: values for name, values in review.take.parameters.items()
-                  if name.upper() not in ("POINT", "ANALOG", "FORCE_PLATFORM", "ROTATION", "EZC3D")}
+                  if name.upper() not in ("POINT", "ANALOG", "FORCE_PLATFORM", "ROTATION", "EZC3D", EVENT_GROUP)}
+    if review.events:
+        parameters[EVENT_GROUP] = event_group(review.events, review.take.frame_rate)
     if subjects:
         parameters[SUBJECT_GROUP] = subject_group(subjects)
     raw_names = review.take.marker_names
@@ -241,10 +251,14 @@ def export_joint_angles_csv(review: ReviewTake, path: str | PathLike[str]) -> No
     """Every hand's joint angles as one CSV: ``frame, time_s`` then per hand the 26 parameters
     (``wrist_tx_mm``..., angles in degrees; columns prefixed ``R_``/``L_`` with two hands). Unsolved
     samples are empty cells. Atomic; InputError when no hand is solved or the file cannot be written."""
+    review = review.trimmed()
     if not review.hands:
         raise InputError("this take has no solved hand; nothing to export")
     hands = [(_prefix(review, track), track.joint_angles) for track in review.hands]
-    write_joint_angles_csv(path, hands, review.take.first_frame, review.take.frame_rate)
+    events: dict[int, str] = {}
+    for event in review.events or []:
+        events[event.frame_number] = "; ".join(filter(None, [events.get(event.frame_number), event.name]))
+    write_joint_angles_csv(path, hands, review.take.first_frame, review.take.frame_rate, events=events or None)
 
 
 def export_bvh(review: ReviewTake, path: str | PathLike[str], model: HandModel, hand: int | str = 0,
@@ -252,6 +266,7 @@ def export_bvh(review: ReviewTake, path: str | PathLike[str], model: HandModel, 
     """One hand's joint angles as BVH (``core.model.bvh``) on ``model``'s rest skeleton (the subject's
     calibrated model, or the template; it must be of the hand's side) in ``units`` with ``up`` ("z" or
     "y"). Joint names are prefixed ``R_``/``L_`` when the take has two hands."""
+    review = review.trimmed()
     track = _hand(review, hand)
     if model.side != track.side:
         raise InputError(f"the {track.name} hand is a {track.side} hand; the model is a {model.side} hand")
@@ -269,6 +284,7 @@ def export_gltf_hands(review: ReviewTake, path: str | PathLike[str], models: Map
     """Hands of ``review`` (``{hand name or index: its model}``) as one skinned glTF 2.0 file with their joint
     angles as one animation (:func:`core.model.gltf.save_gltf_hands`). InputError when a hand is not solved in
     any frame or its model is of the other side."""
+    review = review.trimmed()
     hands = []
     for hand, model in models.items():
         track = _hand(review, hand)
@@ -294,7 +310,9 @@ def export_points_csv(review: ReviewTake, path: str | PathLike[str], fills: bool
 
 
 def labelled_take(review: ReviewTake, fills: bool = True) -> Take:
-    """A take of the labels: ``(F, M, 3)`` mm, measured points and (with ``fills``) accepted fills."""
+    """A take of the labels: ``(F, M, 3)`` mm, measured points and (with ``fills``) accepted fills (the trimmed
+    range of a trimmed take)."""
+    review = review.trimmed()
     positions = review.labelled_positions() if fills else review.measured_positions()
     return Take(marker_names=list(review.label_names), marker_positions=np.array(positions, dtype=np.float64),
                 frame_rate=review.take.frame_rate, first_frame=review.take.first_frame, vendor=review.take.vendor,

@@ -14,7 +14,10 @@ and, per label (M labels, e.g. the layout's markers, ``R_``/``L_`` prefixed for 
 * ``hands``: one :class:`HandTrack` per solved hand with its labels and ``joint_angles (F, 26)``;
 * ``rigid_bodies``: the labels of each rigid object labelled with the take, ``{name: [label index]}``;
 * ``health``: the doubts of the labelling that made the labels (:class:`~core.labelling.health.HealthWarning`,
-  0-based inclusive frames) and ``noise_mm``, the marker noise σ per axis it estimated (None unknown).
+  0-based inclusive frames) and ``noise_mm``, the marker noise σ per axis it estimated (None unknown);
+* ``events``: the take's named frames (:class:`~core.io.c3d_events.TakeEvent`, by the file's frame number;
+  first read from the file's C3D ``EVENT`` group) and ``trim``: the frames ``start .. stop - 1`` the take is
+  trimmed to (None: the whole take). Exports write the trimmed take (:meth:`ReviewTake.trimmed`).
 
 Invariants kept by every command: ``provenance == 0`` exactly where ``assignment >= 0``; a fill
 (codes 1..6, finite ``filled_positions``) only where ``assignment == -1``; a point column is taken by
@@ -35,6 +38,7 @@ import numpy as np
 
 from core.errors import InputError
 from core.io import Take
+from core.io.c3d_events import TakeEvent, read_events
 from core.labelling.health import WARNING_KINDS, HealthWarning
 from core.model.hand_columns import detect_hands
 from core.model.provenance import MEASURED, MISSING
@@ -214,6 +218,8 @@ class ReviewTake:
     health: list[HealthWarning] = field(default_factory=list)
     noise_mm: float | None = None
     settings: ReviewSettings = field(default_factory=ReviewSettings)
+    events: list[TakeEvent] | None = None
+    trim: tuple[int, int] | None = None
     version: int = 0
     _cache: dict[str, Any] = field(default_factory=dict, repr=False)
 
@@ -250,6 +256,15 @@ class ReviewTake:
         for name, labels in self.rigid_bodies.items():
             if any(not 0 <= label < count for label in labels):
                 raise InputError(f"rigid body '{name}' refers to labels outside 0..{count - 1}")
+        if self.events is None:         # a new review: the events the file has
+            self.events = read_events(self.take.parameters, self.take.frame_rate)
+        self.events = sorted((event if isinstance(event, TakeEvent) else TakeEvent.from_dict(event)
+                              for event in self.events), key=lambda event: (event.frame_number, event.name))
+        if self.trim is not None:
+            start, stop = (int(value) for value in self.trim)
+            if not 0 <= start < stop <= frames:
+                raise InputError(f"trim range {start}..{stop - 1} is outside the take (0..{frames - 1})")
+            self.trim = (start, stop)
 
     # --- construction -------------------------------------------------------------------------------
 
@@ -859,7 +874,64 @@ class ReviewTake:
                           provenance=self.provenance, edited=self.edited, filled_positions=self.filled_positions,
                           confidence=self.confidence, residuals_mm=self.residuals_mm, ghost=self.ghost,
                           hands=[hand.copy() for hand in self.hands], rigid_bodies=self.rigid_bodies,
-                          health=list(self.health), noise_mm=self.noise_mm, settings=self.settings)
+                          health=list(self.health), noise_mm=self.noise_mm, settings=self.settings,
+                          events=list(self.events or []), trim=self.trim)
+
+    # --- events and trim ----------------------------------------------------------------------------
+
+    def event_frames(self) -> list[tuple[int, TakeEvent]]:
+        """``(0-based frame, event)`` of every event inside the take, by frame."""
+        return [(event.frame_number - self.take.first_frame, event) for event in self.events or []
+                if 0 <= event.frame_number - self.take.first_frame < self.n_frames]
+
+    def next_event(self, frame: int, forward: bool = True) -> tuple[int, TakeEvent] | None:
+        """The first event after 0-based ``frame`` (before it when not ``forward``), wrapping around; None
+        when the take has none."""
+        events = self.event_frames()
+        if not events:
+            return None
+        if forward:
+            return next((entry for entry in events if entry[0] > frame), events[0])
+        return next((entry for entry in reversed(events) if entry[0] < frame), events[-1])
+
+    def frame_range(self) -> tuple[int, int]:
+        """The frames ``start, stop`` (0-based, stop exclusive) the take is trimmed to; the whole take when
+        it is not trimmed."""
+        return self.trim if self.trim is not None else (0, self.n_frames)
+
+    def trimmed(self) -> ReviewTake:
+        """The review of the trimmed take (itself when not trimmed): every array over the trim range, the raw
+        take's frames too, numbered as in the file (its first frame is the range's first), the events inside
+        the range. What every export writes."""
+        if self.trim is None:
+            return self
+        start, stop = self.trim
+        take = self.take
+        part = Take(marker_names=list(take.marker_names), marker_positions=take.marker_positions[start:stop],
+                    frame_rate=take.frame_rate, first_frame=take.first_frame + start, vendor=take.vendor,
+                    source_units=take.source_units, source_path=take.source_path, parameters=take.parameters)
+        first, last = take.first_frame + start, take.first_frame + stop - 1
+        hands = [HandTrack(hand.name, hand.side, hand.layout, hand.labels, hand.joint_angles[start:stop])
+                 for hand in self.hands]
+        return ReviewTake(take=part, label_names=list(self.label_names), assignment=self.assignment[start:stop],
+                          provenance=self.provenance[start:stop], edited=self.edited[start:stop],
+                          filled_positions=self.filled_positions[start:stop],
+                          confidence=self.confidence[start:stop], residuals_mm=self.residuals_mm[start:stop],
+                          ghost=self.ghost[start:stop], hands=hands, rigid_bodies=self.rigid_bodies,
+                          health=[], noise_mm=self.noise_mm, settings=self.settings,
+                          events=[event for event in self.events or [] if first <= event.frame_number <= last])
+
+    def timeline_state(self) -> dict[str, Any]:
+        """The events and the trim range as plain JSON (what the event and trim commands change)."""
+        return {"events": [event.as_dict() for event in self.events or []],
+                "trim": None if self.trim is None else list(self.trim)}
+
+    def set_timeline_state(self, state: dict[str, Any]) -> None:
+        """Put back what :meth:`timeline_state` returned."""
+        self.events = sorted((TakeEvent.from_dict(item) for item in state.get("events", [])),
+                             key=lambda event: (event.frame_number, event.name))
+        trim = state.get("trim")
+        self.trim = None if trim is None else (int(trim[0]), int(trim[1]))
 
     # --- change tracking ----------------------------------------------------------------------------
 

@@ -30,6 +30,7 @@ import numpy as np
 
 from core.errors import InputError
 from core.io import Take
+from core.io.c3d_events import TakeEvent
 from core.io.durable import write_atomic
 from core.model import MarkerSet
 from core.review.commands import Command, CompoundCommand, FrameSpan, UndoStack, command_from_json
@@ -182,7 +183,7 @@ def snapshot_bytes(review: ReviewTake, stack: UndoStack | None, journal_seq: int
         "label_names": review.label_names, "hands": [hand.meta() for hand in review.hands],
         "rigid_bodies": review.rigid_bodies,
         "health": [warning.as_dict() for warning in review.health], "noise_mm": review.noise_mm,
-        "settings": asdict(review.settings),
+        "settings": asdict(review.settings), **review.timeline_state(),
         "take": {"frames": review.n_frames, "points": review.n_points, "source": review.take.source_path},
         "history": history,
     }
@@ -259,6 +260,22 @@ def _restore_step(step: dict[str, Any], key: str, arrays: dict[str, np.ndarray],
     return command
 
 
+def _timeline(meta: dict[str, Any]) -> dict[str, Any]:
+    """The events and trim range a snapshot holds (a snapshot written before they existed: the file's events,
+    no trim)."""
+    timeline: dict[str, Any] = {}
+    if "events" in meta:
+        timeline["events"] = [TakeEvent.from_dict(_typed(item, dict, "event"))
+                              for item in _typed(meta["events"], list, "events")]
+    trim = meta.get("trim")
+    if trim is not None:
+        values = _typed(trim, list, "trim")
+        if len(values) != 2:
+            raise ValueError("a trim range must be [start, stop]")
+        timeline["trim"] = (_int(values[0], "trim start"), _int(values[1], "trim stop"))
+    return timeline
+
+
 def _settings(value: Any) -> ReviewSettings:
     """Review settings from their JSON: known names with finite numbers."""
     for name, number in _typed(value, dict, "settings").items():
@@ -328,7 +345,8 @@ def load_snapshot(data: bytes, take: Take, name: str = SNAPSHOT_NAME) -> tuple[R
         review = ReviewTake(take=take, label_names=list(_typed(meta["label_names"], list, "label_names")),
                             hands=hands, rigid_bodies=_typed(meta.get("rigid_bodies", {}), dict, "rigid_bodies"),
                             health=copy_health(meta.get("health", [])), noise_mm=meta.get("noise_mm"),
-                            settings=_settings(meta.get("settings", {})), **frame_arrays)
+                            settings=_settings(meta.get("settings", {})), **frame_arrays,
+                            **_timeline(meta))
         blobs = DictBlobs(arrays, "blob")
         history = _typed(meta.get("history", {}), dict, "history")
         steps = _typed(history.get("steps", []), list, "history steps")
