@@ -13,32 +13,56 @@ from app.cli.common import (
     add_rate_argument,
     check_outputs,
     print_figures,
+    progress_printer,
 )
 from core.errors import InputError
 
 
 def _squares(text: str) -> tuple[int, int]:
+    """``CxR`` as (columns, rows); one line when it is not two whole numbers."""
     try:
-        columns, rows = (int(part) for part in text.lower().split("x"))
+        columns, rows = (int(part) for part in str(text).lower().split("x"))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"squares must look like 7x5, not '{text}'") from None
+        raise InputError(f"a board size must look like 10x7 (across x down), not '{text}'") from None
     return columns, rows
 
 
 def command_calibrate(args: argparse.Namespace) -> int:
-    """``handmocap camera calibrate``: write a camera's intrinsics from board images; exit 2 on bad input."""
+    """``handmocap camera calibrate``: write a camera's intrinsics from board images, folders of them or videos;
+    exit 2 on bad input (a board not found says which size or kind was found instead)."""
     from core.camera.files import save_camera
-    from core.camera.intrinsics import BoardSpec, calibrate_intrinsics, detect_board_in_files
+    from core.camera.intrinsics import BoardSpec, board_views, calibrate_views
 
     check_outputs(args)
-    spec = BoardSpec(args.board, args.squares, args.square_mm, args.marker_mm, args.dictionary)
-    detections, size = detect_board_in_files([Path(name) for name in args.images], spec)
-    result = calibrate_intrinsics(detections, size, name=Path(args.out).stem)
-    save_camera(result.camera, args.out, {"intrinsics": result.report()})
+    if args.squares is not None and args.inner_corners is not None:
+        raise InputError("give the board's size once: --squares (squares) or --inner-corners (inner corners)")
+    if args.inner_corners is not None:
+        columns, rows = _squares(args.inner_corners)
+        squares = (columns + 1, rows + 1)
+    else:
+        squares = _squares(args.squares) if args.squares is not None else (7, 5)
+    if args.video_views < 4:
+        raise InputError("--video-views must be at least 4")
+    spec = BoardSpec(args.board, squares, args.square_mm, args.marker_mm, args.dictionary)
+    found = board_views(list(args.images), args.video_views)
+    views = found.views
+    for name, other in found.skipped:
+        print(f"skipped {name}: {other[0]}×{other[1]} px, the other images are {found.size[0]}×{found.size[1]}")
+    with progress_printer("detecting the board", len(views), "images") as progress:
+        result, sensitivity = calibrate_views(views, found.size, spec, Path(args.out).stem,
+                                              lambda index: progress(index / len(views)))
+        progress(1.0)
+    save_camera(result.camera, args.out, {"intrinsics": {**result.report(), "subpixel_window": sensitivity}})
     camera = result.camera
-    print(f"calibrated from {int(result.used.sum())} of {len(detections)} images: f = {camera.focal[0]:.2f}, "
+    print(f"calibrated from {int(result.used.sum())} of {len(views)} images: f = {camera.focal[0]:.2f}, "
           f"{camera.focal[1]:.2f} px, principal point {camera.principal_point[0]:.2f}, "
           f"{camera.principal_point[1]:.2f} px, reprojection {result.reprojection_px:.3f} px -> {args.out}")
+    if sensitivity:
+        low, median, high = sensitivity["window_px"]
+        changes = ", ".join(f"{change:+.3f} % at {factor}" for factor, change in
+                            sensitivity["focal_change_percent"].items())
+        print(f"sub-pixel window: half-width {low}–{high} px (median {median:g}) from the squares' size in each image; "
+              f"the focal length moves {changes} that window")
     print(f"hint: {result.report()['coverage_hint']}")
     return 0
 
@@ -165,11 +189,16 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     actions = camera.add_subparsers(dest="camera_command", metavar="ACTION", required=True)
 
     calibrate = actions.add_parser("calibrate", help="intrinsics from images of a ChArUco board or a chessboard")
-    calibrate.add_argument("images", nargs="+", help="board images (PNG/JPG)")
+    calibrate.add_argument("images", nargs="+", metavar="IMAGES",
+                           help="board images (PNG/JPG/BMP/TIF), folders of them, or videos (MP4/AVI/MOV/MKV)")
     calibrate.add_argument("--board", choices=["charuco", "chessboard"], default="charuco",
                            help="the calibration board in the images (default charuco)")
-    calibrate.add_argument("--squares", type=_squares, default=(7, 5), metavar="CxR",
-                           help="squares across x down (default 7x5)")
+    calibrate.add_argument("--squares", metavar="CxR",
+                           help="squares across x down (default 7x5); OpenCV's 9x6 chessboard has 10x7 squares")
+    calibrate.add_argument("--inner-corners", metavar="CxR",
+                           help="or the board's inner corners across x down (OpenCV's pattern size, e.g. 9x6)")
+    calibrate.add_argument("--video-views", type=int, default=40, metavar="N",
+                           help="frames of a video searched for the board, evenly spread (default 40)")
     calibrate.add_argument("--square-mm", type=float, default=30.0, help="square side in mm (default 30)")
     calibrate.add_argument("--marker-mm", type=float, default=22.0, help="ArUco marker side in mm (default 22)")
     calibrate.add_argument("--dictionary", default="DICT_4X4_50", help="ArUco dictionary (default DICT_4X4_50)")
