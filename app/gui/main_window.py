@@ -251,6 +251,7 @@ class MainWindow(QMainWindow):
         tools_menu.addAction(self._action("&Calibrate a hand scan…", self.open_calibration, "calibrate_scan"))
         tools_menu.addAction(self._action("Marker &layouts…", self.open_layout_tools, "marker_layouts"))
         tools_menu.addAction(self._action("Learn a labelling &template…", self.open_learn_template))
+        tools_menu.addAction(self._action("Fit a hand to a &depth frame…", self.open_depth_fit))
         solve_menu = self.solve_menu = menus.addMenu("&Solve")
         solve_menu.addAction(self.solve_action)
         solve_menu.addAction(self.cancel_action)
@@ -859,6 +860,12 @@ class MainWindow(QMainWindow):
         from app.gui.learn_template import open_learn_template
 
         self._learn_template_dialog = open_learn_template(self, self.app, self.sessions.browser.selected_take())
+
+    def open_depth_fit(self) -> None:
+        """The single depth-frame fit (``handmocap depth fit``): the fitted hand drawn on the depth, trusted or not."""
+        from app.gui.depth_fit_dialog import open_depth_fit
+
+        self._depth_fit_dialog = open_depth_fit(self)
 
     def open_calibration(self) -> None:
         """The scan calibration wizard; the subject model it saves goes into the open session."""
