@@ -26,6 +26,7 @@ from PySide6.QtWidgets import (
 )
 
 from widgets.energy_strip import EnergyStrip
+from widgets.shortcuts import SHORTCUTS, key_text
 
 POINT_RADIUS_PX = 5.0          # marker circle radius on screen
 SELECTED_RADIUS_PX = 9.0       # ring around the selected marker
@@ -195,14 +196,17 @@ class CameraView(QWidget):
         bar.setContentsMargins(4, 2, 4, 2)
         bar.addWidget(self.camera_box)
         bar.addWidget(self.stream_box)
-        bar.addWidget(QLabel(" Sync "))
-        for text, step, tip in (("−cam", (-1, 0), "Clock offset − one camera frame (Ctrl+Alt+Left)"),
-                                ("−mocap", (0, -1), "Clock offset − one mocap frame (Alt+Left)"),
-                                ("+mocap", (0, 1), "Clock offset + one mocap frame (Alt+Right)"),
-                                ("+cam", (1, 0), "Clock offset + one camera frame (Ctrl+Alt+Right)")):
+        sync = QLabel(" Shift video ", self)
+        sync.setToolTip("When the video and the markers are out of step: move the video against the markers "
+                        "(the camera clock's offset, saved with the camera)")
+        bar.addWidget(sync)
+        for text, step, name in (("◀◀", (-1, 0), "camera_earlier"), ("◀", (0, -1), "camera_earlier_fine"),
+                                 ("▶", (0, 1), "camera_later_fine"), ("▶▶", (1, 0), "camera_later")):
             button = QToolButton(self)
             button.setText(text)
-            button.setToolTip(tip + ": when the video and the markers are out of step; saved with the camera")
+            unit = "camera frame" if step[0] else "mocap frame"
+            button.setToolTip(f"{SHORTCUTS[name].what} ({key_text(name)}): the clock offset "
+                              f"{'+' if sum(step) > 0 else '−'} one {unit}; saved with the camera")
             button.clicked.connect(lambda _checked=False, step=step: self.nudged.emit(*step))
             bar.addWidget(button)
             self.nudge_buttons[step] = button

@@ -29,6 +29,7 @@ class FillPreview(QWidget):
         self._errors: dict[str, float] = {}
         self.title_label = QLabel(self)
         self.title_label.setTextFormat(Qt.TextFormat.RichText)
+        self.title_label.setWordWrap(True)       # a long marker name must not widen the preview past the list
         self.title_label.setContentsMargins(6, 2, 6, 2)
         self.legend_label = QLabel(self)
         self.legend_label.setTextFormat(Qt.TextFormat.RichText)
@@ -41,14 +42,15 @@ class FillPreview(QWidget):
         self.graphics.ci.setSpacing(0)
         self.plots: list[pg.PlotItem] = []
         for row, axis in enumerate(AXES):
-            plot = self.graphics.addPlot(row=row, col=0)
+            # the axis name level, not rotated: three rotated labels overlap when the dock is short
+            self.graphics.addLabel(f"{axis}<br>mm", row=row, col=0, color="#cdd2da", size="8pt")
+            plot = self.graphics.addPlot(row=row, col=1)
             plot.setMenuEnabled(False)
             plot.hideButtons()
             plot.setMouseEnabled(x=True, y=True)
             plot.showGrid(x=True, y=True, alpha=0.18)
-            plot.getAxis("left").setWidth(52)
+            plot.getAxis("left").setWidth(40)
             plot.getAxis("left").enableAutoSIPrefix(False)
-            plot.setLabel("left", f"{axis} (mm)")
             if row < len(AXES) - 1:
                 plot.getAxis("bottom").setStyle(showValues=False)
             if self.plots:

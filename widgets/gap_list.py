@@ -273,7 +273,8 @@ class GapList(QWidget):
 
     # ------------------------------------------------------------------------------------ building
     def _build(self) -> None:
-        """The filters and the gap table over the fill-all row, and the selected gap's detail below."""
+        """The filters, the gap table with Preview / Accept / Reject right under it (in view however short the
+        dock is) and the fill-all row; the selected gap's methods below."""
         filters = self._build_filters()
         self._build_table()
         self._build_detail()
@@ -284,6 +285,7 @@ class GapList(QWidget):
         top_layout.addLayout(filters)
         self.table.setMinimumHeight(110)     # about four rows, however little room the dock has
         top_layout.addWidget(self.table)
+        top_layout.addLayout(self._build_gap_buttons())
         top_layout.addLayout(fill_all)
         self.splitter = QSplitter(Qt.Orientation.Vertical, self)
         self.splitter.addWidget(top)
@@ -330,10 +332,10 @@ class GapList(QWidget):
         self.table.verticalHeader().setVisible(False)
         self.table.verticalHeader().setDefaultSectionSize(22)
         header = self.table.horizontalHeader()
-        for column in range(len(COLUMNS)):
-            header.setSectionResizeMode(column, QHeaderView.ResizeMode.Stretch if column in (1, 2, 4)
-                                        else QHeaderView.ResizeMode.ResizeToContents)
-        header.setMinimumSectionSize(48)
+        for column in range(len(COLUMNS)):     # every header readable whole; the last column takes what is left
+            header.setSectionResizeMode(column, QHeaderView.ResizeMode.ResizeToContents)
+        header.setStretchLastSection(True)
+        header.setMinimumSectionSize(40)
         self.table.selectionModel().selectionChanged.connect(self._selection_changed)
 
     def _build_detail(self) -> None:
@@ -344,12 +346,10 @@ class GapList(QWidget):
         self.detail_note = QLabel(self.detail)
         self.detail_note.setWordWrap(True)
         grid = self._build_method_grid()
-        buttons = self._build_gap_buttons()
         detail_layout = QVBoxLayout(self.detail)
         detail_layout.addWidget(self.detail_title)
         detail_layout.addLayout(grid)
         detail_layout.addWidget(self.detail_note)
-        detail_layout.addLayout(buttons)
 
     def _build_method_grid(self) -> QGridLayout:
         """A row per fill method: its radio button, its check error and a note (the donor choice for the
@@ -395,21 +395,22 @@ class GapList(QWidget):
         return grid
 
     def _build_gap_buttons(self) -> QHBoxLayout:
-        """Preview, Accept and Reject of the selected gap, right-aligned."""
+        """Preview, Accept and Reject of the selected gap (with the method chosen below), right-aligned."""
         pixmap = QStyle.StandardPixmap
         self.preview_button = QPushButton(self.style().standardIcon(pixmap.SP_FileDialogContentsView), "Preview",
                                           self.detail)
-        self.preview_button.setToolTip("Show the chosen fill (and the other candidates) around the gap")
+        self.preview_button.setToolTip("Show the chosen fill of the selected gap (and the other candidates) around it")
         self.accept_button = QPushButton(self.style().standardIcon(pixmap.SP_DialogApplyButton), "Accept",
                                          self.detail)
-        self.accept_button.setToolTip("Fill the gap with the chosen method")
+        self.accept_button.setToolTip("Fill the selected gap with the method chosen below")
         self.reject_button = QPushButton(self.style().standardIcon(pixmap.SP_DialogCancelButton), "Reject",
                                          self.detail)
-        self.reject_button.setToolTip("Leave this gap unfilled (fill-all skips it)")
+        self.reject_button.setToolTip("Leave the selected gap unfilled (Fill all skips it)")
         self.preview_button.clicked.connect(self._preview_clicked)
         self.accept_button.clicked.connect(self._accept_clicked)
         self.reject_button.clicked.connect(self._reject_clicked)
         buttons = QHBoxLayout()
+        buttons.setContentsMargins(0, 2, 0, 0)
         buttons.addStretch(1)
         for button in (self.preview_button, self.accept_button, self.reject_button):
             buttons.addWidget(button)
@@ -428,14 +429,15 @@ class GapList(QWidget):
                                         "(the method that fills it best in its fill check)")
         self.fill_all_button.clicked.connect(lambda: self.fill_all_requested.emit(self.max_length_box.value()))
         self.fill_all_count = QLabel(self)
-        fill_all = QGridLayout()
+        fill_all = QGridLayout()          # narrow enough for the Gaps dock of a 1366×768 screen
         fill_all.setContentsMargins(0, 2, 0, 0)
         fill_all.setHorizontalSpacing(6)
-        fill_all.addWidget(QLabel("Fill all gaps up to", self), 0, 0)
-        fill_all.addWidget(self.max_length_box, 0, 1)
-        fill_all.addWidget(QLabel("with the recommended method", self), 0, 2, 1, 2)
-        fill_all.addWidget(self.fill_all_button, 1, 0)
-        fill_all.addWidget(self.fill_all_count, 1, 1, 1, 3)
+        fill_all.addWidget(self.fill_all_button, 0, 0)
+        up_to = QLabel("gaps up to", self)
+        up_to.setToolTip("Every open gap up to this length is filled with its recommended method")
+        fill_all.addWidget(up_to, 0, 1)
+        fill_all.addWidget(self.max_length_box, 0, 2)
+        fill_all.addWidget(self.fill_all_count, 0, 3)
         fill_all.setColumnStretch(3, 1)
         return fill_all
 
@@ -659,7 +661,7 @@ class GapList(QWidget):
 
     def _update_fill_all(self) -> None:
         count = self.fill_all_candidates(self.max_length_box.value())
-        self.fill_all_count.setText(f"({count} open gap{'s' if count != 1 else ''})")
+        self.fill_all_count.setText(f"({count} open)")
         self.fill_all_button.setEnabled(count > 0)
 
     @staticmethod

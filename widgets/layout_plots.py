@@ -33,7 +33,10 @@ class EnergyPlot(pg.PlotWidget):
 
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
-        _style(self, "best energy E", "iteration")
+        _style(self, "score (lower is better)", "iteration")
+        self.setToolTip("The best layout's score after each iteration of the optimiser: its energy\n"
+                        "E = 0.1 E_cond + 100 E_dist (how badly the markers pin the pose, plus how close they come\n"
+                        "to each other); lower is better")
         self._runs: list[tuple[pg.PlotDataItem, list[float]]] = []
 
     def start_run(self, label: str) -> None:
@@ -97,15 +100,30 @@ class ErrorPlot(pg.PlotWidget):
         self._generic.setData(counts, np.array([item.generic_mean_mm for item in rows]))
 
 
+#: plain words in the rows, the precise term in each row's tooltip (:data:`METRIC_TIPS`)
 METRIC_ROWS = (
     ("Markers", lambda m, k: f"{k}"),
-    ("Mean condition κ(JᵀJ)", lambda m, k: _number(m.mean_condition)),
-    ("Worst κ, one marker occluded", lambda m, k: f"{_number(m.worst_occluded_condition)} ({m.worst_occluded_marker})"),
+    ("Pose ambiguity (lower is better)", lambda m, k: _number(m.mean_condition)),
+    ("… with its worst marker hidden",
+     lambda m, k: f"{_number(m.worst_occluded_condition)} ({m.worst_occluded_marker})"),
     ("Min marker distance (mm)", lambda m, k: f"{m.min_distance_mm:.1f}"),
     ("Closest pair (labelling risk)", lambda m, k: f"{m.closest_pair[0]}–{m.closest_pair[1]} @ {m.closest_frame + 1}"),
     ("Frames with a pair < 20 mm", lambda m, k: f"{100.0 * m.risk_fraction:.0f} %"),
     ("Reconstruction mean (mm)", lambda m, k: _number(m.reconstruction_mean_mm, 2)),
     ("Reconstruction max (mm)", lambda m, k: _number(m.reconstruction_max_mm, 2)),
+)
+
+
+METRIC_TIPS = (
+    "Markers in the layout",
+    "Mean condition number κ(JᵀJ) of the markers' Jacobian over the motion: how unevenly the markers pin the\n"
+    "hand's joints (1 = perfectly even; large = some joints barely move any marker)",
+    "The mean κ(JᵀJ) with the one marker hidden that makes it worst (that marker in brackets)",
+    "Smallest distance between two markers over the motion (mm)",
+    "The two markers that come closest, and the frame where they do: where labelling may confuse them",
+    "Share of the motion's frames where two markers are closer than 20 mm",
+    "Mean per-vertex error of the hand rebuilt from the layout's markers by layered IK (mm)",
+    "Largest per-vertex error of that rebuilt hand (mm)",
 )
 
 
@@ -122,6 +140,8 @@ class LayoutMetricsTable(QTableWidget):
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(len(METRIC_ROWS), 0, parent)
         self.setVerticalHeaderLabels([name for name, _ in METRIC_ROWS])
+        for row, tip in enumerate(METRIC_TIPS):
+            self.verticalHeaderItem(row).setToolTip(tip)
         self.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeMode.Stretch)
         self.setEditTriggers(QTableWidget.EditTrigger.NoEditTriggers)
         self.setAlternatingRowColors(True)

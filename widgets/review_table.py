@@ -17,7 +17,8 @@ from core.review import MarkerStats, ReviewSettings
 from widgets.marker_lanes import LOW_CONFIDENCE_COLOUR
 from widgets.marker_panel import MISSING_TEXT, SORT_ROLE, ColumnTableModel, filtered_table, swatch
 
-COLUMNS = ("Marker", "Seen %", "Filled %", "Gaps", "Longest (fr)", "Resid. (mm)", "Conf. (mm)")
+#: plain words in the headers, the precise term in each tooltip (:data:`COLUMN_TIPS`)
+COLUMNS = ("Marker", "Seen %", "Filled %", "Gaps", "Longest\ngap", "Off model\n(mm)", "Sure by\n(mm)")
 #: what each number column shows (MarkerStats field) and how many decimals
 FIELDS = (("observed_percent", 1), ("filled_percent", 1), ("gap_count", 0), ("longest_gap", 0),
           ("mean_residual_mm", 2), ("lowest_confidence_mm", 2))
@@ -27,10 +28,12 @@ COLUMN_TIPS = (
     "Share of the take's frames with a measured sample of this marker (filled samples do not count)",
     "Share of the take's frames filled by an accepted gap fill",
     "Number of unfilled gaps (runs of frames without a sample between the marker's first and last sample)",
-    "Length of the longest unfilled gap (frames)",
-    "Mean IK residual over the take: distance from the model's effector to the marker (mm)",
-    "Lowest labelling confidence over the take (mm): the margin by which the chosen point beat the next-best"
-    f"\noption; below {ReviewSettings().low_confidence_mm:g} mm (orange) a swap is possible",
+    "Length of the longest unfilled gap, in frames",
+    "How far the solved hand's marker is from the measured one, on average over the take (mm):\n"
+    "the mean IK residual (distance from the model's effector to the marker)",
+    "How sure the labelling was, at its least sure frame (mm): the lowest labelling confidence, the margin by\n"
+    f"which the chosen point beat the next-best option; below {ReviewSettings().low_confidence_mm:g} mm "
+    "(orange) a swap is possible",
 )
 #: thresholds that colour a cell as a warning
 LOW_OBSERVED_PERCENT = 90.0

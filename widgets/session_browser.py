@@ -19,6 +19,7 @@ from PySide6.QtGui import (
     QDragEnterEvent,
     QDropEvent,
     QFont,
+    QFontMetrics,
     QIcon,
     QPainter,
     QPalette,
@@ -105,6 +106,60 @@ def _recognised(path: str) -> bool:
         return recognised_format(path) is not None
     except OSError:
         return False
+
+
+def _shared_prefix(first: str, second: str) -> int:
+    """Characters ``first`` shares with ``second`` from its start, to a word boundary of ``first``."""
+    count = 0
+    for mine, theirs in zip(first, second, strict=False):
+        if mine != theirs:
+            break
+        count += 1
+    while count and count < len(first) and first[count - 1] not in " _-(.,":
+        count -= 1
+    return count
+
+
+def distinct_elided(text: str, others: list[str], metrics: QFontMetrics, width: int) -> str:
+    """``text`` shortened to ``width`` pixels so that it stays told apart from ``others`` (the names listed
+    with it): what it shares with them at its start goes first ("…grasps (dense, labelled)"), then the part it
+    shares at its end is cut at the right; a name sharing nothing is shortened in the middle."""
+    if metrics.horizontalAdvance(text) <= width:
+        return text
+    rivals = [other for other in others if other != text]
+    start = max((_shared_prefix(text, other) for other in rivals), default=0)
+    if start < 4:
+        return metrics.elidedText(text, Qt.TextElideMode.ElideMiddle, width)
+    return "…" + metrics.elidedText(text[start:], Qt.TextElideMode.ElideRight,
+                                    max(width - metrics.horizontalAdvance("…"), 0))
+
+
+class DistinctNameDelegate(QStyledItemDelegate):
+    """Paints take names shortened so that they stay told apart (:func:`distinct_elided`): "(dense, labelled)"
+    and "(dense, unlabelled)" never both become "simulated …labelled)"."""
+
+    def __init__(self, tree: QTreeWidget) -> None:
+        super().__init__(tree)
+        self.tree = tree
+
+    def _names(self) -> list[str]:
+        names, stack = [], [self.tree.topLevelItem(i) for i in range(self.tree.topLevelItemCount())]
+        while stack:
+            item = stack.pop()
+            names.append(item.text(TAKE_COLUMN))
+            stack += [item.child(i) for i in range(item.childCount())]
+        return names
+
+    def paint(self, painter: QPainter, option: QStyleOptionViewItem, index: QModelIndex) -> None:
+        self.initStyleOption(option, index)
+        text = option.text
+        style = option.widget.style() if option.widget else None
+        if style is None or not text:
+            super().paint(painter, option, index)
+            return
+        available = style.subElementRect(QStyle.SubElement.SE_ItemViewItemText, option, option.widget).width() - 6
+        option.text = distinct_elided(text, self._names(), option.fontMetrics, available)
+        style.drawControl(QStyle.ControlElement.CE_ItemViewItem, option, painter, option.widget)
 
 
 class StateBadgeDelegate(QStyledItemDelegate):
@@ -219,7 +274,8 @@ class SessionBrowser(QWidget):
         self.tree.setItemDelegateForColumn(STATE_COLUMN, StateBadgeDelegate(self.tree))
         self.tree.setAcceptDrops(False)            # drops go to the browser itself
         self.tree.viewport().setAcceptDrops(False)
-        self.tree.setTextElideMode(Qt.TextElideMode.ElideMiddle)   # take names differ at their ends
+        self.tree.setTextElideMode(Qt.TextElideMode.ElideMiddle)
+        self.tree.setItemDelegateForColumn(TAKE_COLUMN, DistinctNameDelegate(self.tree))
         header = self.tree.header()
         header.setStretchLastSection(False)
         header.setSectionResizeMode(QHeaderView.ResizeMode.Interactive)

@@ -216,8 +216,8 @@ class TimelineWidget(QWidget):
         for frame, name in events:
             line = pg.InfiniteLine(self._first_frame + frame, angle=90, movable=False,
                                    pen=pg.mkPen(EVENT_PEN, width=1.5, style=Qt.PenStyle.DashLine),
-                                   label=name, labelOpts={"position": 0.92, "color": EVENT_PEN,
-                                                          "anchors": [(0, 1), (0, 1)], "fill": (30, 32, 36, 200)})
+                                   label=name, labelOpts={"position": 0.97, "color": EVENT_PEN,
+                                                          "anchors": [(0, 0), (0, 0)], "fill": (30, 32, 36, 200)})
             line.setToolTip(f"{name} (frame {self._first_frame + frame})")
             self.plot.addItem(line)
             self._event_items.append(line)
@@ -244,10 +244,8 @@ class TimelineWidget(QWidget):
         self.frame_box.blockSignals(True)
         self.frame_box.setRange(first + self._low, first + max(self._high - 1, self._low))
         self.frame_box.blockSignals(False)
-        if self._n_frames:
-            self.plot.setXRange(first + self._low, first + max(self._high - 1, self._low + 1), padding=0.01)
-            if not self._low <= self._frame < self._high:
-                self.set_frame(self._frame)
+        if self._n_frames and not self._low <= self._frame < self._high:
+            self.set_frame(self._frame)
 
     def trim_range(self) -> tuple[int, int]:
         """The frames shown and played, ``start, stop`` (0-based, stop exclusive)."""

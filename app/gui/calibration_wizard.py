@@ -552,8 +552,11 @@ class AlignPage(_RunPage):
 
 class FitPage(_RunPage):
     def __init__(self, state: CalibrationState, runner: TaskRunner) -> None:
-        super().__init__(state, runner, "Fit", "Non-rigid fit (landmarks, then closest points; λ_reg from 1 to 1e-8): "
-                         "the mesh updates as it runs.", self.fit, self.keep, lambda: "fitted; Next shows the review")
+        super().__init__(state, runner, "Fit", "The template bends to the scan: first to the landmarks, then to "
+                         "the closest scan points, keeping less and less of its own shape as it goes. The mesh "
+                         "updates as it runs.", self.fit, self.keep, lambda: "fitted; Next shows the review")
+        self.setToolTip("Non-rigid fit: landmark term, then closest points added, with the Laplacian (ARAP) "
+                        "regularisation weight λ_reg halved from 1 to 1e-6, then from 1e-6 to 1e-8")
 
     def fit(self, progress, cancelled):
         return run_fit(self.state.data, self.state.alignment, progress=progress, cancelled=cancelled,

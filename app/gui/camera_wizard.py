@@ -429,7 +429,7 @@ class CameraWizard(QDialog):
                 camera = replace(camera, name=previous.name, clock=previous.clock)
             self.camera = camera
             self._ended(f"intrinsics from {int(result.used.sum())} of {len(result.used)} images: RMS "
-                        f"{result.reprojection_px:.3f} px (the camera is not registered until step 2)")
+                        f"{result.reprojection_px:.3f} px (the camera is not registered until step 2)", done=True)
         elif isinstance(result, TakeRegistration):
             report = result.report()
             self.camera = result.camera
@@ -437,18 +437,18 @@ class CameraWizard(QDialog):
                 f"reprojection {report['reprojection_px']:.3f} px over {report['matches']} matches "
                 f"({100 * report['matched_share']:.0f} % of the blobs); offset {report['offset_s']:+.4f} s, "
                 f"rate ratio {report['rate_ratio']:.5f}, sync quality {report['quality']:.2f}")
-            self._ended("registered: Save camera keeps it")
+            self._ended("registered: Save camera keeps it", done=True)
         elif isinstance(result, Registration):
             report = result.report()
             self.camera = result.camera
             self.register_label.setText(f"reprojection {report['reprojection_px']:.3f} px over {report['matches']} "
                                         f"board corners; board markers fit to {report['residual_mm']:.2f} mm RMS")
-            self._ended("registered from the board: Save camera keeps it")
+            self._ended("registered from the board: Save camera keeps it", done=True)
         elif isinstance(result, SyncResult):
             self.camera = self.camera.with_clock(result.clock)
             self.offset_label.setText(f"offset {result.offset_s:+.4f} s = {result.offset_frames:+.2f} mocap frames, "
                                       f"rate ratio {result.rate_ratio:.5f}, quality {result.quality:.2f}")
-            self._ended("offset estimated: Save camera keeps it")
+            self._ended("offset estimated: Save camera keeps it", done=True)
         self._show_camera()
 
     def _show_intrinsics(self, intrinsics: Intrinsics) -> None:
@@ -458,8 +458,15 @@ class CameraWizard(QDialog):
         for row, path in enumerate(self.image_paths):
             error = result.view_errors[row]
             found = intrinsics.corners[row] > 0
-            cells = (path.name, str(intrinsics.corners[row]), f"{error:.3f}" if found else "board not found",
-                     "yes" if result.used[row] else ("rejected" if found else "—"))
+            if not found:
+                shown = "board not found"
+            elif np.isfinite(error):
+                shown = f"{error:.3f}"
+            else:
+                shown = "—"                          # no error known: never in a fit
+            cells = (path.name, str(intrinsics.corners[row]), shown,
+                     "yes" if result.used[row] else (f"left out (above {result.threshold_px:.2f} px)" if found
+                                                     else "—"))
             for column, text in enumerate(cells):
                 table.setItem(row, column, QTableWidgetItem(text))
         table.resizeRowsToContents()
@@ -469,9 +476,11 @@ class CameraWizard(QDialog):
     def _failed(self, _request: int, message: str) -> None:
         self._ended(f"failed: {message}")
 
-    def _ended(self, text: str) -> None:
+    def _ended(self, text: str, done: bool = False) -> None:
+        """A step ended: its outcome in words; the bar full when it was done, empty when it failed or was
+        cancelled."""
         self.status_label.setText(text)
-        self.progress_bar.setValue(0)
+        self.progress_bar.setValue(100 if done else 0)
 
     def _busy_changed(self, busy: bool) -> None:
         self.cancel_button.setEnabled(busy)

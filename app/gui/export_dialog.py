@@ -46,6 +46,19 @@ FORMAT_TEXTS = {
     "gltf": ("glTF skinned hand with its animation", "glTF binary (*.glb);;glTF (*.gltf)"),
 }
 UNITS_HINT = "OpenSim: m, Y up · Blender: m, Y up · MotionBuilder: cm, Y up · as recorded: mm, Z up"
+#: what an export's file name adds to the raw take's (never the raw take's own name)
+FORMAT_ENDINGS = {"c3d": "_labelled", "trc": "_markers", "csv": "_markers", "bvh": "_angles", "gltf": "_hand"}
+
+
+def default_export_path(review: ReviewTake, title: str, ending: str, suffix: str) -> Path:
+    """Where an export of ``review`` goes unless the operator says otherwise: next to the raw take file (the
+    user's home for a take without one), named after it with ``ending`` and ``suffix`` (``walk_labelled.c3d``),
+    never the raw file itself."""
+    source = Path(review.take.source_path) if review.take.source_path else None
+    folder = source.parent if source is not None and source.parent.is_dir() else Path.home()
+    stem = source.stem if source is not None else (title.rsplit(".", 1)[0] or "take")
+    path = folder / f"{stem}{ending}{suffix}"
+    return path.with_name(f"{stem}{ending}_2{suffix}") if source is not None and path == source else path
 
 
 class ExportDialog(QDialog):
@@ -58,6 +71,7 @@ class ExportDialog(QDialog):
         super().__init__(parent)
         self.setWindowTitle("Export")
         self.review, self.model_for, self.subjects, self.stem = review, model_for, subjects, stem
+        self._proposed: str | None = None     # the file name proposed (replaced when the format changes)
         solved = [hand for hand in review.hands if np.isfinite(hand.joint_angles).all(axis=1).any()]
         self.format_box = QComboBox()
         for name, (text, _) in FORMAT_TEXTS.items():
@@ -123,8 +137,12 @@ class ExportDialog(QDialog):
         self.hand_box.setEnabled(angles and self.hand_box.count() > 1)
         self.fills_box.setEnabled(not angles)
         current = self.path_edit.text().strip()
-        base = Path(current).with_suffix("") if current else Path(self.stem)
-        self.path_edit.setText(str(base) + suffixes[0])
+        if not current or current == self._proposed:   # what the dialog proposed: next to the raw take
+            self._proposed = str(default_export_path(self.review, self.stem, FORMAT_ENDINGS[name], suffixes[0]))
+            self.path_edit.setText(self._proposed)
+        else:                                           # the operator's own file: only its suffix changes
+            self.path_edit.setText(str(Path(current).with_suffix("")) + suffixes[0])
+        self.path_edit.setToolTip(self.path_edit.text())
 
     def choose_path(self) -> None:
         path, _ = QFileDialog.getSaveFileName(self, "Export", self.path_edit.text(), FORMAT_TEXTS[self.format_name][1])

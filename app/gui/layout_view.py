@@ -39,6 +39,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from app.gui.palette import visible_check_boxes
 from app.gui.workers import TaskRunner
 from core.errors import HandMocapError, InputError
 from core.layout import PSOSettings, default_subspace_dims, evaluate_layout, motion_set
@@ -202,7 +203,9 @@ class LayoutWindow(QMainWindow):
         self.energy_label = QLabel("", panel)
         layout = QVBoxLayout(panel)
         layout.addWidget(box)
-        layout.addWidget(QLabel("Best energy per iteration", panel))
+        title = QLabel("Best score per iteration (lower is better)", panel)
+        title.setToolTip(self.energy_plot.toolTip())
+        layout.addWidget(title)
         layout.addWidget(self.energy_plot, 1)
         layout.addWidget(self.energy_label)
         return panel
@@ -210,6 +213,7 @@ class LayoutWindow(QMainWindow):
     def _build_layout_panel(self) -> QWidget:
         panel = QWidget(self)
         self.layout_list = QListWidget(panel)
+        visible_check_boxes(self.layout_list)           # "tick 2 to 4": the boxes must show on the dark theme
         self.layout_list.itemChanged.connect(self._checks_changed)
         self.layout_list.currentRowChanged.connect(lambda _row: self._update_enabled())
         self.open_button = QPushButton("Open layout…", panel)
@@ -298,7 +302,7 @@ class LayoutWindow(QMainWindow):
 
     @staticmethod
     def _entry_text(entry: LayoutEntry) -> str:
-        energy = f", E {entry.energy:.2f}" if entry.energy is not None else ""
+        energy = f", score {entry.energy:.2f}" if entry.energy is not None else ""
         return f"{entry.layout.name} ({len(entry.layout.markers)} markers, {entry.origin}{energy})"
 
     def _add_session_layouts(self) -> None:
@@ -427,13 +431,15 @@ class LayoutWindow(QMainWindow):
     def _energy_reported(self, run: int, energy: float) -> None:
         if run == self._run_id:
             self.energy_plot.add_energy(energy)
-            self.energy_label.setText(f"iteration {len(self.energy_plot.current_values()) - 1}: E = {energy:.3f}")
+            self.energy_label.setText(f"iteration {len(self.energy_plot.current_values()) - 1}: best score "
+                                      f"{energy:.3f}")
+            self.energy_label.setToolTip("the optimiser's energy E = 0.1 E_cond + 100 E_dist of the best layout")
 
     def _optimised(self, _request: int, outcome: object) -> None:
         layout, result = outcome
         self._add_entry(LayoutEntry(layout, "optimised", result.energy))
         self.progress.setVisible(False)
-        self.status.setText(f"{layout.name}: energy {result.energy:.3f} ({result.evaluations} layouts evaluated): "
+        self.status.setText(f"{layout.name}: score {result.energy:.3f} ({result.evaluations} layouts evaluated): "
                             f"{', '.join(layout.names)}")
 
     def cancel(self) -> None:

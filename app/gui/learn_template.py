@@ -40,6 +40,7 @@ from PySide6.QtWidgets import (
 )
 
 from app.gui.application import Application
+from app.gui.palette import visible_check_boxes
 from app.gui.workers import Task, TaskRunner, one_line
 from core.errors import CancelledError, HandMocapError
 from core.io import TAKE_FILE_FILTER, FrameRateMissingError, Take, is_marker_label, load_take
@@ -213,6 +214,7 @@ class LearnTemplateDialog(QDialog):
 
     def _takes_box(self, sources: list[tuple[TakeSource, bool]]) -> QGroupBox:
         self.take_list = QListWidget(self)
+        visible_check_boxes(self.take_list)
         self.take_list.setToolTip("Takes the lab labelled: the template learns their marker names, which hand and "
                                   "digit each marker sits on, and the rigid objects")
         self.take_list.setSelectionMode(QAbstractItemView.SelectionMode.ExtendedSelection)

@@ -47,7 +47,7 @@ from app.gui.application import (
 )
 from app.gui.camera_controller import CameraController
 from app.gui.document import TakeDocument
-from app.gui.export_dialog import export_action
+from app.gui.export_dialog import default_export_path, export_action
 from app.gui.fusion_controller import FusionController
 from app.gui.load_queue import LoadQueue
 from app.gui.loose_takes import loose_document, remembered_frame_rate
@@ -357,9 +357,12 @@ class MainWindow(QMainWindow):
         self.camera_dock.hide()
 
         def show_dock(count: int) -> None:
+            """The camera dock for a take with cameras; hidden for one without (the tabs above get the room)."""
             if count and not self.camera_dock.isVisible():
                 self.camera_dock.show()
                 self.resizeDocks([self.markers_dock, self.camera_dock], [300, 520], Qt.Orientation.Vertical)
+            elif not count and self.camera_dock.isVisible():
+                self.camera_dock.hide()
 
         cameras.cameras_loaded.connect(show_dock)
         self.file_menu.insertAction(self.sessions.close_action, cameras.add_action)
@@ -911,8 +914,8 @@ class MainWindow(QMainWindow):
         """Ask for a CSV path and write the current take's joint angles there."""
         if self.document is None or self.document.result is None:
             return
-        default = Path(self.document.title).with_suffix("").name + "_angles.csv"
-        path, _ = QFileDialog.getSaveFileName(self, "Export joint angles", default, "CSV (*.csv)")
+        default = default_export_path(self.document.ensure_review(), self.document.title, "_angles", ".csv")
+        path, _ = QFileDialog.getSaveFileName(self, "Export joint angles", str(default), "CSV (*.csv)")
         if path:
             try:
                 self.document.result.save_csv(path)

@@ -3,7 +3,11 @@
 from __future__ import annotations
 
 from PySide6.QtGui import QColor, QPalette
-from PySide6.QtWidgets import QApplication
+from PySide6.QtWidgets import QApplication, QWidget
+
+#: the outline of check boxes in item views (Fusion draws it from the window colour, darkened: on the dark theme
+#: that is the list's own background colour, so an empty box could not be seen)
+INDICATOR_WINDOW = QColor(120, 124, 132)
 
 
 def apply_dark_palette(app: QApplication) -> None:
@@ -25,3 +29,12 @@ def apply_dark_palette(app: QApplication) -> None:
         palette.setColor(QPalette.ColorGroup.Disabled, colour_role, QColor(115, 118, 125))
     palette.setColor(QPalette.ColorGroup.Disabled, role.Highlight, QColor(70, 73, 80))
     app.setPalette(palette)
+
+
+def visible_check_boxes(view: QWidget) -> None:
+    """Make the check boxes of the items of ``view`` (a list the operator ticks) visible on the dark theme: their
+    outline is drawn from the window colour, which this lightens for ``view`` alone."""
+    palette = view.palette()
+    for group in (QPalette.ColorGroup.Active, QPalette.ColorGroup.Inactive):
+        palette.setColor(group, QPalette.ColorRole.Window, INDICATOR_WINDOW)
+    view.setPalette(palette)

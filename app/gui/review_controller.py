@@ -51,6 +51,7 @@ from app.gui.application import (
     SelectionChanged,
 )
 from app.gui.document import TakeDocument
+from app.gui.export_dialog import default_export_path
 from app.gui.workers import TaskRunner
 from core.errors import HandMocapError
 from core.gaps import FILL_METHODS, FillCheck
@@ -295,8 +296,9 @@ class ReviewController(QObject):
         self.gaps_panel = QSplitter(Qt.Orientation.Horizontal, host)
         self.gaps_panel.addWidget(gaps)
         self.gaps_panel.addWidget(self.preview)
-        self.gaps_panel.setStretchFactor(0, 3)
-        self.gaps_panel.setStretchFactor(1, 2)
+        self.gaps_panel.setStretchFactor(0, 3)    # the list's columns and buttons first; the preview the rest
+        self.gaps_panel.setStretchFactor(1, 1)
+        self.gaps_panel.setSizes([450, 200])
         self.gaps_panel.setChildrenCollapsible(False)
         self.gap_list.gap_selected.connect(self._gap_selected)
         self.gap_list.method_changed.connect(lambda _gap, method: self.preview.set_selected(method))
@@ -1238,8 +1240,9 @@ class ReviewController(QObject):
         document = self.document
         if document is None:
             return
-        stem = document.title.rsplit(".", 1)[0]
-        path, _ = QFileDialog.getSaveFileName(self.host, title, f"{stem}{suffix}", filter_text)
+        ending, extension = suffix.rsplit(".", 1)
+        proposed = default_export_path(document.review, document.title, ending, f".{extension}")
+        path, _ = QFileDialog.getSaveFileName(self.host, title, str(proposed), filter_text)
         if not path:
             return
         try:

@@ -17,7 +17,10 @@ from typing import Any
 from core.session.files import write_file
 
 REPORT_NAME = "batch-report.html"
-COLUMNS = ("take", "status", "labelled %", "filled %", "longest gap", "residual mm", "warnings", "seconds", "reason")
+COLUMNS = ("take", "status", "labelled %", "filled %", "longest gap (frames)", "residual mm", "warnings", "seconds",
+           "reason")
+#: take names on the plot's axis are shortened to this many characters (the table has them whole)
+AXIS_NAME_CHARACTERS = 24
 
 
 def _order(row: dict[str, Any]) -> tuple:
@@ -34,9 +37,10 @@ def study_plot(rows: list[dict[str, Any]]) -> bytes:
     from matplotlib.figure import Figure
 
     done = [row for row in rows if row.get("status") == "done"]
-    figure = Figure(figsize=(9, 4.5), dpi=100)
+    figure = Figure(figsize=(9, 5.2 if done else 4.5), dpi=100)
     share_axes, residual_axes = figure.subplots(2, 1, sharex=True)
     positions = range(len(done))
+    names = [_short(str(row.get("name") or row.get("take", ""))) for row in done]
     share_axes.bar(positions, [100 * row.get("labelled_share", 0.0) for row in done], color="#4a7fb5")
     share_axes.set_ylabel("labelled %")
     share_axes.set_ylim(0, 100)
@@ -45,11 +49,24 @@ def study_plot(rows: list[dict[str, Any]]) -> bytes:
                        [r for r in residuals if r is not None], "o", color="#c0504d", markersize=3)
     residual_axes.set_ylabel("mean residual mm")
     residual_axes.set_xlabel("take (session order)")
+    # one tick per take, named: not the -0.5 .. n-0.5 of a numeric axis
+    residual_axes.set_xticks(list(positions))
+    residual_axes.set_xticklabels(names, rotation=30 if len(done) <= 20 else 90, ha="right", fontsize=8)
+    if done:
+        residual_axes.set_xlim(-0.6, len(done) - 0.4)
     figure.suptitle(f"{len(done)} takes processed")
     figure.tight_layout()
     buffer = io.BytesIO()
     figure.savefig(buffer, format="png")
     return buffer.getvalue()
+
+
+def _short(name: str) -> str:
+    """A take name shortened in the middle for the plot's axis."""
+    if len(name) <= AXIS_NAME_CHARACTERS:
+        return name
+    half = (AXIS_NAME_CHARACTERS - 1) // 2
+    return f"{name[:half]}…{name[-half:]}"
 
 
 def _cell(row: dict[str, Any], column: str) -> str:
@@ -61,7 +78,7 @@ def _cell(row: dict[str, Any], column: str) -> str:
         value = "" if share is None else f"{100 * share:.1f}"
     elif column == "residual mm":
         value = "" if row.get("mean_residual_mm") is None else f"{row['mean_residual_mm']:.2f}"
-    elif column == "longest gap":
+    elif column == "longest gap (frames)":
         value = row.get("longest_gap", "")
     elif column == "warnings":
         value = row.get("health_count", "")

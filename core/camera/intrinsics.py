@@ -362,9 +362,10 @@ def calibrate_intrinsics(detections: list[Detection | None], image_size: tuple[i
         raise InputError(f"the board was found in {found.sum()} of {len(detections)} images; "
                          f"calibration needs at least {MIN_VIEWS}")
     used = found.copy()
+    previous = np.full(len(detections), np.nan)
     while True:
         camera, errors = _calibrate(_used(detections, used), image_size, name)
-        view_errors = np.full(len(detections), np.nan)
+        view_errors = previous.copy()       # a view left out keeps the error it was left out for
         view_errors[used] = errors
         median = float(np.median(errors))
         spread = 1.4826 * float(np.median(np.abs(errors - median)))
@@ -373,6 +374,7 @@ def calibrate_intrinsics(detections: list[Detection | None], image_size: tuple[i
         if not bad.any() or used.sum() - bad.sum() < MIN_VIEWS:
             break
         used &= ~bad
+        previous = view_errors
     rms = float(np.sqrt(np.sum(errors ** 2 * _counts(detections, used)) / _counts(detections, used).sum()))
     points = np.concatenate([d.image_points for d in _used(detections, used)])
     return IntrinsicCalibration(camera, rms, view_errors, used, threshold, empty_cells(points, image_size))

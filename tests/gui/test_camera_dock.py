@@ -160,6 +160,9 @@ def test_wizard_calibrates_intrinsics_on_a_worker_and_can_be_cancelled(window, q
     assert "intrinsics from" in wizard.status_label.text(), wizard.status_label.text()
     assert abs(wizard.camera.focal[0] / truth.focal[0] - 1) < 0.005
     assert wizard.views_table.rowCount() == len(paths) and "Coverage" in wizard.coverage_label.text()
+    cells = [wizard.views_table.item(row, column).text() for row in range(len(paths)) for column in range(4)]
+    assert not [cell for cell in cells if "nan" in cell.lower()], cells     # a left-out view shows its error
+    assert wizard.progress_bar.value() == 100                               # done: the bar is full, not back at 0
     assert wizard.save(tmp_path / "calibrated.json")
     from core.camera.files import load_camera
 

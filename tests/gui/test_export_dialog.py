@@ -38,7 +38,8 @@ def messages(monkeypatch) -> list[str]:
 
 
 def _dialog(qtbot, review: ReviewTake, tmp_path: Path) -> ExportDialog:
-    dialog = ExportDialog(None, review, load_template, None, str(tmp_path / "take"))
+    review.take.source_path = str(tmp_path / "take.c3d")      # the raw take the review was made from
+    dialog = ExportDialog(None, review, load_template, None, "take")
     qtbot.addWidget(dialog)
     return dialog
 
@@ -49,35 +50,40 @@ def _choose(dialog: ExportDialog, name: str) -> None:
 
 def test_each_format_with_its_options(qtbot, review, tmp_path, messages) -> None:
     dialog = _dialog(qtbot, review, tmp_path)
-    assert dialog.format_name == "c3d" and dialog.path_edit.text().endswith("take.c3d")
+    # proposed next to the raw take, named after it and never the raw file itself
+    assert dialog.format_name == "c3d" and dialog.path_edit.text() == str(tmp_path / "take_labelled.c3d")
     assert not dialog.units_box.isEnabled() and not dialog.up_box.isEnabled() and dialog.fills_box.isEnabled()
-    assert dialog.export() and (tmp_path / "take.c3d").exists()
-    assert read_labelled_c3d(tmp_path / "take.c3d").label_names == review.label_names
+    assert dialog.export() and (tmp_path / "take_labelled.c3d").exists()
+    assert read_labelled_c3d(tmp_path / "take_labelled.c3d").label_names == review.label_names
 
     dialog = _dialog(qtbot, review, tmp_path)
     _choose(dialog, "trc")
     assert dialog.units_box.isEnabled() and dialog.up_box.isEnabled()
-    assert dialog.path_edit.text().endswith("take.trc")
+    assert dialog.path_edit.text() == str(tmp_path / "take_markers.trc")
     dialog.units_box.setCurrentText("m")
     dialog.up_box.setCurrentIndex(dialog.up_box.findData("y"))
     written: list[tuple[str, str]] = []
     dialog.exported.connect(lambda name, path: written.append((name, path)))
     assert dialog.export()
-    assert written == [("trc", str(tmp_path / "take.trc"))]
-    back = load_take(tmp_path / "take.trc")
+    assert written == [("trc", str(tmp_path / "take_markers.trc"))]
+    back = load_take(tmp_path / "take_markers.trc")
     np.testing.assert_allclose(back.marker_positions @ Y_UP, review.labelled_positions(), atol=2e-3, equal_nan=True)
 
     dialog = _dialog(qtbot, review, tmp_path)
     _choose(dialog, "gltf")
     assert not dialog.units_box.isEnabled() and dialog.units_box.currentText() == "m"
     assert dialog.up_box.currentData() == "y" and not dialog.fills_box.isEnabled()
-    assert dialog.path_edit.text().endswith("take.glb")
-    assert dialog.export() and load_gltf_hand(tmp_path / "take.glb").side == review.hands[0].side
+    assert dialog.path_edit.text() == str(tmp_path / "take_hand.glb")
+    assert dialog.export() and load_gltf_hand(tmp_path / "take_hand.glb").side == review.hands[0].side
 
     dialog = _dialog(qtbot, review, tmp_path)
     _choose(dialog, "bvh")
     dialog.units_box.setCurrentText("cm")
-    assert dialog.export() and read_bvh(tmp_path / "take.bvh").n_frames == FRAMES
+    assert dialog.export() and read_bvh(tmp_path / "take_angles.bvh").n_frames == FRAMES
+    dialog = _dialog(qtbot, review, tmp_path)
+    dialog.path_edit.setText(str(tmp_path / "mine.c3d"))      # the operator's own name keeps, with the suffix
+    _choose(dialog, "csv")
+    assert dialog.path_edit.text() == str(tmp_path / "mine.csv")
     assert not messages, messages
 
 
@@ -90,7 +96,7 @@ def test_joint_angle_formats_need_a_solved_hand(qtbot, review, tmp_path) -> None
 
 
 def test_replacing_asks_and_errors_keep_the_dialog_open(qtbot, review, tmp_path, messages, monkeypatch) -> None:
-    target = tmp_path / "take.c3d"
+    target = tmp_path / "take_labelled.c3d"
     target.write_bytes(b"old")
     dialog = _dialog(qtbot, review, tmp_path)
     monkeypatch.setattr(QMessageBox, "question", lambda *args: QMessageBox.StandardButton.No)

@@ -54,16 +54,19 @@ def test_fill_preview_is_shown_beside_the_gap_list(small, qtbot):
 
 
 def test_column_headers_carry_units_and_tooltips(small):
-    assert "Conf. (mm)" in TABLE_COLUMNS and "Resid. (mm)" in TABLE_COLUMNS and "Error (mm)" in GAP_COLUMNS
+    assert "Sure by\n(mm)" in TABLE_COLUMNS and "Off model\n(mm)" in TABLE_COLUMNS and "Error (mm)" in GAP_COLUMNS
     from PySide6.QtCore import Qt
 
     for model in (small.review.table.model, small.review.gap_list.model):
         for column in range(model.columnCount()):
             tip = model.headerData(column, Qt.Orientation.Horizontal, Qt.ItemDataRole.ToolTipRole)
             assert tip, model.headerData(column, Qt.Orientation.Horizontal, Qt.ItemDataRole.DisplayRole)
-    confidence = small.review.table.model.headerData(TABLE_COLUMNS.index("Conf. (mm)"), Qt.Orientation.Horizontal,
+    confidence = small.review.table.model.headerData(TABLE_COLUMNS.index("Sure by\n(mm)"), Qt.Orientation.Horizontal,
                                                      Qt.ItemDataRole.ToolTipRole)
-    assert "mm" in confidence and "swap" in confidence
+    assert "mm" in confidence and "swap" in confidence and "labelling confidence" in confidence   # the precise term
+    residual = small.review.table.model.headerData(TABLE_COLUMNS.index("Off model\n(mm)"), Qt.Orientation.Horizontal,
+                                                   Qt.ItemDataRole.ToolTipRole)
+    assert "IK residual" in residual
 
 
 def test_take_names_are_elided_in_the_middle_with_the_full_name_as_tooltip(small):

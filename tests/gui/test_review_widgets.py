@@ -261,11 +261,11 @@ def test_table_sorts_numerically_with_unknown_values_last(table):
     observed = TABLE_COLUMNS.index("Seen %")
     table.sort_by(observed)
     assert table.visible_rows() == [0, 3, 2, 1]          # 9.5 < 45.25 < 80 < 100 (text order would differ)
-    table.sort_by(TABLE_COLUMNS.index("Longest (fr)"), descending=True)
+    table.sort_by(TABLE_COLUMNS.index("Longest\ngap"), descending=True)
     assert table.visible_rows() == [3, 0, 2, 1]
-    table.sort_by(TABLE_COLUMNS.index("Resid. (mm)"))
+    table.sort_by(TABLE_COLUMNS.index("Off model\n(mm)"))
     assert table.visible_rows() == [0, 3, 2, 1]          # NaN after every number
-    assert table.model.index(1, TABLE_COLUMNS.index("Resid. (mm)")).data() == "—"
+    assert table.model.index(1, TABLE_COLUMNS.index("Off model\n(mm)")).data() == "—"
     assert table.model.index(0, observed).data() == "9.5"
 
 
@@ -297,7 +297,7 @@ def test_table_shows_core_review_statistics(qtbot):
     qtbot.addWidget(widget)
     widget.set_markers(review.marker_stats(), colours=np.full((4, 3), 0.5))
     assert widget.model.index(1, TABLE_COLUMNS.index("Gaps")).data() == "2"
-    assert widget.model.index(1, TABLE_COLUMNS.index("Longest (fr)")).data() == "40"
+    assert widget.model.index(1, TABLE_COLUMNS.index("Longest\ngap")).data() == "40"
     assert widget.model.index(1, TABLE_COLUMNS.index("Seen %")).data() == "75.0"
 
 
@@ -402,9 +402,9 @@ def test_fill_all_counts_sorting_and_filters(qtbot):
             GapRow(0, "a", 200, 9, state="filled", method="model"), GapRow(2, "c", 0, 3, at_take_edge=True)]
     widget.set_gaps(rows, ["a", "b", "c"], first_frame=1)
     widget.max_length_box.setValue(20)
-    assert widget.fill_all_candidates(20) == 1 and widget.fill_all_count.text() == "(1 open gap)"
+    assert widget.fill_all_candidates(20) == 1 and widget.fill_all_count.text() == "(1 open)"
     widget.max_length_box.setValue(200)
-    assert widget.fill_all_count.text() == "(2 open gaps)"
+    assert widget.fill_all_count.text() == "(2 open)"
     with qtbot.waitSignal(widget.fill_all_requested, timeout=1000) as fill_all:
         widget.fill_all_button.click()
     assert fill_all.args == [200]
