@@ -11,6 +11,7 @@ finds the take done.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,6 +42,7 @@ def process_review_copy(review: ReviewTake, pipeline: Pipeline, key: str, output
                         cancelled: Callable[[], bool] | None = None) -> OpenTakeResult:
     """Run ``pipeline``'s steps on ``review`` (a copy of the open review: it is changed and put back), write its
     exports to ``output/<stem>.*`` and return the steps as one command to push on the open review."""
+    started = time.perf_counter()
     done: StepsResult = run_steps(review, pipeline, cancelled)
     try:
         outputs = export_take(review, pipeline, done, output_paths(pipeline, output, stem)) \
@@ -51,7 +53,8 @@ def process_review_copy(review: ReviewTake, pipeline: Pipeline, key: str, output
     command = CompoundCommand(done.commands, step_description(pipeline, key)) if done.commands else None
     summary = {"status": "done", "reason": "", "fills": done.fills,
                "outputs": {kind: str(path) for kind, path in outputs.items()},
-               "output_sha256": {kind: file_sha256(path, "export") for kind, path in outputs.items()}} | figures
+               "output_sha256": {kind: file_sha256(path, "export") for kind, path in outputs.items()},
+               "seconds": round(time.perf_counter() - started, 3)} | figures
     return OpenTakeResult(command, outputs, done.models, done.marker_sets, summary)
 
 
