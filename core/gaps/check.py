@@ -347,6 +347,103 @@ def fill_order(take: Take, gap: Gap, context: ModelContext | None = None,
     yield from [method for method in ranking if method != first] if ranking else none_applies
 
 
+#: a method that has not displaced PCA (:meth:`FillCheck.displaces_pca`) on this many checks in a row (of one
+#: marker and gap-length class) is then checked only on every 2nd, 4th, 8th ... gap of that class
+WARM_CHECKS = 3
+#: ... but at least on every this many gaps of the class (the motion changes along a take)
+MAX_INTERVAL = 32
+#: methods whose check costs several PCA fills (the model fill's IK over the stretch): learned per group over all
+#: its gaps, checked on its first gap and then on every :data:`MAX_INTERVAL`-th while they do not displace PCA
+GROUP_LEARNED = ("model",)
+
+
+class FillChooser:
+    """The methods to try on each gap of one fill (``--method auto``), learning along the take when PCA wins.
+
+    Per gap :func:`fill_order` fills the hidden stretches beside it with PCA and with every other method until
+    none can displace PCA (:meth:`FillCheck.ranking`): a few PCA fills and an IK solve per gap. Here each method
+    keeps, per marker and gap-length class (a power of two of frames; :data:`GROUP_LEARNED` per group), the
+    number of checks in a row on which it did not displace PCA. From :data:`WARM_CHECKS` such losses on it is
+    checked on every 2nd, 4th ... gap of its class only (at least every :data:`MAX_INTERVAL`-th); one that
+    displaces PCA is checked on every gap again. A gap with no
+    method due is filled by PCA without a check; a gap longer than :data:`LOCAL_HORIZON_S` needs none (nothing
+    displaces PCA there). The first choice on a checked gap is :func:`_first_choice`'s for the methods checked;
+    when PCA fails on the gap or on the nearest stretch, the gap gets the full check's ranking."""
+
+    def __init__(self) -> None:
+        self._cells: dict[tuple, list[int]] = {}    # key: [losses in a row, gaps since the last check]
+
+    def _due(self, key: tuple) -> bool:
+        losses, since = self._cells.setdefault(key, [0, 0])
+        if key[1] in GROUP_LEARNED:
+            interval = 1 if losses == 0 else MAX_INTERVAL
+        else:
+            interval = 1 if losses < WARM_CHECKS else min(2 ** (losses - WARM_CHECKS + 1), MAX_INTERVAL)
+        self._cells[key][1] = since + 1
+        return since + 1 >= interval
+
+    def _checked(self, key: tuple, lost: bool) -> None:
+        self._cells[key] = [self._cells[key][0] + 1 if lost else 0, 0]
+
+    def order(self, take: Take, gap: Gap, context: ModelContext | None = None, group: object = 0,
+              none_applies: tuple[str, ...] = FALLBACK_ORDER) -> Iterator[str]:
+        """The methods to try on ``gap`` of ``take`` (the first as learned, then the full check's ranking when
+        more are asked for); ``group``: the key of the take's group (its markers' cells are its own)."""
+        if gap.length > LOCAL_HORIZON_S * take.frame_rate:
+            yield "pca"
+            yield from (method for method in fill_order(take, gap, context, none_applies) if method != "pca")
+            return
+        size = int(np.log2(gap.length))
+        keys = {method: (group, method) if method in GROUP_LEARNED else (group, gap.marker, method, size)
+                for method in FILL_METHODS if method != "pca"}
+        due = [method for method, key in keys.items() if self._due(key)]
+        first = None
+        if due:
+            try:
+                stretches = HiddenStretches(take, gap, context)
+                pca = stretches.errors("pca", 0)
+            except InputError:
+                stretches = None
+            if stretches is not None:
+                first = self._first_checked(stretches, pca, due, keys)
+        else:
+            first = "pca"
+        if first is not None:
+            yield first
+        yield from (method for method in fill_order(take, gap, context, none_applies) if method != first)
+
+    def _first_checked(self, stretches: HiddenStretches, pca: np.ndarray, due: list[str],
+                       keys: dict[str, tuple]) -> str | None:
+        """:func:`_first_choice` over PCA and the ``due`` methods, given PCA's errors on the nearest stretch
+        (``pca``); each due method's loss or near-win recorded. None when PCA fails on a further stretch."""
+        best, best_score = "pca", np.inf
+        for method in due:
+            per_stretch: list[np.ndarray] = []
+            for index in range(len(stretches.starts)):
+                try:
+                    errors = stretches.errors(method, index)
+                    pca_errors = pca if index == 0 else stretches.errors("pca", index)
+                except InputError:
+                    if index and len(per_stretch) == index:
+                        try:
+                            stretches.errors("pca", index)
+                        except InputError:
+                            return None     # PCA does not apply on every stretch: the full check decides
+                    break
+                if not (DISPLACE_FACTOR * float(errors.mean()) < float(pca_errors.mean())
+                        and DISPLACE_FACTOR * float(errors.max()) < float(pca_errors.max())):
+                    break
+                per_stretch.append(errors)
+            displaces = len(per_stretch) == len(stretches.starts)
+            self._checked(keys[method], lost=not displaces)
+            if displaces:
+                frames = np.concatenate(per_stretch)
+                score = 0.5 * (float(frames.mean()) + float(frames.max()))
+                if score < best_score:
+                    best, best_score = method, score
+        return best
+
+
 def recommend(take: Take, gap: Gap, context: ModelContext | None = None) -> str:
     """The first method of the fill check ranking of ``gap``; InputError when none applies."""
     ranking = check_gap(take, gap, context).ranking()
@@ -386,10 +483,11 @@ def fill_all(take: Take, max_gap: int, method: str = "auto", ik_result: IKResult
     filled = positions.copy()
     provenance = np.where(take.missing_mask, MISSING, MEASURED)
     gaps = [gap for gap in find_gaps(take) if not gap.open and gap.length <= max_gap]
+    chooser = FillChooser()
     for number, gap in enumerate(gaps):
         if cancelled is not None and cancelled():
             raise CancelledError("gap filling cancelled; the take is unchanged")
-        order = fill_order(take, gap, context, none_applies=()) if method == "auto" else (method,)
+        order = chooser.order(take, gap, context, none_applies=()) if method == "auto" else (method,)
         for name in order:
             try:
                 values = fill_gap(positions, gap.marker, gap.start, gap.length, name, context, joint_angles)

@@ -76,7 +76,7 @@ def fill_pca(positions: np.ndarray, marker: int, start: int, length: int, window
     block = positions[first:last]
     gap = np.arange(start - first, end - first)
     span = np.arange(gap[0] - 1, gap[-1] + 2)            # the gap and its measured ends
-    observed = np.isfinite(block).all(axis=2)
+    observed = np.isfinite(block[:, :, 0] + block[:, :, 1] + block[:, :, 2])   # NaN in any axis: not measured
     observed[gap, marker] = False
     donors = np.flatnonzero(observed[span].all(axis=0))
     donors = donors[donors != marker]
@@ -95,16 +95,19 @@ def fill_pca(positions: np.ndarray, marker: int, start: int, length: int, window
         raise InputError(f"PCA fill needs {columns} frames with every used marker measured within {window} "
                          f"frames of the gap; there are {int(training.sum())}")
     weights = np.append(np.exp(-distances ** 2 / (2.0 * (weight_scale * np.median(distances)) ** 2)), gap_weight)
-    frames = np.flatnonzero(training | np.isin(np.arange(len(block)), span))
+    in_span = np.zeros(len(block), dtype=bool)
+    in_span[span] = True
+    frames = np.flatnonzero(training | in_span)
     rotations, origins = _poses(block[frames][:, donors], block[span[0], donors], weights[:-1])
-    local = np.einsum("nji,nkj->nki", rotations, block[frames][:, used] - origins[:, None])
+    local = np.matmul(block[frames][:, used] - origins[:, None], rotations)     # each frame in the donors' pose
     matrix = np.full((len(block), columns), np.nan)
     matrix[frames] = local.reshape(len(frames), columns)
-    centre = matrix[training].mean(axis=0)
-    spread = matrix[training].std(axis=0)
+    trained = matrix[training]
+    centre = trained.mean(axis=0)
+    spread = trained.std(axis=0)
     spread[spread <= 0.0] = 1.0
     scale = np.repeat(weights, 3) / spread
-    _, singular, components = np.linalg.svd((matrix[training] - centre) * scale, full_matrices=False)
+    singular, components = _principal_components((trained - centre) * scale)
     count = int(np.searchsorted(np.cumsum(singular), min_cumulative * singular.sum()) + 1)
     count = min(count, columns - 3)
     variances = singular ** 2 / max(1, int(training.sum()) - 1)
@@ -115,24 +118,33 @@ def fill_pca(positions: np.ndarray, marker: int, start: int, length: int, window
     scores = np.linalg.solve(known.T @ known + noise * np.eye(count), known.T @ observed_scaled.T)
     estimate = (loadings[-3:] @ scores).T / scale[-3:] + centre[-3:]
     at_span = np.searchsorted(frames, span)
-    estimate = np.einsum("nij,nj->ni", rotations[at_span], estimate) + origins[at_span]
+    estimate = np.matmul(rotations[at_span], estimate[:, :, None])[:, :, 0] + origins[at_span]
     residuals = block[span[[0, -1]], marker] - estimate[[0, -1]]
     ramp = (np.arange(1, length + 1) / (length + 1))[:, None]
     return estimate[1:-1] + (1.0 - ramp) * residuals[0] + ramp * residuals[1]
 
 
+def _principal_components(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The singular values (C,), largest first, and the right singular vectors (C, C) (rows) of ``matrix (N, C)``,
+    from the eigendecomposition of its Gram matrix (C ≪ N: a fraction of the cost of the SVD of the matrix; a
+    vector's sign is arbitrary, as in the SVD)."""
+    eigenvalues, eigenvectors = np.linalg.eigh(matrix.T @ matrix)
+    return np.sqrt(np.maximum(eigenvalues[::-1], 0.0)), eigenvectors[:, ::-1].T
+
+
 def _poses(donors: np.ndarray, reference: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per frame, the pose of the donors ``(N, K, 3)`` mm: rotations (N, 3, 3), the weighted least-squares
-    rotation of ``reference (K, 3)`` onto them, and origins (N, 3) mm, their weighted centroid."""
+    rotation of ``reference (K, 3)`` onto them (Kabsch: ``V diag(1, 1, sign det(U V^T)) U^T`` of the weighted
+    covariance ``U S V^T``), and origins (N, 3) mm, their weighted centroid. Compiled
+    (:func:`core.gaps.pca_kernel.poses_kernel`: a polar decomposition by Newton steps, Horn's quaternion where
+    that does not apply)."""
+    from core.gaps.pca_kernel import poses_kernel
+
     share = weights / weights.sum()
-    origins = np.einsum("k,nki->ni", share, donors)
-    centred = reference - share @ reference
-    covariance = np.einsum("k,ki,nkj->nij", share, centred, donors - origins[:, None])
-    u, _, vt = np.linalg.svd(covariance)
-    flip = np.ones((len(donors), 3))
-    flip[:, 2] = np.sign(np.linalg.det(u @ vt))
-    flip[flip == 0.0] = 1.0
-    return np.einsum("nji,nj,nkj->nik", vt, flip, u), origins
+    origins, rotations = poses_kernel(np.ascontiguousarray(donors, dtype=np.float64),
+                                      np.ascontiguousarray(reference, dtype=np.float64),
+                                      np.ascontiguousarray(share, dtype=np.float64))
+    return rotations, origins
 
 
 def _training_donors(observed: np.ndarray, marker: int, donors: np.ndarray, distances: np.ndarray,
@@ -155,5 +167,6 @@ def _mean_distances(block: np.ndarray, observed: np.ndarray, marker: int, donors
     """Mean distance (mm) of each donor to ``marker`` over the frames where both are measured (at least
     the two ends of the gap), (K,)."""
     both = observed[:, donors] & observed[:, [marker]]
-    gaps = np.linalg.norm(np.nan_to_num(block[:, donors] - block[:, [marker]]), axis=2)
-    return (gaps * both).sum(axis=0) / both.sum(axis=0)
+    offsets = block[:, donors] - block[:, [marker]]
+    gaps = np.where(both, np.sqrt(np.einsum("nki,nki->nk", offsets, offsets)), 0.0)
+    return gaps.sum(axis=0) / both.sum(axis=0)

@@ -19,7 +19,7 @@ import numpy as np
 
 from core.errors import CancelledError, InputError
 from core.gaps import FILL_METHODS, FillCheck, Gap, ModelContext, check_gap, fill_gap, find_gaps
-from core.gaps.check import fill_order
+from core.gaps.check import FillChooser
 from core.gaps.fills import fill_pattern
 from core.io import Take
 from core.model import HandModel, MarkerSet, detect_hands, load_template, track_layout
@@ -70,7 +70,10 @@ def _group(review: ReviewTake, measured: np.ndarray, labels: np.ndarray, names: 
     ``measured (F, L, 3)`` mm: the review's measured positions."""
     donors = np.setdiff1d(np.arange(review.n_labels, dtype=np.int64), labels)
     columns = np.concatenate([labels, donors]).astype(np.int64)
-    take = Take(marker_names=names + [review.label_names[label] for label in donors],
+    taken = set(names)      # a donor named as one of the group's layout markers (the other hand's) gets its index
+    donor_names = [name if name not in taken else f"{name} #{label}"
+                   for label, name in ((label, review.label_names[label]) for label in donors)]
+    take = Take(marker_names=names + donor_names,
                 marker_positions=measured[:, columns], frame_rate=review.take.frame_rate,
                 first_frame=review.take.first_frame, vendor=review.take.vendor)
     return GapGroup(labels, take, context, joint_angles, donors)
@@ -168,16 +171,18 @@ def fill_gaps(groups: list[GapGroup], gaps: list[ReviewGap], method: str = "auto
               progress: Callable[[float], None] | None = None,
               cancelled: Callable[[], bool] | None = None) -> AcceptFills | None:
     """One undoable command filling ``gaps`` with ``method`` ("auto": per gap, the first method of its fill
-    check ranking that applies, else PCA, model, spline, linear); None when nothing could be filled. Reads only the
+    check ranking that applies, the check learned along the gaps of each marker (:class:`core.gaps.check.
+    FillChooser`), else PCA, model, spline, linear); None when nothing could be filled. Reads only the
     groups (copies), so it may run on a worker while the review changes."""
     if method != "auto" and method not in FILL_METHODS:
         raise InputError(f"unknown fill method '{method}' (use auto, {', '.join(FILL_METHODS)})")
     fills = []
+    chooser = FillChooser()
     for number, gap in enumerate(gaps):
         if cancelled is not None and cancelled():
             raise CancelledError("gap filling cancelled; nothing was filled")
         group = groups[gap.group]
-        order = fill_order(group.take, gap.gap, group.context) if method == "auto" else (method,)
+        order = chooser.order(group.take, gap.gap, group.context, gap.group) if method == "auto" else (method,)
         for name in order:
             try:
                 values = preview_fill(group, gap, name)

@@ -1,4 +1,5 @@
-"""Fill of long takes: time per gap against take length, and the whole fill of 200 000 frames.
+"""Fill of long takes: time per gap against take length (``--method auto`` against ``pca``), and the whole fill of
+200 000 frames.
 
 The takes are labelled, occluded simulations tiled to length (every other copy played backwards, so the
 trajectories stay continuous at the joins): the dense layout (24 markers) and a scene of two dense hands
@@ -6,13 +7,18 @@ and three objects (60 markers; the right hand keeps the layout's names, so the m
 They are filled as ``handmocap fill --method auto --max-gap 80`` fills a labelled take without hands:
 :func:`core.workflows.fill_review_gaps` on a review of the take (the C3D reading and writing are left out).
 
-Run: python tests/bench/bench_fill_long.py [--lengths 1000 10000 ...] [--totals 24 60]
-(single-threaded linear algebra is advised on a shared machine: OPENBLAS_NUM_THREADS=1; the CPU seconds
-printed beside the wall-clock ones depend less on what else the machine runs).
+Every short gap of a take is filled with each method in turn in the same run, so their ratio holds whatever else
+the machine runs; ``auto`` learns along a take when PCA wins (:class:`core.gaps.check.FillChooser`), so its cost
+per gap falls with the number of gaps. The CPU seconds printed beside the wall-clock ones depend less on the
+machine's load than the wall-clock ones; the load average is printed with them.
+
+Run: OPENBLAS_NUM_THREADS=1 taskset -c 0 python tests/bench/bench_fill_long.py [--lengths 1000 10000 ...]
+[--totals 24 60]
 """
 
 import argparse
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -28,8 +34,6 @@ from core.workflows import fill_gaps, fill_review_gaps, gap_groups, short_open_g
 
 MAX_GAP = 80
 BASE_FRAMES = 2000
-#: the gaps timed per take length start within this many frames of a copy of the base take
-TIMED_FRAMES = 1000
 
 
 def base_take(markers: int) -> Take:
@@ -53,21 +57,15 @@ def tiled(base: Take, n_frames: int) -> Take:
                 frame_rate=base.frame_rate)
 
 
-def per_gap_seconds(take: Take, repeats: int = 2) -> tuple[float, float, int, int]:
-    """Wall and CPU seconds per gap of ``fill_gaps`` (the best of ``repeats`` runs) on the gaps that start in the first
-    :data:`TIMED_FRAMES` frames of the copy of the base take nearest the middle (the same gaps with the same
-    surroundings at every length from 10 000 frames), the number timed and the take's gap count."""
+def per_gap_seconds(take: Take, method: str) -> tuple[float, float, int]:
+    """Wall and CPU seconds per gap of ``fill_gaps`` with ``method`` on every short gap of ``take``, and their
+    number."""
     review = ReviewTake.from_labelled_take(take)
     groups = gap_groups(review)
     gaps = short_open_gaps(review, groups, MAX_GAP)
-    offset = 2 * BASE_FRAMES * (take.n_frames // 2 // (2 * BASE_FRAMES))
-    timed = [gap for gap in gaps if offset <= gap.start < offset + TIMED_FRAMES]
-    best, best_cpu = np.inf, np.inf
-    for _ in range(repeats):
-        began, began_cpu = time.perf_counter(), time.process_time()
-        fill_gaps(groups, timed)
-        best, best_cpu = min(best, time.perf_counter() - began), min(best_cpu, time.process_time() - began_cpu)
-    return best / len(timed), best_cpu / len(timed), len(timed), len(gaps)
+    began, began_cpu = time.perf_counter(), time.process_time()
+    fill_gaps(groups, gaps, method)
+    return (time.perf_counter() - began) / len(gaps), (time.process_time() - began_cpu) / len(gaps), len(gaps)
 
 
 def total_seconds(take: Take) -> dict:
@@ -95,19 +93,27 @@ def main() -> None:
     args = parser.parse_args()
     results: dict = {"per_gap": [], "totals": []}
     base = base_take(24)
-    per_gap_seconds(tiled(base, TIMED_FRAMES), 1)                    # start-up (compilation, caches)
+    per_gap_seconds(tiled(base, 2 * BASE_FRAMES), "auto")           # start-up (kernels loaded, caches)
     for length in args.lengths:
-        seconds, cpu_seconds, timed, count = per_gap_seconds(tiled(base, length))
-        results["per_gap"].append({"frames": length, "gaps": count, "timed": timed,
-                                   "ms_per_gap": round(1000 * seconds, 1),
-                                   "cpu_ms_per_gap": round(1000 * cpu_seconds, 1)})
-        print(f"{length:>8} frames x 24 markers: {count:>6} gaps, {1000 * seconds:6.1f} ms per gap "
-              f"({1000 * cpu_seconds:.1f} ms CPU; {timed} timed)", flush=True)
+        take = tiled(base, length)
+        row: dict = {"frames": length, "load": round(os.getloadavg()[0], 2)}
+        for method in ("pca", "auto"):
+            seconds, cpu_seconds, count = per_gap_seconds(take, method)
+            row |= {"gaps": count, f"{method}_ms_per_gap": round(1000 * seconds, 2),
+                    f"{method}_cpu_ms_per_gap": round(1000 * cpu_seconds, 2)}
+        row["auto_over_pca_cpu"] = round(row["auto_cpu_ms_per_gap"] / row["pca_cpu_ms_per_gap"], 2)
+        results["per_gap"].append(row)
+        print(f"{length:>8} frames x 24 markers: {row['gaps']:>6} gaps; per gap: pca {row['pca_ms_per_gap']:.1f} ms "
+              f"({row['pca_cpu_ms_per_gap']:.1f} ms CPU), auto {row['auto_ms_per_gap']:.1f} ms "
+              f"({row['auto_cpu_ms_per_gap']:.1f} ms CPU): auto/pca {row['auto_over_pca_cpu']:.2f}x CPU; "
+              f"load {row['load']}", flush=True)
     for markers in args.totals:
         total = total_seconds(tiled(base if markers == 24 else base_take(markers), args.total_frames))
+        total["load"] = round(os.getloadavg()[0], 2)
         results["totals"].append(total)
         print(f"fill of {total['frames']} frames x {total['markers']} markers: {total['seconds']} s "
-              f"({total['cpu_seconds']} s CPU; {total['filled']} gaps filled: {total['methods']})", flush=True)
+              f"({total['cpu_seconds']} s CPU; {total['filled']} gaps filled: {total['methods']}); "
+              f"load {total['load']}", flush=True)
     print(json.dumps(results))
 
 

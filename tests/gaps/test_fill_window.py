@@ -204,3 +204,69 @@ def test_pattern_and_spline_fills_equal_their_whole_take_forms(short_take):
         frames = np.r_[start - SPLINE_CONTEXT:start, start + length:start + length + SPLINE_CONTEXT]
         spline = CubicSpline(frames, hidden[frames], axis=0)(np.arange(start, start + length))
         np.testing.assert_array_equal(fill_spline(hidden, int(start), length), spline)
+
+
+def test_auto_learns_when_pca_wins_and_checks_as_the_full_check_does_until_then(short_take):
+    """``fill --method auto`` (:class:`FillChooser`): a gap on which the local methods are due gets the first
+    method of its full check (the model fill, checked on fewer gaps, never displaced PCA here); a method that has
+    not displaced PCA on WARM_CHECKS checks in a row is checked on fewer gaps; a gap longer than the local horizon
+    goes to PCA without a check."""
+    from core.gaps import check as check_module
+
+    context = ModelContext.for_take(short_take.marker_names, load_template(), load_layout("dense"))
+    gaps = [gap for gap in find_gaps(short_take) if not gap.open and gap.length <= 80]
+    chooser = check_module.FillChooser()
+    due: list[bool] = []
+    original_due = chooser._due
+
+    def recording(key):
+        answer = original_due(key)
+        if key[1] not in check_module.GROUP_LEARNED:
+            due.append(answer)
+        return answer
+
+    chooser._due = recording
+    compared = skipped = 0
+    for gap in gaps:
+        due.clear()
+        first = next(chooser.order(short_take, gap, context))
+        if gap.length > check_module.LOCAL_HORIZON_S * short_take.frame_rate:
+            assert first == "pca" and not due
+        elif all(due):
+            assert first == next(fill_order(short_take, gap, context))
+            compared += 1
+        elif not any(due):
+            assert first == "pca"
+            skipped += 1
+    assert compared >= 5 and skipped >= 1
+    learned = [cell for key, cell in chooser._cells.items() if len(key) == 4 and cell[0] >= check_module.WARM_CHECKS]
+    assert learned, "no method was found to lose to PCA often enough to be checked less"
+
+
+def test_pca_pose_kernel_equals_kabsch_by_svd():
+    from core.gaps.pca_kernel import poses_kernel
+
+    rng = np.random.default_rng(3)
+    for trial in range(60):
+        count = int(rng.integers(3, 8))
+        reference = rng.normal(size=(count, 3)) * 30
+        if trial % 3 == 0:
+            reference[:, 2] *= 1e-5                     # donors nearly coplanar: Horn's quaternion
+        donors = rng.normal(size=(40, count, 3)) * 30
+        if trial % 4 == 0:
+            donors[:, :, 2] *= -1.0                     # reflections
+        share = rng.random(count)
+        share /= share.sum()
+        origins, rotations = poses_kernel(donors, reference, share)
+        np.testing.assert_allclose(origins, np.einsum("k,nki->ni", share, donors))
+        covariance = np.einsum("k,ki,nkj->nij", share, reference - share @ reference, donors - origins[:, None])
+        u, _, vt = np.linalg.svd(covariance)
+        flip = np.ones((len(donors), 3))
+        flip[:, 2] = np.sign(np.linalg.det(u @ vt))
+        expected = np.einsum("nji,nj,nkj->nik", vt, flip, u)
+        np.testing.assert_allclose(np.einsum("nij,nji->n", rotations, covariance),
+                                   np.einsum("nij,nji->n", expected, covariance), rtol=1e-9, atol=1e-9)
+        identity = np.broadcast_to(np.eye(3), rotations.shape)
+        np.testing.assert_allclose(rotations @ rotations.transpose(0, 2, 1), identity, atol=1e-9)
+        if trial % 3:
+            np.testing.assert_allclose(rotations, expected, atol=1e-7)

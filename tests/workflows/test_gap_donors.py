@@ -66,3 +66,19 @@ def test_a_pattern_fill_may_follow_a_marker_outside_the_hand(takes):
     assert np.linalg.norm(values - truth[gap.start:gap.start + gap.length, gap.label], axis=1).mean() < 2.0
     with pytest.raises(InputError, match="another labelled marker"):
         preview_fill(groups[gap.group], gap, "pattern", donor=gap.label)
+
+
+def test_a_donor_named_as_one_of_the_groups_layout_markers_is_told_apart():
+    """Two hands, the right one labelled with the layout's bare names: the left hand's group (named by its layout
+    markers) takes the right hand's labels as donors under other names, and both hands' gaps are filled."""
+    right = simulate_take(layout="dense", n_frames=400, seed=2, noise_mm=0.3).take
+    left = simulate_take(layout="dense", n_frames=400, seed=3, noise_mm=0.3).take
+    positions = np.concatenate([right.marker_positions, left.marker_positions + [400.0, 0.0, 0.0]], axis=1)
+    positions[100:120, 3] = np.nan
+    positions[200:220, len(right.marker_names) + 3] = np.nan
+    take = Take(list(right.marker_names) + [f"L_{name}" for name in left.marker_names], positions, right.frame_rate)
+    review = ReviewTake.from_labelled_take(take)
+    groups = gap_groups(review)
+    assert len(groups) == 2
+    command = fill_review_gaps(review, groups, 40)
+    assert command is not None and len(command.fills) == 2
