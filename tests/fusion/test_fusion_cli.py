@@ -30,7 +30,8 @@ def test_fusion_cli_fuse_writes_result_and_refuses_to_overwrite(tmp_path, capsys
                  "--background", str(tmp_path / "plate.png"), "--out", str(out)]
     assert main(arguments) == 0
     printed = capsys.readouterr()
-    assert "fused" in printed.out and "frames/s" in printed.out and "100 %" in printed.err
+    assert "fused" in printed.out and "frames/s" in printed.out
+    assert "%" not in printed.err   # progress is drawn only on a terminal (one in-place line), not into a capture
     with np.load(out) as result:
         assert result["joint_angles"].shape == (take.n_frames, 26) and str(result["optimiser"]) == "icp"
         assert np.isfinite(result["joint_angles"]).all()
