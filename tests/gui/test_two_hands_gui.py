@@ -108,12 +108,13 @@ def test_the_export_dialog_writes_a_bvh_per_hand_and_one_gltf(qtbot, tmp_path):
     for number, hand in enumerate(review.hands):
         hand.joint_angles[:] = 0.0
         hand.joint_angles[:, 0] = 100.0 * number
-    dialog = ExportDialog(None, review, load_template, None, str(tmp_path / "take"))
+    review.take.source_path = str(tmp_path / "take.c3d")        # exports are proposed next to the raw take
+    dialog = ExportDialog(None, review, load_template, None, "take")
     qtbot.addWidget(dialog)
     assert dialog.hand_box.currentData() is None and dialog.hand_box.count() == 3
     written: list[str] = []
     dialog.exported.connect(lambda name, path: written.append(path))
     dialog.format_box.setCurrentIndex(dialog.format_box.findData("bvh"))
     assert dialog.export()
-    assert written == [str(tmp_path / "take_right.bvh"), str(tmp_path / "take_left.bvh")]
-    assert read_bvh(tmp_path / "take_left.bvh").joint_names[0] == "L_wrist"
+    assert written == [str(tmp_path / "take_angles_right.bvh"), str(tmp_path / "take_angles_left.bvh")]
+    assert read_bvh(tmp_path / "take_angles_left.bvh").joint_names[0] == "L_wrist"
