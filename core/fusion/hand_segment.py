@@ -49,7 +49,7 @@ class SegmentSettings:
     palm_radius_typical_mm: float = 42.0
     #: 3D radius (mm) around the palm centre that holds the hand (palm centre to middle fingertip ≈ 130 mm)
     reach_mm: float = 150.0
-    #: physical area (cm²) of a hand seen from any side, with a stub of forearm: a fist seen end-on to an open
+    #: physical area (cm²) of a hand seen from any side, with a short piece of forearm: a fist seen end-on to an open
     #: hand seen flat
     area_cm2: tuple[float, float] = (35.0, 320.0)
     #: finger width (mm): protrusions thinner than this around the palm are fingers
