@@ -21,8 +21,6 @@ from itertools import product
 
 import numpy as np
 from numba import njit
-from scipy.cluster.hierarchy import fcluster, linkage
-from scipy.optimize import linear_sum_assignment
 
 from core.ik import kabsch
 from core.labelling.models import HandTracker, RigidTrack, SceneSettings, Track, pose_matrix
@@ -78,6 +76,8 @@ def model_points(track: Track) -> np.ndarray:
 def own_gap(track: Track) -> float:
     """The largest single-linkage gap (mm) between the model's own markers (0 for fewer than 2)."""
     points = model_points(track)
+    from scipy.cluster.hierarchy import linkage  # imported when first needed: start-up of the GUI and CLI
+
     return float(linkage(points, method="single")[:, 2].max()) if len(points) >= 2 else 0.0
 
 
@@ -117,6 +117,8 @@ def clusters_of(points: np.ndarray, cut_mm: float) -> list[np.ndarray]:
     """Index arrays of the single-linkage clusters of ``points (N,3)`` cut at ``cut_mm``, ≥ 3 points each."""
     if len(points) < 3:
         return []
+    from scipy.cluster.hierarchy import fcluster, linkage
+
     labels = fcluster(linkage(points, method="single"), t=cut_mm, criterion="distance")
     groups = [np.flatnonzero(labels == label) for label in np.unique(labels)]
     return [group for group in groups if len(group) >= 3]
@@ -191,6 +193,8 @@ def gated_assignment(effectors: np.ndarray, points: np.ndarray, gate: np.ndarray
         return chosen
     rows, columns = np.flatnonzero(row_any), np.flatnonzero(column_any)
     cost = np.minimum(distances[rows[:, None], columns[None, :]], gate[rows, None])
+    from scipy.optimize import linear_sum_assignment  # imported when first needed (start-up)
+
     assigned_rows, assigned_columns = linear_sum_assignment(cost)
     keep = near[rows[assigned_rows], columns[assigned_columns]]
     chosen[rows[assigned_rows[keep]]] = columns[assigned_columns[keep]]
@@ -200,6 +204,8 @@ def gated_assignment(effectors: np.ndarray, points: np.ndarray, gate: np.ndarray
 def _icp(source: np.ndarray, target: np.ndarray, rotation: np.ndarray, translation: np.ndarray,
          iterations: int) -> tuple[np.ndarray, np.ndarray]:
     """Rigid ICP of ``source (K,3)`` onto ``target (N,3)``: Hungarian pairs, then Kabsch."""
+    from scipy.optimize import linear_sum_assignment  # imported when first needed (start-up)
+
     for _ in range(iterations):
         moved = source @ rotation.T + translation
         rows, columns = linear_sum_assignment(np.linalg.norm(moved[:, None] - target[None], axis=2))

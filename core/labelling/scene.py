@@ -51,7 +51,6 @@ from pathlib import Path
 
 import numpy as np
 from numba import njit
-from scipy.sparse.csgraph import minimum_spanning_tree
 
 from core.errors import CancelledError, InputError
 from core.io import Take
@@ -158,6 +157,9 @@ RECHECK_RATIO = 2.5
 """Offline re-check: a marker whose mean residual over a window exceeds this times its median is suspect."""
 TYPICAL_RATE = 0.02
 """Rate of the running typical residual (an exponential mean over about 50 frames)."""
+MAX_RECHECK_BACKOFF = 16
+"""A hand that stays degraded is fitted afresh ever less often: after each such fit the wait doubles, up to this
+many times ``hypothesis_frames``, until the hand has fitted as usual for ``hypothesis_frames`` frames in a row."""
 
 
 class _Run:
@@ -191,6 +193,10 @@ class _Run:
         #: per hand track: running typical mean residual (mm) and the last frame it was re-checked
         self.typical_residual: dict[int, float] = {}
         self.last_recheck: dict[int, int] = {}
+        #: per hand track: frames to wait (in ``hypothesis_frames``) before a degraded hand is fitted afresh again,
+        #: and the frames in a row it has not been degraded
+        self.recheck_backoff: dict[int, int] = {}
+        self.fitting: dict[int, int] = {}
         #: the frame of the last initialisation attempt for the models not found yet
         self.last_attempt = -10 ** 9
 
@@ -387,7 +393,8 @@ class _Run:
         ``init_min_share`` of its markers (a hand the tracker has lost, e.g. after a long occlusion) or
         fitted with a mean residual above :data:`DEGRADED_RATIO` × its running typical residual (a
         finger shift or a swap the tracker settled into); a degraded hand is counted at most once per
-        ``hypothesis_frames`` frames, as re-checking it costs a fresh fit."""
+        ``hypothesis_frames`` frames, as re-checking it costs a fresh fit (and ever less often while it stays
+        degraded, :data:`MAX_RECHECK_BACKOFF`)."""
         settings = self.settings
         for number in active:
             track = self.tracks[number]
@@ -402,27 +409,36 @@ class _Run:
                                                                     settings.reappear_floor_mm))
             if np.isfinite(residual) and not degraded:
                 self.typical_residual[number] = typical + TYPICAL_RATE * (residual - typical)
-            recently = frame - self.last_recheck.get(number, -10 ** 9) < settings.hypothesis_frames
+            self.fitting[number] = self.fitting.get(number, 0) + 1 if not degraded else 0
+            if self.fitting[number] >= settings.hypothesis_frames:
+                self.recheck_backoff[number] = 1
+            wait = settings.hypothesis_frames * self.recheck_backoff.get(number, 1)
+            recently = frame - self.last_recheck.get(number, -10 ** 9) < wait
             count = lost or (degraded and not recently)
             self.lost[number] = self.lost.get(number, 0) + 1 if count else 0
 
     def _reinitialise(self, frame: int, number: int) -> None:
         """Fit a lost or degraded hand ``number`` afresh in ``frame`` (:meth:`_refit`) and continue tracking
         from that fit. Tried every ``retry_every`` frames while lost, once per ``hypothesis_frames`` while
-        degraded."""
+        degraded, and after each fit of a degraded hand twice as long until the hand fits as usual again (up to
+        :data:`MAX_RECHECK_BACKOFF` times: a fit that did not help is not repeated every ``hypothesis_frames``
+        to the end of the take)."""
         self.lost[number] = 0
         self.last_recheck[number] = frame
+        labelled = int((self.assignment[frame, self.columns(number)] >= 0).sum())
+        lost = labelled < max(3, int(np.ceil(self.settings.init_min_share * self.tracks[number].count)))
+        self.recheck_backoff[number] = 1 if lost else min(2 * self.recheck_backoff.get(number, 1),
+                                                          MAX_RECHECK_BACKOFF)
         refit = self._refit(frame, number)
-        if refit is None:
-            return
-        labels, state = refit
-        columns = np.flatnonzero(self.present[frame])
-        taken = ~np.isin(columns, self.free_columns(frame, number))
-        state, observed, residuals = self._record_start(frame, number, self.tracks[number], columns, labels, state,
-                                                        taken)
-        self.tracks[number].start(state, observed)
-        self.tracks[number].remember(residuals[observed])
-        self.reinitialised.setdefault(number, []).append(frame)
+        if refit is not None:
+            labels, state = refit
+            columns = np.flatnonzero(self.present[frame])
+            taken = ~np.isin(columns, self.free_columns(frame, number))
+            state, observed, residuals = self._record_start(frame, number, self.tracks[number], columns, labels,
+                                                            state, taken)
+            self.tracks[number].start(state, observed)
+            self.tracks[number].remember(residuals[observed])
+            self.reinitialised.setdefault(number, []).append(frame)
 
     def _refit(self, frame: int, number: int) -> tuple[np.ndarray, np.ndarray] | None:
         """A fresh fit of hand ``number`` (:func:`initialise_frame`) to the points of ``frame`` no other model
@@ -651,12 +667,18 @@ class _Run:
         states = self.states[track_index]
         assignment = self.assignment[:, part]
 
+        known: dict[tuple[int, bytes], float] = {}    # the states stay as they are until the end: one solve each
+
         def energy(frame: int, index: np.ndarray) -> float:
-            state = states[frame]
-            if not np.isfinite(state).all():
-                return np.inf
-            _, _, residuals = self._solve(track, self.positions[frame], index, state)
-            return float((residuals[index >= 0] ** 2).sum())
+            key = (frame, index.tobytes())
+            if key not in known:
+                state = states[frame]
+                if not np.isfinite(state).all():
+                    known[key] = np.inf
+                else:
+                    _, _, residuals = self._solve(track, self.positions[frame], index, state)
+                    known[key] = float((residuals[index >= 0] ** 2).sum())
+            return known[key]
 
         if self.tracklets is None:
             self.tracklets = point_tracklets(self.positions)
@@ -989,6 +1011,8 @@ def template_cluster_cut(template: LabTemplate) -> float:
     learned in: the largest gap of the hand's minimum spanning tree over the learned pair distances (mean +
     :data:`REACH_SD` standard deviations) × the linking margin (a fretting hand's thumb behind the neck stands
     farther from its fingers than the model's mean posture says)."""
+    from scipy.sparse.csgraph import minimum_spanning_tree  # imported when first needed (start-up)
+
     cut = 0.0
     for side in template.sides:
         statistics = template.hands[side].statistics

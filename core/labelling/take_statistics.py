@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 CHAIN_FRAMES = 5
 """Frames per linked chain: the 4th difference needs five samples."""
@@ -28,8 +29,6 @@ MAX_WINDOWS = 1500
 """At most this many chain windows are sampled, evenly over the take (cost independent of its length)."""
 MAX_LINK_WORK = 50_000_000
 """Fewer windows are sampled when a take has very many points P per frame (windows × P² at most this)."""
-MAX_PAIR_DISTANCES = 4_000_000
-"""Point-pair distances held in memory at once while linking (32 MB)."""
 FOURTH_DIFFERENCE_VARIANCE = 70.0
 """Variance of the 4th difference of white noise of unit variance: C(8, 4)."""
 SECOND_DIFFERENCE_VARIANCE = 6.0
@@ -56,39 +55,60 @@ class TakeStatistics:
 
 def unambiguous_links(current: np.ndarray, following: np.ndarray) -> np.ndarray:
     """Unambiguous links between two frames' points ``(W,P,3)`` (NaN absent): per point of ``current`` the
-    index of its point in ``following`` ``(W,P)``, -1 where the link is ambiguous or absent. Works in
-    blocks of frames so that no more than :data:`MAX_PAIR_DISTANCES` distances are held at once."""
-    count = current.shape[1]
-    block = max(1, MAX_PAIR_DISTANCES // max(count * count, 1))
-    if len(current) > block:
-        return np.concatenate([_links(current[start:start + block], following[start:start + block])
-                               for start in range(0, len(current), block)])
-    return _links(current, following)
+    index of its point in ``following`` ``(W,P)``, -1 where the link is ambiguous or absent: the mutual
+    nearest neighbours (the first of equals) whose next-nearest alternative, either way, is at least
+    :data:`AMBIGUITY_RATIO` times farther. Compiled (:func:`_links_kernel`), frame by frame, without holding
+    the pair distances of more than one frame."""
+    current = np.ascontiguousarray(current, dtype=np.float64)
+    following = np.ascontiguousarray(following, dtype=np.float64)
+    if current.shape[1] == 0 or following.shape[1] == 0:
+        return np.full(current.shape[:2], -1, dtype=np.int64)
+    return _links_kernel(current, following, AMBIGUITY_RATIO)
 
 
-def _two_smallest(distances: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Index of the smallest value along ``axis`` of ``distances``, that value and the second smallest
-    (inf when there is none); linear time (partition, not sort)."""
-    size = distances.shape[axis]
-    nearest = np.argmin(distances, axis=axis)
-    best = np.min(distances, axis=axis)
-    if size < 2:
-        return nearest, best, np.full(best.shape, np.inf)
-    second = np.take(np.partition(distances, 1, axis=axis), 1, axis=axis)
-    return nearest, best, second
-
-
-def _links(current: np.ndarray, following: np.ndarray) -> np.ndarray:
-    distances = np.sqrt(((current[:, :, None, :] - following[:, None, :, :]) ** 2).sum(axis=3))
-    distances = np.where(np.isfinite(distances), distances, np.inf)
-    if distances.shape[2] < 1:
-        return np.full(distances.shape[:2], -1)
-    nearest, best, second = _two_smallest(distances, 2)                  # (W,P) per current point
-    backward_nearest, _, backward_second = _two_smallest(distances, 1)   # (W,P) per following point
-    mutual = np.take_along_axis(backward_nearest, nearest, axis=1) == np.arange(distances.shape[1])[None, :]
-    clear = (second >= AMBIGUITY_RATIO * best) & \
-        (np.take_along_axis(backward_second, nearest, axis=1) >= AMBIGUITY_RATIO * best)
-    return np.where(np.isfinite(best) & mutual & clear, nearest, -1)
+@njit(cache=True)
+def _links_kernel(current: np.ndarray, following: np.ndarray, ratio: float) -> np.ndarray:
+    windows, count, others = current.shape[0], current.shape[1], following.shape[1]
+    links = np.full((windows, count), -1, dtype=np.int64)
+    distances = np.empty((count, others))
+    forward_nearest = np.zeros(count, dtype=np.int64)
+    forward_best = np.empty(count)
+    forward_second = np.empty(count)
+    backward_nearest = np.zeros(others, dtype=np.int64)
+    backward_second = np.empty(others)
+    backward_best = np.empty(others)
+    for window in range(windows):
+        for i in range(count):
+            for j in range(others):
+                dx = current[window, i, 0] - following[window, j, 0]
+                dy = current[window, i, 1] - following[window, j, 1]
+                dz = current[window, i, 2] - following[window, j, 2]
+                value = np.sqrt(dx * dx + dy * dy + dz * dz)
+                distances[i, j] = value if np.isfinite(value) else np.inf
+        for i in range(count):
+            nearest, best, second = 0, np.inf, np.inf
+            for j in range(others):
+                value = distances[i, j]
+                if value < best:
+                    nearest, best, second = j, value, best
+                elif value < second:
+                    second = value
+            forward_nearest[i], forward_best[i], forward_second[i] = nearest, best, second
+        for j in range(others):
+            nearest, best, second = 0, np.inf, np.inf
+            for i in range(count):
+                value = distances[i, j]
+                if value < best:
+                    nearest, best, second = i, value, best
+                elif value < second:
+                    second = value
+            backward_nearest[j], backward_best[j], backward_second[j] = nearest, best, second
+        for i in range(count):
+            best, nearest = forward_best[i], forward_nearest[i]
+            if (np.isfinite(best) and backward_nearest[nearest] == i and forward_second[i] >= ratio * best
+                    and backward_second[nearest] >= ratio * best):
+                links[window, i] = nearest
+    return links
 
 
 def measure_take(positions: np.ndarray) -> TakeStatistics:
