@@ -20,8 +20,6 @@ and raises :class:`InputError` with the reason when its conditions are not met:
 from __future__ import annotations
 
 import numpy as np
-from scipy.interpolate import CubicSpline
-from scipy.linalg import solveh_banded
 
 from core.errors import InputError
 from core.model import HandModel, MarkerSet, marker_positions_batch
@@ -87,6 +85,8 @@ def fill_spline(trajectory: np.ndarray, start: int, length: int, context: int = 
     before, after = _require_sides(trajectory, start, length, 2, "spline", context)
     frames = np.concatenate([np.arange(start - min(before, context), start),
                              np.arange(start + length, start + length + min(after, context))])
+    from scipy.interpolate import CubicSpline  # imported when first needed (start-up of the GUI and CLI)
+
     spline = CubicSpline(frames, trajectory[frames], axis=0)
     return spline(np.arange(start, start + length))
 
@@ -155,6 +155,8 @@ def minimum_acceleration_interpolation(before: np.ndarray, after: np.ndarray, le
                       np.zeros((length, before.shape[1])))
     banded = np.zeros((3, length))
     banded[0, 2:], banded[1, 1:], banded[2] = 1.0, -4.0, 6.0
+    from scipy.linalg import solveh_banded
+
     return solveh_banded(banded, right_side)
 
 

@@ -25,11 +25,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy import sparse
-from scipy.sparse.csgraph import connected_components
-from skimage.measure import marching_cubes
+
+if TYPE_CHECKING:   # scipy.sparse and scikit-image are imported when a template is built, not at start-up
+    from scipy import sparse
 
 from core.model.hand_model import MAX_INFLUENCES, HandModel, mesh_vertex_normals
 from core.model.skeleton import JOINT_PARENTS, N_JOINTS, HandProportions, Skeleton, build_skeleton
@@ -338,6 +339,8 @@ def _hand_shape(skeleton: Skeleton, proportions: HandProportions) -> _HandShape:
 def _mesh_at(shape: _HandShape, lower: np.ndarray, upper: np.ndarray, voxel: float
              ) -> tuple[np.ndarray, np.ndarray]:
     """Marching cubes of the zero level of ``shape`` on a grid of ``voxel`` mm over [lower, upper]."""
+    from skimage.measure import marching_cubes
+
     axes = [np.arange(lo, hi + voxel, voxel) for lo, hi in zip(lower, upper, strict=True)]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
     # evaluated in chunks of ~100k points to bound the memory of the (N, primitives) temporaries
@@ -349,6 +352,9 @@ def _mesh_at(shape: _HandShape, lower: np.ndarray, upper: np.ndarray, voxel: flo
 
 def _largest_component(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Keep the connected component with the most faces; drop unused vertices."""
+    from scipy import sparse
+    from scipy.sparse.csgraph import connected_components
+
     count = len(vertices)
     edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
     graph = sparse.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(count, count))
@@ -363,6 +369,8 @@ def _largest_component(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndar
 
 def _adjacency(faces: np.ndarray, count: int) -> sparse.csr_matrix:
     """Symmetric vertex adjacency (V,V) with unit entries."""
+    from scipy import sparse
+
     edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
     directed = sparse.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(count, count))
     graph = (directed + directed.T).tocsr()
@@ -373,6 +381,8 @@ def _adjacency(faces: np.ndarray, count: int) -> sparse.csr_matrix:
 def _taubin(vertices: np.ndarray, faces: np.ndarray, iterations: int, lam: float = 0.5,
             mu: float = -0.53) -> np.ndarray:
     """Taubin λ|μ smoothing with the uniform Laplacian (keeps the volume, removes voxel steps)."""
+    from scipy import sparse
+
     adjacency = _adjacency(faces, len(vertices))
     averaging = sparse.diags(1.0 / np.asarray(adjacency.sum(axis=1)).ravel()) @ adjacency
     result = vertices.copy()
@@ -396,6 +406,8 @@ def _project(shape: _HandShape, points: np.ndarray, steps: int = 2, step: float 
 def _relax_on_surface(shape: _HandShape, vertices: np.ndarray, faces: np.ndarray, iterations: int
                       ) -> np.ndarray:
     """Tangential Laplacian relaxation (even triangle sizes) with re-projection onto the implicit surface."""
+    from scipy import sparse
+
     adjacency = _adjacency(faces, len(vertices))
     averaging = sparse.diags(1.0 / np.asarray(adjacency.sum(axis=1)).ravel()) @ adjacency
     for _ in range(iterations):
@@ -532,6 +544,8 @@ def _relax_seams(weights: np.ndarray, palm_owned: np.ndarray, core: np.ndarray, 
     weights jump by more than 0.5 (L1); the vertices within ``_SEAM_RINGS`` rings of a seam are relaxed
     unless they belong to a rigid digit ``core`` (V,) bool; all other vertices stay fixed.
     """
+    from scipy import sparse
+
     adjacency = _adjacency(faces, len(weights))
     rows, cols = adjacency.nonzero()
     label = (weights > 0) @ (2 ** np.arange(N_JOINTS)) + (palm_owned << N_JOINTS)
