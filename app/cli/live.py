@@ -4,7 +4,6 @@ the recovery of a recording's journal after a crash (``recover``)."""
 from __future__ import annotations
 
 import argparse
-import asyncio
 import contextlib
 import sys
 import time
@@ -27,6 +26,8 @@ def command_serve(args: argparse.Namespace) -> int:
           f"{'QTM RT' if args.protocol == 'qtm' else 'NatNet'} on 127.0.0.1:{args.port}; Ctrl+C stops",
           file=sys.stderr, flush=True)
     with contextlib.suppress(KeyboardInterrupt):
+        import asyncio  # imported by the live commands only (start-up of every other command)
+
         asyncio.run(server.serve(args.seconds))
     print(f"sent {server.frames_sent} frames", file=sys.stderr)
     return 0

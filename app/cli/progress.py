@@ -11,33 +11,41 @@ A line is a callable taking the fraction done (0..1), as the ``progress`` callba
 from __future__ import annotations
 
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from rich.console import Console
-from rich.progress import (
-    BarColumn,
-    Progress,
-    ProgressColumn,
-    Task,
-    TaskProgressColumn,
-    TextColumn,
-    TimeElapsedColumn,
-    TimeRemainingColumn,
-)
-from rich.text import Text
+if TYPE_CHECKING:   # rich is imported when a line is drawn (a terminal), not by every command
+    from rich.console import Console
 
 _ACTIVE: list[ProgressLine] = []
 
 
-class _RateColumn(ProgressColumn):
-    """Units done per second ("412 frames/s"); blank until there is a rate."""
+def _columns() -> tuple:
+    """The line's rich columns, rich imported on first use (module docstring)."""
+    from rich.progress import (
+        BarColumn,
+        ProgressColumn,
+        Task,
+        TaskProgressColumn,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+    from rich.text import Text
 
-    def render(self, task: Task) -> Text:
-        speed = task.finished_speed or task.speed
-        if not speed:
-            return Text("", style="progress.data.speed")
-        unit = task.fields.get("unit", "")
-        return Text(f"{speed:,.0f} {unit}/s" if speed >= 10 else f"{speed:.2g} {unit}/s", style="progress.data.speed")
+    class _RateColumn(ProgressColumn):
+        """Units done per second ("412 frames/s"); blank until there is a rate."""
+
+        def render(self, task: Task) -> Text:
+            speed = task.finished_speed or task.speed
+            if not speed:
+                return Text("", style="progress.data.speed")
+            unit = task.fields.get("unit", "")
+            return Text(f"{speed:,.0f} {unit}/s" if speed >= 10 else f"{speed:.2g} {unit}/s",
+                        style="progress.data.speed")
+
+    return (TextColumn("[progress.description]{task.description}"), BarColumn(bar_width=28),
+            TaskProgressColumn(), _RateColumn(), TimeElapsedColumn(), TextColumn("spent,"),
+            TimeRemainingColumn(), TextColumn("left"))
 
 
 def terminal() -> bool:
@@ -53,16 +61,16 @@ class ProgressLine:
                  console: Console | None = None) -> None:
         self.total = float(total) if total else 100.0
         self.unit = unit if total else "%"
-        self.console = console or Console(stderr=True)
-        self.enabled = self.console.is_terminal
-        self._progress: Progress | None = None
+        self.console = console
+        self.enabled = console.is_terminal if console is not None else terminal()
+        self._progress: Any = None
         self._task: Any = None
         if self.enabled:
-            self._progress = Progress(
-                TextColumn("[progress.description]{task.description}"), BarColumn(bar_width=28),
-                TaskProgressColumn(), _RateColumn(), TimeElapsedColumn(), TextColumn("spent,"),
-                TimeRemainingColumn(), TextColumn("left"),
-                console=self.console, transient=False, refresh_per_second=8)
+            from rich.console import Console
+            from rich.progress import Progress
+
+            self.console = console or Console(stderr=True)
+            self._progress = Progress(*_columns(), console=self.console, transient=False, refresh_per_second=8)
             self._task = self._progress.add_task(what, total=self.total, unit=self.unit)
             self._progress.start()
             _ACTIVE.append(self)
