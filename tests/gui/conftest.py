@@ -22,6 +22,20 @@ def data_folder(tmp_path, monkeypatch):
     return folder
 
 
+@pytest.fixture(autouse=True)
+def modifiers_released(qtbot):
+    """After each test, release the modifier keys a shortcut test pressed: Qt keeps a modifier in the
+    application's state until its own release arrives, and the next test's 3D-view clicks would be Ctrl+clicks."""
+    yield
+    from PySide6.QtCore import Qt
+    from PySide6.QtWidgets import QWidget
+
+    target = QWidget()
+    for key in (Qt.Key.Key_Control, Qt.Key.Key_Shift, Qt.Key.Key_Alt, Qt.Key.Key_Meta):
+        qtbot.keyRelease(target, key)
+    target.deleteLater()
+
+
 @pytest.fixture
 def window(qtbot, monkeypatch):
     """A main window with message boxes captured instead of shown."""
