@@ -6,8 +6,7 @@ inputs (the layout, the objects spec, each take's id and raw file) and the outpu
 an output folder exists; a take that cannot be used fails alone with its reason. :func:`run_batch` checks
 the scheduler address (:mod:`core.batch.scheduler`), then submits one task per take
 (:func:`core.batch.task.process_take`) to a ``LocalCluster`` (``workers`` processes of one thread: the
-numba kernels are single-threaded, and one task per process makes a worker's death that task's; each warmed
-and configured as :mod:`core.batch.worker` says, so that a take costs there what it costs in one process) or to
+numba kernels are single-threaded, and one task per process makes a worker's death that task's) or to
 the scheduler at ``scheduler``, and reports progress as the tasks finish. Tasks return small summaries;
 the driver records failures and skips in the batch state (a task records its own progress).
 
@@ -35,7 +34,6 @@ from core.batch.pipeline import Pipeline
 from core.batch.scheduler import check_scheduler_address
 from core.batch.state import file_sha256, input_key, read_state, valid_take_id, write_state
 from core.batch.task import exports_complete, process_take
-from core.batch.worker import PRELOAD, WORKER_CONFIG, restoring_environment
 from core.errors import InputError
 from core.io import READ_SUFFIXES, FrameRateMissingError, recognised_format
 from core.session.session import Session
@@ -286,7 +284,7 @@ def run_batch(plan: BatchPlan, workers: int = 2, scheduler: str | None = None,
     started = time.perf_counter()
     # one task per worker thread at a time: a worker's death is its task's, and "running" means running
     with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES,
-                          "distributed.scheduler.worker-saturation": 1.0} | WORKER_CONFIG), restoring_environment():
+                          "distributed.scheduler.worker-saturation": 1.0}):
         cluster = None
         try:
             if scheduler:
@@ -309,15 +307,14 @@ def run_batch(plan: BatchPlan, workers: int = 2, scheduler: str | None = None,
 
 def _local_cluster(workers: int) -> Any:
     """A LocalCluster of ``workers`` one-thread worker processes that ignore Ctrl+C (it reaches the whole
-    process group; the driver stops them cleanly instead of each printing a traceback), each warmed before its
-    first task and started with :data:`core.batch.worker.WORKER_CONFIG` (set by the caller)."""
+    process group; the driver stops them cleanly instead of each printing a traceback)."""
     from distributed import LocalCluster
 
     ignoring = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if ignoring else None
     try:
         return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
-                            silence_logs=logging.ERROR, preload=[PRELOAD])
+                            silence_logs=logging.ERROR)
     finally:
         if ignoring:
             signal.signal(signal.SIGINT, previous)

@@ -11,9 +11,7 @@ copy of the session. Reports:
   wall seconds per take with one worker against the seconds inside its tasks, same run); and the
   single-take CLI (``label``, ``fill``, ``solve`` as three calls per take, as operators script it today);
 * the peak resident memory of each worker process, and numba compilations in the workers;
-* the CPU seconds per take in one process and in a worker (the figure the machine's load changes least), and
-  their scaling with 2 workers;
-* the load average before and after each run (other work on the machine slows every figure).
+* the load average before each run (other work on the machine slows every figure).
 
 Usage: ``.venv/bin/python tests/bench/bench_batch.py [--takes 200] [--frames 1000] [--cli-takes 2]``.
 """
@@ -86,25 +84,23 @@ def baselines(paths: list[Path], root: Path) -> dict[str, float]:
     out = root / "baseline"
     out.mkdir(parents=True, exist_ok=True)
     sessions = make_sessions(root / "baseline-sessions", paths)
-    times: dict[str, list[float]] = {"plain": [], "task": [], "cli": [], "plain_cpu": [], "task_cpu": []}
+    times: dict[str, list[float]] = {"plain": [], "task": [], "cli": []}
     for number, path in enumerate(paths):
         layout = path.name.split("_")[0]
         pipeline = pipeline_from_dict(SETTINGS | {"layout": layout, "output": str(out)})
-        start, cpu = time.perf_counter(), time.process_time()
+        start = time.perf_counter()
         review = ReviewTake.unlabelled(load_take(path))
         export_take(review, pipeline, run_steps(review, pipeline), output_paths(pipeline, out, path.stem))
-        plain, plain_cpu = time.perf_counter() - start, time.process_time() - cpu
+        plain = time.perf_counter() - start
         entry = next(entry for entry in sessions[layout].takes if Path(entry.source) == path)
-        start, cpu = time.perf_counter(), time.process_time()
+        start = time.perf_counter()
         summary = process_take(str(sessions[layout].folder), entry.id, pipeline.to_dict(), "0" * 64, str(out),
                                f"task-{path.stem}")
-        task, task_cpu = time.perf_counter() - start, time.process_time() - cpu
+        task = time.perf_counter() - start
         assert summary["status"] == "done", summary
         if number:
             times["plain"].append(plain)
             times["task"].append(task)
-            times["plain_cpu"].append(plain_cpu)
-            times["task_cpu"].append(task_cpu)
             times["cli"].append(cli_seconds(path, out))
     return {name: sum(values) / len(values) for name, values in times.items()}
 
@@ -155,9 +151,7 @@ def batch_run(root: Path, paths: list[Path], workers: int) -> dict:
             "peak_worker_mib": round(max(memory.values()), 1),
             "compilations": sum(summary.get("compilations", 0) for summary in summaries),
             "mean_task_s": round(sum(s.get("seconds", 0) for s in summaries) / max(len(summaries), 1), 3),
-            "mean_task_cpu_s": round(sum(s.get("cpu_seconds", 0) for s in summaries) / max(len(summaries), 1), 3),
-            "max_task_cpu_s": round(max((s.get("cpu_seconds", 0) for s in summaries), default=0.0), 3),
-            "load_after": round(os.getloadavg()[0], 2)}
+            "mean_task_cpu_s": round(sum(s.get("cpu_seconds", 0) for s in summaries) / max(len(summaries), 1), 3)}
 
 
 def _peak_rss_mib() -> float:
@@ -183,9 +177,6 @@ def main() -> None:
         figures = {
             "takes": args.takes, "frames_per_take": args.frames, "cpu_count": os.cpu_count(),
             "plain_s_per_take": round(base["plain"], 3), "task_s_per_take": round(base["task"], 3),
-            "plain_cpu_s_per_take": round(base["plain_cpu"], 3), "task_cpu_s_per_take": round(base["task_cpu"], 3),
-            "worker_cpu_over_process_cpu": round(one["mean_task_cpu_s"] / base["task_cpu"], 3),
-            "cpu_scaling_2_workers": round(one["mean_task_cpu_s"] / two["mean_task_cpu_s"], 3),
             "cli_s_per_take": round(base["cli"], 3),
             "session_overhead": round(base["task"] / base["plain"] - 1, 3),
             "cli_over_plain": round(base["cli"] / base["plain"], 3),
@@ -200,16 +191,10 @@ def main() -> None:
                   f"({run['seconds_without_start']} s after the cluster started): {run['takes_per_min']} takes/min, "
                   f"{run['frames_per_s']} frames/s; mean task {run['mean_task_s']} s ({run['mean_task_cpu_s']} s CPU); "
                   f"peak worker memory {run['peak_worker_mib']} MiB; {run['compilations']} numba compilations; "
-                  f"costliest task {run['max_task_cpu_s']} s CPU; load average before {run['load_before']}, "
-                  f"after {run['load_after']}")
+                  f"load average before {run['load_before']}")
         print(f"per take, measured in turn: steps in one process {base['plain']:.2f} s, as a batch task without "
               f"Dask {base['task']:.2f} s (session: +{100 * figures['session_overhead']:.1f} %), single-take CLI "
               f"(label, fill, solve) {base['cli']:.2f} s ({figures['cli_over_plain']:.2f}× the steps)")
-        print(f"CPU per take: {base['plain_cpu']:.2f} s in one process ({base['task_cpu']:.2f} s as a task without "
-              "Dask), "
-              f"{one['mean_task_cpu_s']:.2f} s in a worker ({figures['worker_cpu_over_process_cpu']:.2f}x the task "
-              f"in one process), {two['mean_task_cpu_s']:.2f} s with 2 workers (CPU-time scaling "
-              f"{figures['cpu_scaling_2_workers']:.2f}: 1.00 when the two workers do not slow each other)")
         print(f"batch, 1 worker: {per_take:.2f} s per take against {one['mean_task_s']:.2f} s inside the tasks "
               f"(Dask and cluster start: +{100 * figures['dask_overhead']:.1f} %); scaling with 2 workers "
               f"{figures['scaling_2_workers']:.2f}× ({figures['scaling_2_workers_without_start']:.2f}× without the "
