@@ -10,7 +10,9 @@ numba kernels are single-threaded, and one task per process makes a worker's dea
 the scheduler at ``scheduler``, and reports progress as the tasks finish. Tasks return small summaries;
 the driver records failures and skips in the batch state (a task records its own progress).
 
-A worker that dies (killed, out of memory) has its task tried once more on another worker
+The driver releases each task's result once it has read it: a result still held would be computed
+again when the worker keeping it dies, and that second run, cancelled when the batch ends, would leave
+its take half processed. A worker that dies (killed, out of memory) has its task tried once more on another worker
 (:data:`ALLOWED_FAILURES`: the death may be someone else's, e.g. the OS killing the largest process);
 a task that kills two workers fails its take with that reason. ``stop()`` returning True (Ctrl+C in the
 CLI, Cancel in the GUI) cancels what has not finished: finished takes are kept, the others untouched.
@@ -340,7 +342,8 @@ def _drive(client: Any, plan: BatchPlan, progress: BatchProgress, started: float
             finished = {future for future in pending if future.done()}
             pending -= finished
             for future in finished:
-                _finished(plan, progress, futures[future], future)
+                _finished(plan, progress, futures.pop(future), future)
+                future.release()  # else Dask recomputes it when the worker holding its result dies
             _mark_running(client, progress, by_key)
             progress.elapsed = time.perf_counter() - started
             if on_progress is not None:
