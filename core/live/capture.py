@@ -9,7 +9,14 @@ publishes the latest labelled frame for a view (:meth:`LiveCapture.snapshot`, wh
 pace: drawing drops frames, the capture never does). The latency of a frame is measured from the moment its
 packet had been read to the moment it is labelled. When the source fails (the server gone), the capture
 reconnects every second while it runs; the frames the system numbered meanwhile count as dropped. With
-``follow_system`` the recording follows the capture system's own start and stop (QTM's events).
+``follow_system`` the recording follows the capture system's own start and stop (QTM's events); until the
+system starts, the points streamed are shown (a preview snapshot), not recorded.
+
+The capture system's own labels (:attr:`LiveFrame.labels`) are journalled with each frame and kept with the
+take (:class:`core.live.recorder.SystemLabels`: the take's C3D parameter group ``SYSTEM_LABELS`` and a sidecar
+in the session, entered in the take's ``results`` as ``system_labels``); the share the system labelled is in
+the figures (``system_labelled_share``) and the end-of-capture summary, with, where its label names are the
+layout's, how often its labels agree with the live ones (``system_agreement``).
 """
 
 from __future__ import annotations
@@ -25,10 +32,18 @@ from typing import Any
 import numpy as np
 
 from core.errors import InputError
+from core.io import Take
 from core.io.c3d_writer import write_c3d
 from core.labelling.online import LabelledFrame, OnlineLabeller
 from core.labelling.scene import SceneLabelling
-from core.live.recorder import FrameJournal, RecordingError
+from core.live.recorder import (
+    SYSTEM_GROUP,
+    FrameJournal,
+    RecordingError,
+    SystemLabels,
+    system_labels,
+    write_system_labels,
+)
 from core.live.sources import LiveFrame, LiveSource
 from core.live.supervision import ModelStatus, Supervisor
 from core.model.lab_template import LabTemplate
@@ -38,6 +53,8 @@ from core.workflows.labelling import hand_tracks, labelling_report
 
 RECONNECT_SECONDS = 1.0
 RATE_FRAMES = 20
+#: the figures a snapshot carries are computed afresh at most this often (percentiles over the whole capture)
+FIGURES_SECONDS = 0.2
 
 
 @dataclass
@@ -55,13 +72,16 @@ class Snapshot:
     figures: dict[str, Any] = field(default_factory=dict)
     #: (M,) the model (index into ``statuses``) each marker belongs to
     model_of_marker: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
+    #: False for a preview: the points streamed while the recording waits for the system's start
+    recording: bool = True
 
 
 @dataclass
 class CaptureResult:
     """What a finished capture gives: the take file written, the session and take id, the labelling, the
     figures (``frames_received``, ``frames_dropped``, ``latency_ms_p50``/``p99``, ``labelled_share``...),
-    the end-of-capture ``summary`` lines and the ``messages`` (failures, reconnections)."""
+    the end-of-capture ``summary`` lines and the ``messages`` (failures, reconnections); the capture system's
+    own labels (``system``, None when it sent none) and the sidecar they were written to."""
 
     out: Path | None
     session: Path | None
@@ -70,6 +90,8 @@ class CaptureResult:
     figures: dict[str, Any]
     summary: list[str]
     messages: list[str]
+    system: SystemLabels | None = None
+    system_file: Path | None = None
 
 
 class LiveCapture:
@@ -112,17 +134,34 @@ class LiveCapture:
         self._timestamps: list[float] = []
         self.frame_rate: float | None = None
         self.started = time.monotonic()
+        #: the capture system's labels: their names (first seen first), per recorded frame the name index per
+        #: point (None: the frame came without labels), and the points it labelled so far
+        self.system_names: list[str] = []
+        self._system_index: dict[str, int] = {}
+        self._system_codes: list[np.ndarray | None] = []
+        self.system_labelled = 0
+        self.points_received = 0
+        #: the system's state from its events (QTM): True while it captures, None before any event says
+        self.system_capturing: bool | None = None
+        #: True once the recording ended (stopped here, or by the system's stop when following it)
+        self.ended = False
+        self._closed = False
+        self._figures: dict[str, Any] = {}
+        self._figures_at = -1.0
 
     # --- the sink the source calls (its thread) ------------------------------------------------------------
 
     def frame(self, frame: LiveFrame) -> None:
-        self.queue.put(("frame", frame))
+        if not self._closed:
+            self.queue.put(("frame", frame))
 
     def event(self, name: str) -> None:
-        self.queue.put(("event", name))
+        if not self._closed:
+            self.queue.put(("event", name))
 
     def failed(self, message: str) -> None:
-        self.queue.put(("failed", message))
+        if not self._closed:
+            self.queue.put(("failed", message))
 
     # --- running ------------------------------------------------------------------------------------------
 
@@ -178,10 +217,17 @@ class LiveCapture:
 
     def _on_event(self, name: str) -> None:
         self.events.append(name)
-        if self.follow_system and name == "capture started":
+        if name == "capture started":
+            self.system_capturing = True
+        elif name in ("capture stopped", "connected", "connection closed"):
+            self.system_capturing = False
+        if not self.follow_system or self.ended:
+            return
+        if name == "capture started" and not self._stopping.is_set():
             self.recording = True
-        elif self.follow_system and name == "capture stopped":
+        elif name == "capture stopped" and self.recording:
             self.recording = False
+            self.ended = True
             self._stopping.set()
 
     def _take_frame(self, frame: LiveFrame) -> None:
@@ -189,6 +235,8 @@ class LiveCapture:
             self.frames_dropped += frame.number - self._last_number - 1
         self._last_number = frame.number
         if not self.recording:
+            if self.follow_system and not self.ended and not self._stopping.is_set():
+                self._publish_preview(frame.points)
             return
         self.frames_received += 1
         self._timestamps.append(frame.timestamp_s)
@@ -199,9 +247,13 @@ class LiveCapture:
         index = len(self._received)
         self._received.append(frame.received)
         self._points.append(frame.points)
+        codes = self._system_labels_of(frame)
+        self._system_codes.append(codes)
+        self.points_received += len(frame.points)
         if self.journal is not None:
             try:
-                self.journal.add_frame(frame.number, frame.timestamp_s, frame.received, frame.points)
+                self.journal.add_frame(frame.number, frame.timestamp_s, frame.received, frame.points,
+                                       codes, self.system_names)
             except RecordingError as error:
                 self._stop_recording(str(error))
                 return
@@ -219,6 +271,31 @@ class LiveCapture:
         if index == 0 or not labelled:
             self._publish_unlabelled(index, frame.points)
 
+    def _system_labels_of(self, frame: LiveFrame) -> np.ndarray | None:
+        """Per point of ``frame`` the index into :attr:`system_names` of the system's label (-1 none); None when
+        the frame came without labels (or with a label list that does not match its points)."""
+        labels = frame.labels
+        if not labels or len(labels) != len(frame.points):
+            return None
+        codes = np.full(len(labels), -1, dtype=np.int32)
+        for point, label in enumerate(labels):
+            if label:
+                code = self._system_index.get(label)
+                if code is None:
+                    code = self._system_index[label] = len(self.system_names)
+                    self.system_names.append(label)
+                codes[point] = code
+        self.system_labelled += int((codes >= 0).sum())
+        return codes
+
+    def system_labels(self, frames: int | None = None, columns: int | None = None) -> SystemLabels | None:
+        """The capture system's labels of the frames recorded so far (None when it sent none), for the first
+        ``frames`` frames and ``columns`` point slots (the take's) when given."""
+        if not self.system_names:
+            return None
+        points = [len(points) for points in self._points][:frames]
+        return system_labels(self.source.label, self.system_names, self._system_codes, points, columns)
+
     def _open_journal(self) -> None:
         if self.session_folder is None:
             return
@@ -229,7 +306,8 @@ class LiveCapture:
             path = self.session_folder / "live" / f"{self.name}.hmlj"
             self.journal = FrameJournal(self.session_folder, path, {
                 "name": self.name, "frame_rate": self.frame_rate, "source": self.source.kind,
-                "address": self.source.address, "layout": _layout_name(self.layout), "hands": self.hands})
+                "source_label": self.source.label, "address": self.source.address,
+                "layout": _layout_name(self.layout), "hands": self.hands})
         except (InputError, OSError) as error:
             self._stop_recording(f"the recording cannot be journalled: {error}")
 
@@ -252,7 +330,7 @@ class LiveCapture:
                 self._stop_recording(str(error))
         snapshot = Snapshot(result.frame, self._points[result.frame], result.assignment,
                             self.labeller.marker_names, result.states, self.supervisor.status(),
-                            list(self.supervisor.alarms), self.figures(), self._owners)
+                            list(self.supervisor.alarms), self._recent_figures(), self._owners)
         with self._lock:
             self._snapshot = snapshot
 
@@ -268,7 +346,21 @@ class LiveCapture:
             if self._snapshot is None or not self.labeller.started:
                 self._snapshot = Snapshot(index, points, np.empty(0, dtype=np.int64), [], {}, [],
                                           [self.labeller.startup_error] if self.labeller.startup_error else [],
-                                          self.figures())
+                                          self._recent_figures())
+
+    def _publish_preview(self, points: np.ndarray) -> None:
+        snapshot = Snapshot(-1, points, np.empty(0, dtype=np.int64), [], {}, [], [], self._recent_figures(),
+                            recording=False)
+        with self._lock:
+            self._snapshot = snapshot
+
+    def _recent_figures(self) -> dict[str, Any]:
+        """:meth:`figures`, computed afresh at most every :data:`FIGURES_SECONDS` (a snapshot per frame would
+        otherwise sort every latency of the capture at every frame)."""
+        now = time.monotonic()
+        if now - self._figures_at >= FIGURES_SECONDS:
+            self._figures, self._figures_at = self.figures(), now
+        return self._figures
 
     def snapshot(self) -> Snapshot | None:
         """The latest labelled frame (None before the first): what a view draws at its own pace."""
@@ -295,19 +387,28 @@ class LiveCapture:
             "startup_frames": len(startup), "startup_ms": round(float(startup.max()), 1) if len(startup) else None,
             "labelled_share_now": round(float(np.mean(labelled)), 3) if labelled else None,
             "frame_rate_hz": self.frame_rate,
+            "system_labelled_share": round(self.system_labelled / self.points_received, 4)
+            if self.points_received and self.system_names else None,
+            "system_capturing": self.system_capturing,
         }
 
-    def stop(self, out: str | Path | None = None, overwrite: bool = False) -> CaptureResult:
-        """Stop the source, label what is left, and (with ``out``) write the take and enter it in the session."""
+    def stop(self, out: str | Path | None = None, overwrite: bool = False, disconnect: bool = True) -> CaptureResult:
+        """End the recording, label what is left, and (with ``out``) write the take and enter it in the session.
+        ``disconnect=False`` keeps the source connected for capture control (QTM's Save after its Stop): the
+        frames it streams afterwards are ignored; :meth:`close` disconnects."""
         self._stopping.set()
-        self.source.stop()
+        if disconnect:
+            self.close()
         self.queue.put(("stop", None))
         if self._worker is not None:
             self._worker.join()
+        self._closed = True                          # nothing more is queued: later frames are ignored
         while not self.queue.empty():               # frames that arrived after the stop marker
             kind, value = self.queue.get_nowait()
             if kind == "frame":
                 self._take_frame(value)
+        self.recording = False
+        self.ended = True
         if self.journal is not None:
             self.journal.close()
         figures = self.figures()
@@ -325,36 +426,54 @@ class LiveCapture:
             figures["hands"] = {model.name: round(float(labelled[:, model.markers].mean()), 4) for model in hands}
         else:
             figures["labelled_share"] = 0.0
-        take_id = None
-        written = None
-        if out is not None and self.frames_received:
-            written, take_id = self._save(Path(out), labelling, overwrite, messages)
-        return CaptureResult(written, self.session_folder, take_id, labelling, figures, summary, messages)
-
-    def _save(self, out: Path, labelling: SceneLabelling | None, overwrite: bool, messages: list[str]
-              ) -> tuple[Path | None, str | None]:
         take = self.labeller.take(self.frame_rate or 100.0)
+        system = self.system_labels(take.n_frames, take.n_markers)
+        if system is not None:
+            figures["system_labelled_share"] = round(system.labelled_share, 4)
+            figures["system_labels"] = len(system.names)
+            agreement = system_agreement(system, labelling) if labelling is not None else None
+            if agreement is not None:
+                figures["system_agreement"] = agreement
+        take_id = None
+        written = system_file = None
+        if out is not None and self.frames_received:
+            written, take_id, system_file = self._save(take, Path(out), labelling, system, overwrite, messages)
+        if system is not None:
+            kept = (_relative_to(system_file, self.session_folder) if system_file is not None else
+                    f"the journal {self.journal.path}" if self.journal is not None else "nothing: it was not saved")
+            summary.append(_system_summary(system, figures.get("system_agreement"), kept))
+        return CaptureResult(written, self.session_folder, take_id, labelling, figures, summary, messages,
+                             system, system_file)
+
+    def _save(self, take: Take, out: Path, labelling: SceneLabelling | None, system: SystemLabels | None,
+              overwrite: bool, messages: list[str]) -> tuple[Path | None, str | None, Path | None]:
         if out.exists() and not overwrite:
             messages.append(f"{out} exists; the take was not written (the journal keeps the frames)")
-            return None, None
+            return None, None, None
+        system_file = self._save_system_labels(system, out, overwrite, messages) if system is not None else None
+        if system is not None:
+            take.parameters[SYSTEM_GROUP] = system.parameters(str(system_file.absolute()) if system_file else None)
         try:
             write_c3d(take, out)
         except (InputError, OSError) as error:
             messages.append(f"the take could not be written: {error} (the journal keeps the frames)")
-            return None, None
+            return None, None, system_file
         if self.session_folder is None:
-            return out, None
+            return out, None, system_file
         try:
             session = Session.open(self.session_folder) if (self.session_folder / "session.json").exists() \
                 else Session.create(self.session_folder)
         except (InputError, OSError) as error:
             messages.append(f"the take was written but not entered into the session: {error}")
-            return out, None
+            return out, None, system_file
         try:
             sides = [model.kind for model in labelling.models if model.kind in ("right", "left")] \
                 if labelling is not None else []
             entry = session.add_take(out, layout=_layout_name(self.layout), hands=sides or ["right"],
                                      name=self.name, labelled=False, take=take)
+            if system_file is not None:
+                relative = system_file.relative_to(self.session_folder).as_posix()
+                session.update(lambda: session.take(entry.id).results.__setitem__("system_labels", relative))
             if labelling is not None:
                 opened = session.open_take(entry.id)
                 try:
@@ -363,12 +482,34 @@ class LiveCapture:
                 finally:
                     opened.close(save=False)
                 session.set_state(entry.id, "labelled")
-            return out, entry.id
+            return out, entry.id, system_file
         except (InputError, OSError) as error:
             messages.append(f"the take was written but not entered into the session: {error}")
-            return out, None
+            return out, None, system_file
         finally:
             session.close()
+
+    def _save_system_labels(self, system: SystemLabels, out: Path, overwrite: bool, messages: list[str]
+                            ) -> Path | None:
+        """The sidecar of the system's labels: in the session's ``live`` folder beside the journal (beside the
+        take without a session); None, with a message, when it cannot be written."""
+        folder = self.session_folder
+        path = (folder / "live" / f"{self.name}.system-labels.npz") if folder is not None \
+            else out.with_name(f"{out.stem}.system-labels.npz")
+        if path.exists() and not overwrite:
+            messages.append(f"{path} exists; the system's labels were not written beside the take (the journal "
+                            "keeps them)")
+            return None
+        try:
+            write_system_labels(system, path, folder)
+        except (InputError, OSError) as error:
+            messages.append(f"the system's labels could not be written: {error} (the journal keeps them)")
+            return None
+        return path
+
+    def close(self) -> None:
+        """Disconnect from the capture system (idempotent; :meth:`stop` does it unless ``disconnect=False``)."""
+        self.source.stop()
 
 
 def warm_up(layout: str | LabTemplate, hands: str = "auto", frames: int = 80) -> None:
@@ -404,6 +545,41 @@ def live_report(result: CaptureResult) -> dict[str, Any]:
         report["labelling"] = labelling_report(result.labelling, 0.0)
     report["summary"], report["messages"] = result.summary, result.messages
     return report
+
+
+def system_agreement(system: SystemLabels, labelling: SceneLabelling) -> float | None:
+    """Of the points both the system and the live labelling labelled, where the system's label is one of the
+    labelling's marker names: the share given the same name (None when no label name is shared)."""
+    names = list(labelling.marker_names)
+    index = {name: marker for marker, name in enumerate(names)}
+    as_marker = np.array([index.get(name, -1) for name in system.names] + [-1], dtype=np.int64)
+    if not (as_marker >= 0).any():
+        return None
+    frames = min(len(system.codes), len(labelling.assignment))
+    columns = system.codes.shape[1]
+    ours = np.full((frames, columns + 1), -1, dtype=np.int64)
+    assignment = labelling.assignment[:frames]
+    rows, markers = np.nonzero(assignment >= 0)
+    points = np.minimum(assignment[rows, markers], columns)            # a point beyond the table: dropped
+    ours[rows, points] = markers
+    theirs = as_marker[system.codes[:frames]]
+    both = (ours[:, :columns] >= 0) & (theirs >= 0)
+    if not both.any():
+        return None
+    return round(float((ours[:, :columns] == theirs)[both].mean()), 4)
+
+
+def _relative_to(path: Path, folder: Path | None) -> str:
+    return path.relative_to(folder).as_posix() if folder is not None and path.is_relative_to(folder) else str(path)
+
+
+def _system_summary(system: SystemLabels, agreement: float | None, where: str) -> str:
+    """The end-of-capture line on the capture system's own labels (``where``: where they are kept)."""
+    return (f"{system.source or 'the capture system'} labelled {100 * system.labelled_share:.1f} % of the points "
+            f"itself ({len(system.names)} label{'s' if len(system.names) != 1 else ''})"
+            + (f"; its labels agree with the live ones on {100 * agreement:.1f} % of the points both labelled"
+               if agreement is not None else "")
+            + f"; kept per point in {where}")
 
 
 def _rate_from(timestamps: list[float]) -> float | None:

@@ -7,7 +7,10 @@ the address the request came from. NatNet versions 3.0 to 4.x are read; another 
 Points are the frame's labelled-marker list (Motive 2+ streams every reconstructed point there, unlabelled
 ones flagged; a marker of a marker set or rigid body carries its model id), in metres with Y up by
 default; they are turned to mm, Z up: ``(x, y, z) -> 1000 (x, -z, y)`` (as Motive's CSV export is read).
-A frame number is the frame prefix's.
+A frame number is the frame prefix's. A labelled marker's label is its name in Motive's data descriptions
+(asked for on connecting): the frames that arrive before the descriptions are held back (at most
+:data:`DESCRIBE_S` seconds, then labelled ``model:marker``) so that every frame of a recording names the same
+marker alike.
 
 The client's own threads print a traceback and die on a packet they cannot parse, so the client is driven
 synchronously here (``update_sync`` when its socket has data) on a thread of ours that catches such errors:
@@ -36,6 +39,7 @@ from core.live.sources import LiveFrame, LiveSource, Sink, SourceError, SourceKi
 DEFAULT_PORT = 1510
 OLDEST, NEWEST = Version(3, 0), Version(4, 99)
 SILENCE_S = 2.0
+DESCRIBE_S = 1.0
 UNLABELLED_FLAG = 0x10
 RECEIVE_BUFFER = 8 << 20
 
@@ -59,11 +63,15 @@ class NatNetSource(LiveSource):
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
         self._sink: Sink | None = None
+        self._described = False
+        self._held: list[tuple[Any, float]] = []
+        self._asked = 0.0
 
     def start(self, sink: Sink, timeout: float = 5.0) -> None:
         self.stop()
         self._sink = sink
         self._stop.clear()
+        self._described, self._held, self._asked = False, [], time.perf_counter()
         local = "127.0.0.1" if is_loopback(self.host) else "0.0.0.0"
         client = NatNetClient(server_ip_address=self.host, local_ip_address=local, command_port=self.port,
                               data_port=self.port + 1, use_multicast=False)
@@ -92,6 +100,7 @@ class NatNetSource(LiveSource):
                 sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER)
         with contextlib.suppress(OSError):
             client.request_modeldef()
+        self._asked = time.perf_counter()
         self._last = time.perf_counter()
         self._thread = threading.Thread(target=self._run, name="live-natnet", daemon=True)
         self._thread.start()
@@ -119,6 +128,8 @@ class NatNetSource(LiveSource):
             except OSError as error:
                 message = f"the NatNet connection to {self.address} failed: {_reason(error)}"
                 break
+            if not self._described and time.perf_counter() - self._asked > DESCRIBE_S:
+                self._release()                 # no descriptions: the frames held go on, labelled by ids
             if time.perf_counter() - self._last > SILENCE_S:
                 message = f"no frame from the NatNet server at {self.address} for {SILENCE_S:.0f} s: it is gone"
                 break
@@ -132,10 +143,24 @@ class NatNetSource(LiveSource):
             for index, name in enumerate(getattr(marker_set, "marker_names", ()) or ()):
                 names[index + 1] = str(name)
         self.marker_names = names
+        self._release()
+
+    def _release(self) -> None:
+        """Deliver the frames held back until the marker names were known."""
+        self._described = True
+        held, self._held = self._held, []
+        for frame, received in held:
+            self._deliver(frame, received)
 
     def _on_frame(self, frame: DataFrame) -> None:
         received = time.perf_counter()
         self._last = received
+        if not self._described:
+            self._held.append((frame, received))
+            return
+        self._deliver(frame, received)
+
+    def _deliver(self, frame: DataFrame, received: float) -> None:
         markers = frame.labeled_markers or ()
         if markers:
             points = motive_to_lab(np.array([marker.pos for marker in markers], dtype=float).reshape(-1, 3))

@@ -3,8 +3,9 @@
 The source connects to the little-endian port (22223 by default, base port + 1), sets protocol version
 :data:`RT_VERSION`, reads the capture rate and the 3D labels (``GetParameters General 3D``) and streams
 ``3D`` (the markers QTM identified, with their labels) and ``3DNoLabels`` (the unidentified ones) of every
-frame (``StreamFrames AllFrames``). Points are QTM's float32 mm as sent; a labelled marker QTM has not found
-in a frame (NaN) is no point. QTM's events (capture started/stopped...) reach the sink by name.
+frame (``StreamFrames AllFrames``); ``GetState`` first, so that the sink hears whether QTM is capturing already.
+Points are QTM's float32 mm as sent; a labelled marker QTM has not found in a frame (NaN) is no point. QTM's
+events (capture started/stopped...) reach the sink by name.
 
 The SDK parses what it is sent without checks (a packet header declaring fewer than 8 bytes loops for ever),
 so the byte stream is framed and checked here first (:class:`_CheckedProtocol`): garbage or a truncated
@@ -15,6 +16,7 @@ component ends the connection with one line. Capture control (``TakeControl``, `
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import re
 import struct
@@ -182,7 +184,8 @@ class QtmSource(LiveSource):
         except QRTCommandException as error:
             if protocol.transport is not None:
                 protocol.transport.close()
-            answer = _text(error.value)
+            # QTM's own error first: when it closed the connection right after it, the SDK says "Not connected!"
+            answer = protocol.last_error or _text(error.value)
             if "version" not in answer.lower():
                 raise SourceError(f"QTM at {self.address} refused the connection: {answer}") from None
             raise SourceError(f"QTM at {self.address} does not speak RT protocol version {self.version} "
@@ -192,6 +195,8 @@ class QtmSource(LiveSource):
         try:
             parameters = await connection.get_parameters(parameters=["general", "3d"])
             self.frame_rate, self.labels = _parse_parameters(parameters)
+            with contextlib.suppress(QRTCommandException, TimeoutError):
+                await asyncio.wait_for(connection.get_state(), timeout)   # its event says whether QTM captures
             await connection.stream_frames(frames="allframes", components=["3d", "3dnolabels"],
                                            on_packet=self._on_packet)
         except QRTCommandException as error:

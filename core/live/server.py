@@ -96,6 +96,10 @@ class StandInServer:
         self.capturing = False
         self.master: object | None = None
         self.saved: list[str] = []
+        #: every QTM command received, as sent (what a test or a rehearsal checks the clients asked for), and
+        #: every event sent with the number of the last frame sent before it (frames and events share a stream)
+        self.commands: list[str] = []
+        self.events: list[tuple[str, int]] = []
         self._clients: list[_QtmClient] = []
         self._natnet_clients: dict[tuple[str, int], float] = {}
         self._transport: asyncio.DatagramTransport | None = None
@@ -221,6 +225,7 @@ class StandInServer:
             writer.close()
 
     def _qtm_command(self, client: _QtmClient, text: str) -> None:
+        self.commands.append(text)
         words = text.split()
         command = words[0].lower() if words else ""
         rest = words[1:]
@@ -294,6 +299,7 @@ class StandInServer:
             self._broadcast("connection closed")
 
     def _broadcast(self, event: str) -> None:
+        self.events.append((event, self.frame_number))
         for other in self._clients:
             other.event(event)
 

@@ -8,6 +8,7 @@ import errno
 import json
 import os
 import socket
+import struct
 import subprocess
 import sys
 import time
@@ -22,7 +23,7 @@ from core.labelling.online import OnlineLabeller
 from core.labelling.scene import label_scene
 from core.live import recorder
 from core.live.capture import LiveCapture
-from core.live.recorder import FrameJournal, read_journal
+from core.live.recorder import FrameJournal, read_journal, read_system_labels
 from core.live.server import StandInServer, make_replay
 from core.live.sources import SourceError, parse_address
 from core.live.supervision import Supervisor
@@ -120,6 +121,110 @@ def test_capture_records_labels_and_enters_the_session(take, tmp_path):
     assert ((live == other) & either).sum() / either.sum() > 0.95
 
 
+@pytest.fixture(scope="module")
+def labelled_take():
+    """A take whose markers carry their layout names: the stand-in sends them as the system's labels."""
+    return simulate_take("glove-13", n_frames=300, seed=6, noise_mm=0.3, ghost_rate=0.05, occlusion=True).take
+
+
+@pytest.mark.parametrize("protocol", ["qtm", "natnet"])
+def test_the_systems_labels_are_kept_with_the_take(labelled_take, tmp_path, protocol):
+    take = labelled_take
+    replay = make_replay(take, 100)
+    assert replay.labels and len(replay.labels) < take.n_markers        # labelled markers and ghosts
+    server = StandInServer(replay, protocol, 0, loop_take=False).start()
+    capture = LiveCapture(make_source(protocol, f"127.0.0.1:{server.port}"), "glove-13", "auto",
+                          session=tmp_path / "session", name="sys", background_calibration=False)
+    try:
+        capture.start()
+        assert wait_for(lambda: capture.frames_received >= take.n_frames, 10.0)
+    finally:
+        result = capture.stop(tmp_path / "sys.c3d")
+        server.stop()
+    labelled = sum(int(np.isfinite(frame).all(axis=1).sum()) for frame in replay.labelled)
+    others = sum(len(frame) for frame in replay.unlabelled)
+    figures = result.figures
+    assert figures["frames_received"] == take.n_frames
+    assert figures["system_labelled_share"] == pytest.approx(labelled / (labelled + others), abs=1e-4)
+    assert figures["system_labels"] == len(replay.labels)
+    assert figures["system_agreement"] > 0.95            # the live labels name the points as the system did
+    line = [line for line in result.summary if "of the points itself" in line]
+    assert len(line) == 1 and "live/sys.system-labels.npz" in line[0] and "\n" not in line[0]
+    # per point: the label the system gave each recorded point names the take's marker at those coordinates
+    recorded = load_take(tmp_path / "sys.c3d")
+    system = read_system_labels(result.system_file)
+    assert sorted(system.names) == sorted(replay.labels)
+    assert system.codes.shape == (recorded.n_frames, recorded.n_markers)
+    checked = 0
+    for frame in range(0, take.n_frames, 7):
+        for point, label in enumerate(system.labels_of(frame)):
+            got = recorded.marker_positions[frame, point]
+            if label:
+                expected = take.marker_positions[frame, take.marker_names.index(label)]
+                assert np.abs(got - expected).max() < 1e-3
+                checked += 1
+            else:
+                assert np.isfinite(got).all()                 # an unlabelled point the system sent
+    assert checked > 400                                      # 43 frames of 13 markers, some occluded
+    # the raw points are unchanged: every frame holds the take's points
+    for frame in (0, 150, 299):
+        got = recorded.marker_positions[frame]
+        expected = take.marker_positions[frame]
+        assert np.allclose(np.sort(got[np.isfinite(got).all(axis=1)], axis=0),
+                           np.sort(expected[np.isfinite(expected).all(axis=1)], axis=0), atol=1e-3)
+    # the take's metadata says the system's labels exist and where they are
+    group = recorded.parameters["SYSTEM_LABELS"]
+    assert sorted(group["NAMES"]) == sorted(replay.labels)
+    assert float(group["SHARE"]) == pytest.approx(figures["system_labelled_share"], abs=1e-4)
+    assert Path(str(group["FILE"])) == result.system_file.absolute()
+    session = Session.open(tmp_path / "session")
+    try:
+        assert session.take(result.take_id).results["system_labels"] == "live/sys.system-labels.npz"
+    finally:
+        session.close()
+    # the journal holds them too (a recording recovered after a crash keeps them)
+    journal = read_journal(tmp_path / "session" / "live" / "sys.hmlj")
+    assert np.array_equal(journal.system().codes, system.codes) and journal.system_names == system.names
+    assert sorted(journal.take().parameters["SYSTEM_LABELS"]["NAMES"]) == sorted(replay.labels)
+
+
+def test_a_stream_without_the_systems_labels_says_nothing_of_them(take, tmp_path):
+    server = StandInServer(make_replay(take, 100, unlabelled=True), "qtm", 0, loop_take=False).start()
+    capture = LiveCapture(make_source("qtm", f"127.0.0.1:{server.port}"), "glove-13", "auto",
+                          session=tmp_path / "session", name="plain", background_calibration=False)
+    try:
+        capture.start()
+        assert wait_for(lambda: capture.frames_received >= 200, 10.0)
+    finally:
+        result = capture.stop(tmp_path / "plain.c3d")
+        server.stop()
+    assert result.system is None and result.figures["system_labelled_share"] is None
+    assert "SYSTEM_LABELS" not in load_take(tmp_path / "plain.c3d").parameters
+    assert not (tmp_path / "session" / "live" / "plain.system-labels.npz").exists()
+
+
+def test_journal_keeps_the_systems_labels(tmp_path):
+    journal = FrameJournal(tmp_path, tmp_path / "live" / "j.hmlj", {"frame_rate": 100, "source_label": "QTM"})
+    journal.add_frame(1, 0.0, 0.0, np.zeros((3, 3)), np.array([0, -1, 1]), ["a", "b"])
+    journal.add_frame(2, 0.01, 0.0, np.ones((2, 3)))                        # a frame without labels
+    journal.add_frame(3, 0.02, 0.0, np.ones((4, 3)), np.array([2, 0, -1, -1]), ["a", "b", "ring tip"])
+    journal.close()
+    read = read_journal(tmp_path / "live" / "j.hmlj")
+    assert read.system_names == ["a", "b", "ring tip"] and len(read.points) == 3
+    system = read.system()
+    assert system.labels_of(0) == ["a", "", "b"] and system.labels_of(1) == ["", ""]
+    assert system.labels_of(2) == ["ring tip", "a", "", ""]
+    assert system.labelled_share == pytest.approx(4 / 9)
+    assert list(system.seen_share()) == pytest.approx([2 / 3, 1 / 3, 1 / 3])
+    with open(tmp_path / "live" / "j.hmlj", "ab") as handle:     # a label index never introduced: the end
+        handle.write(struct.pack("<4sqqddI", b"FRM1", 3, 4, 0.03, 0.0, 0))
+        handle.write(struct.pack("<4sqIi", b"SYS1", 3, 1, 7))
+    damaged = read_journal(tmp_path / "live" / "j.hmlj")
+    assert len(damaged.points) == 4 and len(damaged.system_labels) == 2
+    with pytest.raises(InputError, match="not a file of a capture system's labels"):
+        read_system_labels(tmp_path / "live" / "j.hmlj")
+
+
 def test_online_labeller_matches_the_online_mode(take):
     offline = label_scene(take, hands="auto", layout="glove-13", online=True)
     labeller = OnlineLabeller("glove-13", "auto", background_calibration=False)
@@ -174,6 +279,21 @@ def test_recording_follows_qtm_start_and_stop(take, tmp_path):
         result = capture.stop(tmp_path / "followed.c3d")
         server.stop()
     assert 60 <= result.figures["frames_received"] <= 140
+
+
+def test_recording_follows_a_qtm_capture_already_running(take, tmp_path):
+    server = StandInServer(make_replay(take, 100, unlabelled=True), "qtm", 0).start()
+    server.capturing = True                     # QTM captures before we connect: GetState says so
+    capture = LiveCapture(make_source("qtm", f"127.0.0.1:{server.port}"), "glove-13", "right",
+                          session=tmp_path / "s", follow_system=True)
+    try:
+        capture.start()
+        assert wait_for(lambda: capture.frames_received > 20)
+        assert capture.system_capturing is True
+    finally:
+        capture.stop()
+        server.stop()
+    assert "getstate" in [command.lower() for command in server.commands]
 
 
 def free_port() -> int:
@@ -268,7 +388,9 @@ def test_a_full_disk_stops_the_recording_and_keeps_what_was_written(take, tmp_pa
         server.stop()
     assert capture.recording_error.startswith("the disk is full: the recording stopped after")
     journal = read_journal(tmp_path / "s" / "live" / "live.hmlj")
-    assert 50 < len(journal.points) == result.figures["frames_received"] - 1
+    # every frame received is in the journal but the one whose write failed (none when a labels write failed)
+    received = result.figures["frames_received"]
+    assert len(journal.points) > 50 and received - 1 <= len(journal.points) <= received
     assert journal.take().n_frames == len(journal.points)
 
 
