@@ -58,6 +58,81 @@ def test_live_window_draws_at_its_own_pace(qtbot, tmp_path):
         server.stop()
 
 
+def test_qtm_control_buttons_drive_the_server_and_the_recording_follows(qtbot, tmp_path, monkeypatch):
+    """The window's QTM buttons against the stand-in QTM on 127.0.0.1 (a free port): the server sees each
+    command, our recording starts with QTM's capture and ends with its stop (the take then enters the session),
+    and QTM can still save its measurement afterwards. A refused command is one line."""
+    from PySide6.QtCore import Qt
+    from PySide6.QtWidgets import QMessageBox
+
+    from app.gui.live_window import LiveWindow
+    from core.live.capture import LiveCapture
+    from core.live.server import StandInServer, make_replay
+    from core.live.systems import make_source
+    from core.session.session import Session
+    from core.simulate.take import simulate_take
+
+    refusals: list[str] = []
+    monkeypatch.setattr(QMessageBox, "warning", lambda _parent, _title, text: refusals.append(text))
+    take = simulate_take("glove-13", n_frames=1500, seed=7, noise_mm=0.3, frame_rate=100.0).take   # labelled
+    server = StandInServer(make_replay(take, 100), "qtm", 0, password="pw").start()
+    capture = LiveCapture(make_source("qtm", f"127.0.0.1:{server.port}"), "glove-13", "right",
+                          session=tmp_path / "session", name="followed", follow_system=True)
+    capture.start()
+    window = LiveWindow(capture, tmp_path / "session", "followed", password="pw")
+    qtbot.addWidget(window)
+    window.show()
+    buttons = window.control_buttons
+
+    def click(command: str) -> None:
+        qtbot.mouseClick(buttons[command], Qt.MouseButton.LeftButton)
+
+    try:
+        assert set(buttons) == {"takecontrol", "new", "start", "stop", "save"}
+        qtbot.waitUntil(lambda: window.drawn > 0, timeout=10000)         # the points streamed, shown
+        assert "waiting for Qualisys QTM to start a capture" in window.status.text()
+        assert capture.frames_received == 0                              # ... not recorded
+        click("start")                                                    # without control: refused in a line
+        assert len(refusals) == 1 and "\n" not in refusals[0] and "take control" in refusals[0]
+        assert not server.capturing
+        click("takecontrol")
+        assert server.master is not None and window.answers[-1] == "You are now master"
+        click("new")
+        click("start")
+        assert server.capturing
+        qtbot.waitUntil(lambda: capture.frames_received > 0, timeout=5000)
+        qtbot.waitUntil(lambda: capture.labeller.started, timeout=30000)
+        qtbot.wait(500)
+        click("stop")
+        assert not server.capturing
+        qtbot.waitUntil(lambda: window.result is not None, timeout=30000)   # the take written on QTM's stop
+        result = window.result
+        # exactly the frames QTM sent between its start and stop events (one stream carries both)
+        events = dict(server.events)
+        assert result.figures["frames_received"] == events["capture stopped"] - events["capture started"] > 50
+        assert result.figures["frames_dropped"] == 0
+        assert result.out is not None and result.out.exists() and result.take_id
+        assert result.figures["system_labelled_share"] > 0.5               # QTM's own labels came with them
+        assert any("of the points itself" in line for line in result.summary)
+        received = capture.frames_received
+        window.save_name.setText("S01 trial 3")
+        click("save")                                                     # QTM still answers after our stop
+        assert server.saved == ["S01 trial 3"] and window.answers[-1] == "Measurement saved"
+        qtbot.wait(300)
+        assert capture.frames_received == received                        # nothing recorded after QTM's stop
+        sent = [command.lower() for command in server.commands]
+        for expected in ("takecontrol pw", "new", "start", "stop", "save s01 trial 3"):
+            assert any(command.startswith(expected) for command in sent), (expected, sent)
+        session = Session.open(tmp_path / "session")
+        try:
+            assert session.take(result.take_id).state == "labelled"
+        finally:
+            session.close()
+    finally:
+        window.close()
+        server.stop()
+
+
 def main(out: str) -> int:
     import tempfile
 
