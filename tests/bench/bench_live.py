@@ -7,6 +7,13 @@ checked against it.
 
     python tests/bench/bench_live.py [--seconds 30] [--only one_hand_100|scene_200|real_100] [--protocol qtm]
 
+The ``window`` case (run it under a display: ``xvfb-run -a -s "-screen 0 1600x1000x24" python
+tests/bench/bench_live.py --only window``) measures the live window instead: the stand-in streams one hand at
+100 Hz from its own process (the second core) while this process (pinned to the first core unless
+``--no-pin``) captures, labels and shows it in :class:`app.gui.live_window.LiveWindow`; it reports the drawn
+frames per second, the time a draw takes, and whether the stream was held up (frames dropped, latency).
+It runs only with ``--only window`` (it needs a display).
+
 Bounded: each case streams ``--seconds`` seconds (30 by default) and everything stops by itself.
 """
 
@@ -120,13 +127,122 @@ def real_truth(out: Path, session: Path, take_id: str) -> dict:
             "hand_wrong_share": round(wrong / total, 4), "hand_missed_share": round(missed / total, 4)}
 
 
+def load() -> str:
+    return " ".join(f"{value:.2f}" for value in os.getloadavg())
+
+
+def window_case(seconds: float, protocol: str, pin: bool) -> dict:
+    """The live window's drawn frames per second while the stand-in streams one hand at 100 Hz (module
+    docstring); the figures and the load average before and after."""
+    from PySide6.QtWidgets import QApplication
+
+    from app.gui.live_window import DRAW_HZ, LiveWindow
+    from core.io import save_take
+    from core.live.capture import LiveCapture
+    from core.live.systems import make_source
+    from core.simulate.take import simulate_take
+
+    if pin and hasattr(os, "sched_setaffinity") and (os.cpu_count() or 1) > 1:
+        os.sched_setaffinity(0, {0})
+    app = QApplication.instance() or QApplication(sys.argv)
+    figures: dict = {"load_before": load(), "pinned": pin, "draw_hz_timer": DRAW_HZ}
+    with tempfile.TemporaryDirectory(prefix="bench-live-window-") as tmp:
+        folder = Path(tmp)
+        take = simulate_take("glove-13", n_frames=int((seconds + 40) * 100), seed=11, noise_mm=0.3, ghost_rate=0.05,
+                             occlusion=True, unlabelled=True, frame_rate=100.0).take
+        save_take(take, folder / "one_hand.c3d")
+        port = free_port()
+        serve = subprocess.Popen(pinned(1) + CLI + ["live", "serve", str(folder / "one_hand.c3d"), "--protocol",
+                                                     protocol, "--port", str(port), "--rate", "100", "--unlabelled",
+                                                     "--seconds", str(seconds + 60)],
+                                 stderr=subprocess.PIPE, text=True, cwd=ROOT)
+        serve.stderr.readline()
+        capture = LiveCapture(make_source(protocol, f"127.0.0.1:{port}"), "glove-13", "auto",
+                              session=folder / "session", name="window")
+        window = None
+        try:
+            capture.start()
+            window = LiveWindow(capture, folder / "session", "window")
+            draw_times: list[float] = []       # the window's handling of a new frame (the 3D scene and the panel)
+            render_times: list[float] = []     # the VTK renders (in the view's paint)
+            draw = window.draw_latest
+
+            def timed() -> None:
+                started = time.perf_counter()
+                before = window._last_snapshot
+                draw()
+                if window._last_snapshot is not before:
+                    draw_times.append(time.perf_counter() - started)
+
+            render_started = [0.0]
+            render_window = window.view.GetRenderWindow()
+            render_window.AddObserver("StartEvent", lambda *_: render_started.__setitem__(0, time.perf_counter()))
+            render_window.AddObserver("EndEvent", lambda *_: render_times.append(time.perf_counter()
+                                                                                 - render_started[0]))
+            window.timer.timeout.disconnect()
+            window.timer.timeout.connect(timed)
+            window.show()
+            end = time.monotonic() + 30.0
+            while not capture.labeller.started and time.monotonic() < end:      # the start-up window first
+                app.processEvents()
+                time.sleep(0.005)
+            drawn, received, draws, renders = window.drawn, capture.frames_received, len(draw_times), len(render_times)
+            started = time.monotonic()
+            cpu = time.process_time()
+            while time.monotonic() - started < seconds:
+                app.processEvents()
+                time.sleep(0.002)
+            elapsed = time.monotonic() - started
+            times = np.array(draw_times[draws:]) * 1000.0
+            rendering = np.array(render_times[renders:]) * 1000.0
+            live = capture.figures()
+            figures |= {
+                "seconds": round(elapsed, 1),
+                "drawn_per_s": round((window.drawn - drawn) / elapsed, 1),
+                "received_per_s": round((capture.frames_received - received) / elapsed, 1),
+                "draw_ms_p50": round(float(np.percentile(times, 50)), 1) if len(times) else None,
+                "draw_ms_p99": round(float(np.percentile(times, 99)), 1) if len(times) else None,
+                "render_ms_p50": round(float(np.percentile(rendering, 50)), 1) if len(rendering) else None,
+                "render_ms_p99": round(float(np.percentile(rendering, 99)), 1) if len(rendering) else None,
+                "cpu_share_of_a_core": round((time.process_time() - cpu) / elapsed, 2),
+                "frames_dropped": live["frames_dropped"], "latency_ms_p50": live["latency_ms_p50"],
+                "latency_ms_p99": live["latency_ms_p99"], "latency_ms_max": live["latency_ms_max"],
+                "load_after": load(),
+            }
+        finally:
+            if window is not None:
+                window.stop()                        # the take written and entered as the operator's Stop does
+                end = time.monotonic() + 120.0
+                while window.result is None and time.monotonic() < end:
+                    app.processEvents()
+                    time.sleep(0.01)
+                window.close()
+            else:
+                capture.stop()
+            serve.terminate()
+            serve.wait(10)
+        if window is not None and window.result is not None:
+            figures["frames_received"] = window.result.figures["frames_received"]
+            figures["frames_dropped_total"] = window.result.figures["frames_dropped"]
+    return figures
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=30.0)
-    parser.add_argument("--only", choices=("one_hand_100", "scene_200", "real_100"))
+    parser.add_argument("--only", choices=("one_hand_100", "scene_200", "real_100", "window"))
     parser.add_argument("--protocol", choices=("qtm", "natnet"), default=None, help="default: both")
+    parser.add_argument("--no-pin", action="store_true", help="window: do not pin this process to the first core")
     args = parser.parse_args()
     sys.path.insert(0, str(ROOT))
+    if args.only == "window":
+        protocols = [args.protocol] if args.protocol else ["qtm", "natnet"]
+        results = {f"window_{protocol}": window_case(args.seconds, protocol, not args.no_pin)
+                   for protocol in protocols}
+        for name, figures in results.items():
+            print(f"{name}: " + json.dumps(figures), flush=True)
+        print(json.dumps(results))
+        return 0
     from core.io import save_take
     from core.model.objects import save_scene_spec
     from core.simulate.scene import simulate_scene
