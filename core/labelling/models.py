@@ -17,47 +17,11 @@ import numpy as np
 from numba import njit
 
 from core.ik import IKSettings, IKSolver
+from core.ik.horn import horn_rotation
 from core.ik.solver import LOST_TRACK_MM
 from core.labelling.take_statistics import SECOND_DIFFERENCE_VARIANCE, TakeStatistics
 from core.model import N_PARAMS, HandModel, MarkerSet, marker_positions
 from core.model.objects import ObjectSpec
-
-
-@njit(cache=True)
-def _largest_eigenvector(matrix: np.ndarray) -> np.ndarray:
-    """Unit eigenvector of the largest eigenvalue of a small symmetric matrix (cyclic Jacobi sweeps)."""
-    size = matrix.shape[0]
-    a = matrix.copy()
-    vectors = np.eye(size)
-    for _sweep in range(30):
-        off = 0.0
-        for p in range(size):
-            for q in range(p + 1, size):
-                off += a[p, q] * a[p, q]
-        if off < 1e-22 * max(1e-300, (a * a).sum()):
-            break
-        for p in range(size):
-            for q in range(p + 1, size):
-                if abs(a[p, q]) < 1e-300:
-                    continue
-                tau = (a[q, q] - a[p, p]) / (2.0 * a[p, q])
-                t = (1.0 if tau >= 0.0 else -1.0) / (abs(tau) + np.sqrt(1.0 + tau * tau))
-                c = 1.0 / np.sqrt(1.0 + t * t)
-                s = t * c
-                for k in range(size):
-                    akp, akq = a[k, p], a[k, q]
-                    a[k, p], a[k, q] = c * akp - s * akq, s * akp + c * akq
-                for k in range(size):
-                    apk, aqk = a[p, k], a[q, k]
-                    a[p, k], a[q, k] = c * apk - s * aqk, s * apk + c * aqk
-                for k in range(size):
-                    vkp, vkq = vectors[k, p], vectors[k, q]
-                    vectors[k, p], vectors[k, q] = c * vkp - s * vkq, s * vkp + c * vkq
-    best = 0
-    for k in range(1, size):
-        if a[k, k] > a[best, best]:
-            best = k
-    return vectors[:, best]
 
 
 @njit(cache=True)
@@ -77,22 +41,8 @@ def kabsch_kernel(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, n
         for r in range(3):
             for c in range(3):
                 m[r, c] += (source[i, r] - source_centre[r]) * (target[i, c] - target_centre[c])
-    n = np.empty((4, 4))
-    n[0, 0] = m[0, 0] + m[1, 1] + m[2, 2]
-    n[0, 1] = n[1, 0] = m[1, 2] - m[2, 1]
-    n[0, 2] = n[2, 0] = m[2, 0] - m[0, 2]
-    n[0, 3] = n[3, 0] = m[0, 1] - m[1, 0]
-    n[1, 1] = m[0, 0] - m[1, 1] - m[2, 2]
-    n[1, 2] = n[2, 1] = m[0, 1] + m[1, 0]
-    n[1, 3] = n[3, 1] = m[2, 0] + m[0, 2]
-    n[2, 2] = -m[0, 0] + m[1, 1] - m[2, 2]
-    n[2, 3] = n[3, 2] = m[1, 2] + m[2, 1]
-    n[3, 3] = -m[0, 0] - m[1, 1] + m[2, 2]
-    w, x, y, z = _largest_eigenvector(n)
-    rotation = np.array([
-        [w * w + x * x - y * y - z * z, 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)],
-        [2.0 * (x * y + w * z), w * w - x * x + y * y - z * z, 2.0 * (y * z - w * x)],
-        [2.0 * (x * z - w * y), 2.0 * (y * z + w * x), w * w - x * x - y * y + z * z]])
+    rotation = np.empty((3, 3))
+    horn_rotation(m, rotation)
     return rotation, target_centre - rotation @ source_centre
 
 
