@@ -706,7 +706,10 @@ class HandViewport(QWidget):
         """Redraw with the next paint of the window: many requests before it, one render of the latest data
         (fast scrubbing skips frames), without anti-aliasing; anti-aliased once nothing changed for
         :data:`IDLE_MS`. The paint is Qt's, so the view and the widgets that changed with it are composed
-        on screen together (a timer of its own would make Qt compose the window once more)."""
+        on screen together (a timer of its own would make Qt compose the window once more). Nothing once
+        the view is closed (a job that ends after the window closed still announces its result)."""
+        if self._plotter.GetRenderWindow() is None:
+            return
         self._set_multi_samples(0)
         self._paint()
         self._idle_timer.start()
@@ -716,6 +719,8 @@ class HandViewport(QWidget):
         return self._plotter.GetRenderWindow().GetMultiSamples() > 0
 
     def _draw_still(self) -> None:
+        if self._plotter.GetRenderWindow() is None:
+            return
         self._set_multi_samples(MULTI_SAMPLES)
         self._paint()
 
