@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from app.cli.main import system_labels_info
 from core.errors import InputError
 from core.io import load_take
 from core.labelling.online import OnlineLabeller
@@ -186,6 +187,12 @@ def test_the_systems_labels_are_kept_with_the_take(labelled_take, tmp_path, prot
     journal = read_journal(tmp_path / "session" / "live" / "sys.hmlj")
     assert np.array_equal(journal.system().codes, system.codes) and journal.system_names == system.names
     assert sorted(journal.take().parameters["SYSTEM_LABELS"]["NAMES"]) == sorted(replay.labels)
+    # handmocap info says so
+    info = system_labels_info(recorded.parameters["SYSTEM_LABELS"])
+    assert info == {"source": info["source"], "labels": len(replay.labels),
+                    "labelled_share": pytest.approx(figures["system_labelled_share"], abs=1e-4),
+                    "file": str(result.system_file.absolute())}
+    assert system_labels_info({"SHARE": "x", "COUNT": [1]}) is None and system_labels_info(None) is None
 
 
 def test_a_stream_without_the_systems_labels_says_nothing_of_them(take, tmp_path):
