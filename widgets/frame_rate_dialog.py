@@ -8,7 +8,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from PySide6.QtWidgets import QDialog, QDialogButtonBox, QDoubleSpinBox, QFormLayout, QLabel, QVBoxLayout, QWidget
+from PySide6.QtWidgets import QDialog, QDoubleSpinBox, QFormLayout, QLabel, QVBoxLayout, QWidget
+
+from widgets.dialog_buttons import ok_cancel_buttons
 
 #: the rate offered before any was given (Hz)
 DEFAULT_FRAME_RATE_HZ = 100.0
@@ -33,15 +35,10 @@ class FrameRateDialog(QDialog):
         self.rate_box.setToolTip("Frames per second of the take (the capture system's rate, e.g. 120 Hz)")
         form = QFormLayout()
         form.addRow("Frame rate", self.rate_box)
-        buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok | QDialogButtonBox.StandardButton.Cancel, self)
-        buttons.button(QDialogButtonBox.StandardButton.Ok).setText("Open")
-        buttons.button(QDialogButtonBox.StandardButton.Cancel).setText("Skip this file")
-        buttons.accepted.connect(self.accept)
-        buttons.rejected.connect(self.reject)
         layout = QVBoxLayout(self)
         layout.addWidget(message)
         layout.addLayout(form)
-        layout.addWidget(buttons)
+        layout.addWidget(ok_cancel_buttons(self, "Open", "Skip this file"))
         self.rate_box.selectAll()
         self.rate_box.setFocus()
 

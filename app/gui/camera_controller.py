@@ -23,7 +23,6 @@ import numpy as np
 from PySide6.QtCore import QObject, QTimer, Signal
 from PySide6.QtWidgets import (
     QDialog,
-    QDialogButtonBox,
     QDoubleSpinBox,
     QFileDialog,
     QFormLayout,
@@ -53,6 +52,7 @@ from core.review.events import ReviewChanged
 from core.session import Session
 from core.session.cameras import TakeCamera, add_camera, save_take_camera, take_cameras
 from widgets.camera_view import CameraView
+from widgets.dialog_buttons import ok_cancel_buttons
 from widgets.viewport import HandViewport
 
 RAW_COLOUR = (0.55, 0.80, 1.00)          # points of a take without labels (the 3D view's marker colour)
@@ -116,10 +116,7 @@ class AddCameraDialog(QDialog):
         form.addRow("Depth unit", self.unit_box)
         form.addRow("Camera file", self._row(self.camera_edit, [
             ("Browse…", lambda: self._file(self.camera_edit, "Cameras (*.json *.yaml *.yml *.xml)"))]))
-        buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok | QDialogButtonBox.StandardButton.Cancel)
-        buttons.accepted.connect(self.accept)
-        buttons.rejected.connect(self.reject)
-        form.addRow(buttons)
+        form.addRow(ok_cancel_buttons(self))
 
     def _row(self, edit: QLineEdit, buttons: list) -> QWidget:
         row = QWidget(self)

@@ -30,7 +30,6 @@ from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
     QDialog,
-    QDialogButtonBox,
     QFileDialog,
     QFormLayout,
     QHBoxLayout,
@@ -50,6 +49,7 @@ from PySide6.QtWidgets import (
 from pyvistaqt import QtInteractor
 
 from core.errors import InputError
+from widgets.dialog_buttons import ok_cancel_buttons
 
 DRAW_HZ = 30
 PANEL_HZ = 5
@@ -98,11 +98,7 @@ class ConnectDialog(QDialog):
         form.addRow("Take name", self.name)
         form.addRow("QTM", self.follow)
         form.addRow("QTM password", self.password)
-        buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok | QDialogButtonBox.StandardButton.Cancel, self)
-        buttons.button(QDialogButtonBox.StandardButton.Ok).setText("Connect")
-        buttons.accepted.connect(self.accept)
-        buttons.rejected.connect(self.reject)
-        form.addRow(buttons)
+        form.addRow(ok_cancel_buttons(self, "Connect"))
 
     def _default_address(self) -> None:
         qtm = self.system.currentData() == "qtm"

@@ -25,7 +25,6 @@ from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
     QDialog,
-    QDialogButtonBox,
     QFileDialog,
     QFormLayout,
     QHBoxLayout,
@@ -91,6 +90,7 @@ from core.workflows import (
     run_resolve_jobs,
     short_open_gaps,
 )
+from widgets.dialog_buttons import ok_cancel_buttons
 from widgets.fill_preview import FillPreview
 from widgets.gap_list import GapList, GapRow
 from widgets.label_picker import LabelPicker
@@ -164,11 +164,7 @@ class EventDialog(QDialog):
         form.addRow(QLabel(f"At frame {frame_number}"))
         form.addRow("Name", self.name_box)
         form.addRow("Side", self.context_box)
-        buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok | QDialogButtonBox.StandardButton.Cancel, self)
-        buttons.button(QDialogButtonBox.StandardButton.Ok).setText("Add event")
-        buttons.accepted.connect(self.accept)
-        buttons.rejected.connect(self.reject)
-        form.addRow(buttons)
+        form.addRow(ok_cancel_buttons(self, "Add event"))
 
     def chosen(self) -> tuple[str, str]:
         """The name and the context given."""
@@ -209,11 +205,7 @@ class AutoLabelDialog(QDialog):
         form.addRow("Rigid objects", objects)
         form.addRow("", self.online_box)
         form.addRow("", self.relabel_box)
-        buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok | QDialogButtonBox.StandardButton.Cancel, self)
-        buttons.button(QDialogButtonBox.StandardButton.Ok).setText("Auto-label")
-        buttons.accepted.connect(self.accept)
-        buttons.rejected.connect(self.reject)
-        form.addRow(buttons)
+        form.addRow(ok_cancel_buttons(self, "Auto-label"))
 
     def _browse(self) -> None:
         path, _ = QFileDialog.getOpenFileName(self, "Scene objects", "", "Scene spec (*.json);;All files (*)")
