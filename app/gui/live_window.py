@@ -164,18 +164,21 @@ class LiveWindow(QMainWindow):
         buttons = QHBoxLayout()
         self.control_buttons: dict[str, QPushButton] = {}
         self.save_name: QLineEdit | None = None
-        if capture.source.kind == "qtm":
-            control = QHBoxLayout()
+        if capture.source.kind == "qtm":   # QTM's capture: its buttons on one row, Save as and its name below
+            column.addWidget(QLabel("QTM capture", panel))
+            control, saving = QHBoxLayout(), QHBoxLayout()
             for text, command in (("Take control", "takecontrol"), ("New", "new"), ("Start", "start"),
                                   ("Stop", "stop"), ("Save as", "save")):
-                button = QPushButton(f"QTM: {text}", panel)
+                button = QPushButton(text, panel)
+                button.setToolTip(f"QTM: {text.lower()}")
                 button.clicked.connect(lambda _checked=False, command=command: self._control(command))
-                control.addWidget(button)
+                (saving if command == "save" else control).addWidget(button)
                 self.control_buttons[command] = button
             self.save_name = QLineEdit(name, panel)
             self.save_name.setToolTip("the name QTM saves its measurement under")
-            control.addWidget(self.save_name, 1)
+            saving.addWidget(self.save_name, 1)
             column.addLayout(control)
+            column.addLayout(saving)
         self.stop_button = QPushButton("Stop and save the take", panel)
         self.stop_button.clicked.connect(self.stop)
         buttons.addWidget(self.stop_button)
