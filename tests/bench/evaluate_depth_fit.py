@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 
 from core.evaluation.data import RGBD_FRAMES
+from core.evaluation.depth_distractors import body_nearer, chair_nearer
 from core.fusion.depth_fit import DepthFitter
 from core.fusion.depth_overlay import draw_depth_fit
 from core.fusion.depth_track import parse_intrinsics, read_depth_image
@@ -23,18 +24,7 @@ INTRINSICS = "476.007,476.007,313.683,242.755"
 
 
 def _nearer_body(depth: np.ndarray) -> np.ndarray:
-    moved = depth.copy()
-    moved[depth > 680.0] -= 330.0
-    return moved
-
-
-def _nearer_chair(depth: np.ndarray) -> np.ndarray:
-    chair = depth.copy()
-    chair[330:480, 0:260] = 420.0 + np.linspace(0.0, 40.0, 150)[:, None]
-    chair[150:330, 20:70] = 430.0
-    chair[150:330, 200:250] = 430.0
-    chair[140:170, 20:250] = 430.0
-    return chair
+    return body_nearer(depth, 560.0)
 
 
 def main() -> int:
@@ -68,8 +58,8 @@ def main() -> int:
             forced += 1
             flagged += not other.trusted
     print(f"fits forced onto the other hand-sized objects: {flagged} of {forced} flagged as not trusted")
-    for name, change in (("070", _nearer_body), ("110", _nearer_body), ("030", _nearer_chair),
-                         ("150", _nearer_chair)):
+    for name, change in (("070", _nearer_body), ("110", _nearer_body), ("030", chair_nearer),
+                         ("150", chair_nearer)):
         depth = change(read_depth_image(FOLDER / f"{name}.png", 0.125))
         fit = fitter.fit(depth)
         nearest = float(np.percentile(depth[depth > 0], 1))

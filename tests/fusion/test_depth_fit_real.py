@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from core.evaluation.data import RGBD_FRAMES
+from core.evaluation.depth_distractors import body_nearer, chair_nearer
 from core.fusion.depth_fit import DepthFitter
 from core.fusion.depth_track import parse_intrinsics, read_depth_image
 from core.fusion.hand_segment import find_hands
@@ -54,28 +55,10 @@ def test_depth_fit_every_shared_frame_lands_on_the_open_hand(fitter, name):
     assert len(fit.starts) >= 6 and fit.energy == min(fit.starts)        # several starts, the lowest kept
 
 
-def _body_nearer(depth: np.ndarray, hand_depth_mm: float) -> np.ndarray:
-    """The frame with everything behind the hand moved 330 mm nearer: the body is nearer than the hand."""
-    moved = depth.copy()
-    behind = depth > hand_depth_mm + 120.0
-    moved[behind] -= 330.0
-    return moved
-
-
-def _chair_nearer(depth: np.ndarray) -> np.ndarray:
-    """The frame with a chair 420 mm from the camera in the lower left (seat, back and its frame)."""
-    chair = depth.copy()
-    chair[330:480, 0:260] = 420.0 + np.linspace(0.0, 40.0, 150)[:, None]
-    chair[150:330, 20:70] = 430.0
-    chair[150:330, 200:250] = 430.0
-    chair[140:170, 20:250] = 430.0
-    return chair
-
-
 @pytest.mark.parametrize(("name", "distractor"), [("070", "body"), ("150", "chair")])
 def test_depth_fit_a_nearer_body_or_chair_does_not_win(fitter, name, distractor):
     depth = depth_frame(name)
-    changed = _body_nearer(depth, 560.0) if distractor == "body" else _chair_nearer(depth)
+    changed = body_nearer(depth, 560.0) if distractor == "body" else chair_nearer(depth)
     nearest = float(np.percentile(changed[changed > 0], 1))
     assert nearest < 460.0                                               # the distractor is nearer than the hand
     fit = fitter.fit(changed)
