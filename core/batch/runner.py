@@ -6,8 +6,9 @@ inputs (the layout, the objects spec, each take's id and raw file) and the outpu
 an output folder exists; a take that cannot be used fails alone with its reason. :func:`run_batch` checks
 the scheduler address (:mod:`core.batch.scheduler`), then submits one task per take
 (:func:`core.batch.task.process_take`) to a ``LocalCluster`` (``workers`` processes of one thread: the
-numba kernels are single-threaded, and one task per process makes a worker's death that task's) or to
-the scheduler at ``scheduler``, and reports progress as the tasks finish. Tasks return small summaries;
+numba kernels are single-threaded, and one task per process makes a worker's death that task's; each started,
+configured and warmed as :mod:`core.batch.worker` says, so that a take costs there what it costs in one process) or
+to the scheduler at ``scheduler``, and reports progress as the tasks finish. Tasks return small summaries;
 the driver records failures and skips in the batch state (a task records its own progress).
 
 The driver releases each task's result once it has read it: a result still held would be computed
@@ -36,6 +37,7 @@ from core.batch.pipeline import Pipeline
 from core.batch.scheduler import check_scheduler_address
 from core.batch.state import file_sha256, input_key, read_state, valid_take_id, write_state
 from core.batch.task import exports_complete, process_take
+from core.batch.worker import PRELOAD, local_worker_settings
 from core.errors import InputError
 from core.io import READ_SUFFIXES, FrameRateMissingError, recognised_format
 from core.session.session import Session
@@ -284,9 +286,11 @@ def run_batch(plan: BatchPlan, workers: int = 2, scheduler: str | None = None,
     progress.states |= {job.take_id: "queued" for job in plan.jobs}
     logging.getLogger("distributed").setLevel(logging.ERROR)
     started = time.perf_counter()
-    # one task per worker thread at a time: a worker's death is its task's, and "running" means running
+    # one task per worker thread at a time: a worker's death is its task's, and "running" means running; a local
+    # cluster's workers set up as core.batch.worker says for the cluster's whole life (a dead worker is spawned again)
     with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES,
-                          "distributed.scheduler.worker-saturation": 1.0}):
+                          "distributed.scheduler.worker-saturation": 1.0}), \
+            contextlib.nullcontext() if scheduler else local_worker_settings():
         cluster = None
         try:
             if scheduler:
@@ -309,14 +313,16 @@ def run_batch(plan: BatchPlan, workers: int = 2, scheduler: str | None = None,
 
 def _local_cluster(workers: int) -> Any:
     """A LocalCluster of ``workers`` one-thread worker processes that ignore Ctrl+C (it reaches the whole
-    process group; the driver stops them cleanly instead of each printing a traceback)."""
+    process group; the driver stops them cleanly instead of each printing a traceback), each warmed before its
+    first task (:data:`core.batch.worker.PRELOAD`); the caller holds :func:`core.batch.worker.local_worker_settings`
+    while the cluster lives."""
     from distributed import LocalCluster
 
     ignoring = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if ignoring else None
     try:
         return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
-                            silence_logs=logging.ERROR)
+                            silence_logs=logging.ERROR, preload=[PRELOAD])
     finally:
         if ignoring:
             signal.signal(signal.SIGINT, previous)

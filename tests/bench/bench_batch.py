@@ -11,9 +11,16 @@ copy of the session. Reports:
   wall seconds per take with one worker against the seconds inside its tasks, same run); and the
   single-take CLI (``label``, ``fill``, ``solve`` as three calls per take, as operators script it today);
 * the peak resident memory of each worker process, and numba compilations in the workers;
-* the load average before each run (other work on the machine slows every figure).
+* the CPU seconds per take in one process and in a worker, on the same takes (the figure the machine's load
+  changes least), their scaling with 2 workers, and the costliest take;
+* the load average before and after each run (other work on the machine slows every figure).
 
-Usage: ``.venv/bin/python tests/bench/bench_batch.py [--takes 200] [--frames 1000] [--cli-takes 2]``.
+The clusters are started as ``handmocap batch`` starts its own (:func:`core.batch.runner._local_cluster` under
+:func:`core.batch.worker.local_worker_settings`: no ``MALLOC_TRIM_THRESHOLD_``, no profiler, a warming preload);
+``--dask-defaults`` also runs the study on clusters with Dask's own settings, before them in the same run.
+
+Usage: ``.venv/bin/python tests/bench/bench_batch.py [--takes 200] [--frames 1000] [--cli-takes 2]
+[--dask-defaults]``.
 """
 
 from __future__ import annotations
@@ -84,23 +91,25 @@ def baselines(paths: list[Path], root: Path) -> dict[str, float]:
     out = root / "baseline"
     out.mkdir(parents=True, exist_ok=True)
     sessions = make_sessions(root / "baseline-sessions", paths)
-    times: dict[str, list[float]] = {"plain": [], "task": [], "cli": []}
+    times: dict[str, list[float]] = {"plain": [], "task": [], "cli": [], "plain_cpu": [], "task_cpu": []}
     for number, path in enumerate(paths):
         layout = path.name.split("_")[0]
         pipeline = pipeline_from_dict(SETTINGS | {"layout": layout, "output": str(out)})
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         review = ReviewTake.unlabelled(load_take(path))
         export_take(review, pipeline, run_steps(review, pipeline), output_paths(pipeline, out, path.stem))
-        plain = time.perf_counter() - start
+        plain, plain_cpu = time.perf_counter() - start, time.process_time() - cpu
         entry = next(entry for entry in sessions[layout].takes if Path(entry.source) == path)
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         summary = process_take(str(sessions[layout].folder), entry.id, pipeline.to_dict(), "0" * 64, str(out),
                                f"task-{path.stem}")
-        task = time.perf_counter() - start
+        task, task_cpu = time.perf_counter() - start, time.process_time() - cpu
         assert summary["status"] == "done", summary
         if number:
             times["plain"].append(plain)
             times["task"].append(task)
+            times["plain_cpu"].append(plain_cpu)
+            times["task_cpu"].append(task_cpu)
             times["cli"].append(cli_seconds(path, out))
     return {name: sum(values) / len(values) for name, values in times.items()}
 
@@ -120,21 +129,32 @@ def cli_seconds(path: Path, out: Path) -> float:
     return time.perf_counter() - start
 
 
-def batch_run(root: Path, paths: list[Path], workers: int) -> dict:
-    """The study on ``workers`` local workers (fresh sessions): wall seconds with and without the cluster's
-    start, frames, and the workers' peak memory (MiB) and compilations."""
+def batch_run(root: Path, paths: list[Path], workers: int, dask_defaults: bool = False) -> dict:
+    """The study on ``workers`` local workers (fresh sessions), started as ``handmocap batch`` starts them or,
+    with ``dask_defaults``, with Dask's own settings: wall seconds with and without the cluster's start, frames,
+    and the workers' peak memory (MiB) and compilations."""
+    import contextlib
+
     from distributed import Client, LocalCluster
 
     from core.batch.pipeline import pipeline_from_dict
-    from core.batch.runner import plan_batch, run_batch
+    from core.batch.runner import _local_cluster, plan_batch, run_batch
+    from core.batch.worker import local_worker_settings
 
-    folder = root / f"run-{workers}"
+    folder = root / f"run-{workers}{'-dask-defaults' if dask_defaults else ''}"
     sessions = make_sessions(folder, paths)
     load = os.getloadavg()[0]
     start = time.perf_counter()
-    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
-            Client(cluster) as client:
+    with contextlib.ExitStack() as stack:
+        if dask_defaults:
+            cluster = stack.enter_context(LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                                       dashboard_address=None))
+        else:
+            stack.enter_context(local_worker_settings())
+            cluster = stack.enter_context(_local_cluster(workers))
+        client = stack.enter_context(Client(cluster))
         ready = time.perf_counter()
+        trim = set(client.run(_trim_threshold).values())
         frames, summaries = 0, []
         for layout, session in sessions.items():
             pipeline = pipeline_from_dict(SETTINGS | {"layout": layout, "output": str(folder / "out")})
@@ -144,14 +164,24 @@ def batch_run(root: Path, paths: list[Path], workers: int) -> dict:
         end = time.perf_counter()
         memory = client.run(_peak_rss_mib)
     failed = [summary for summary in summaries if summary["status"] != "done"]
-    return {"workers": workers, "load_before": round(load, 2), "takes": len(summaries), "failed": len(failed),
+    return {"workers": workers, "dask_defaults": dask_defaults, "worker_trim_threshold": sorted(map(str, trim)),
+            "load_before": round(load, 2), "takes": len(summaries), "failed": len(failed),
             "frames": frames, "seconds": round(end - start, 2), "seconds_without_start": round(end - ready, 2),
+            "start_s": round(ready - start, 2),
             "takes_per_min": round(60 * len(summaries) / (end - start), 2),
             "frames_per_s": round(frames / (end - start), 1),
             "peak_worker_mib": round(max(memory.values()), 1),
             "compilations": sum(summary.get("compilations", 0) for summary in summaries),
             "mean_task_s": round(sum(s.get("seconds", 0) for s in summaries) / max(len(summaries), 1), 3),
-            "mean_task_cpu_s": round(sum(s.get("cpu_seconds", 0) for s in summaries) / max(len(summaries), 1), 3)}
+            "mean_task_cpu_s": round(sum(s.get("cpu_seconds", 0) for s in summaries) / max(len(summaries), 1), 3),
+            "max_task_cpu_s": round(max((s.get("cpu_seconds", 0) for s in summaries), default=0.0), 3),
+            "costliest_take": max(summaries, key=lambda s: s.get("cpu_seconds", 0), default={}).get("name", ""),
+            "task_cpu_by_take": {s.get("name", ""): s.get("cpu_seconds", 0) for s in summaries},
+            "load_after": round(os.getloadavg()[0], 2)}
+
+
+def _trim_threshold() -> str:
+    return os.environ.get("MALLOC_TRIM_THRESHOLD_", "unset")
 
 
 def _peak_rss_mib() -> float:
@@ -166,17 +196,29 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=1000)
     parser.add_argument("--cli-takes", type=int, default=2,
                         help="takes of each layout timed alone: in one process, as a task, through the CLI")
+    parser.add_argument("--dask-defaults", action="store_true",
+                        help="also run the study on clusters with Dask's own settings (before, same run)")
     args = parser.parse_args()
     root = Path(tempfile.mkdtemp(prefix="bench-batch-"))
     try:
         paths = make_study(root / "raw", args.takes, args.frames)
         base = baselines(paths[:1 + 2 * args.cli_takes], root)  # as many of each layout after the first
+        before = [batch_run(root, paths, workers, dask_defaults=True) for workers in (1, 2) if args.dask_defaults]
         runs = [batch_run(root, paths, workers) for workers in (1, 2)]
         one, two = runs
         per_take = one["seconds"] / one["takes"]
+        measured = [path.stem for path in paths[1:1 + 2 * args.cli_takes]]  # the takes the baselines timed
+
+        def same_takes_cpu(run: dict) -> float:  # CPU per take in the workers, over the baselines' takes
+            return sum(run["task_cpu_by_take"][name] for name in measured) / len(measured)
+
         figures = {
             "takes": args.takes, "frames_per_take": args.frames, "cpu_count": os.cpu_count(),
             "plain_s_per_take": round(base["plain"], 3), "task_s_per_take": round(base["task"], 3),
+            "plain_cpu_s_per_take": round(base["plain_cpu"], 3), "task_cpu_s_per_take": round(base["task_cpu"], 3),
+            "worker_cpu_same_takes_s": round(same_takes_cpu(one), 3),
+            "worker_cpu_over_process_cpu": round(same_takes_cpu(one) / base["task_cpu"], 3),
+            "cpu_scaling_2_workers": round(one["mean_task_cpu_s"] / two["mean_task_cpu_s"], 3),
             "cli_s_per_take": round(base["cli"], 3),
             "session_overhead": round(base["task"] / base["plain"] - 1, 3),
             "cli_over_plain": round(base["cli"] / base["plain"], 3),
@@ -186,15 +228,36 @@ def main() -> None:
             "scaling_2_workers_without_start": round(one["seconds_without_start"] / two["seconds_without_start"], 3),
             "runs": runs,
         }
-        for run in runs:
-            print(f"{run['workers']} worker(s): {run['takes']} takes ({run['failed']} failed) in {run['seconds']} s "
+        if before:
+            figures |= {
+                "dask_defaults_worker_cpu_same_takes_s": round(same_takes_cpu(before[0]), 3),
+                "dask_defaults_worker_cpu_over_process_cpu": round(same_takes_cpu(before[0]) / base["task_cpu"], 3),
+                "dask_defaults_scaling_2_workers": round(before[0]["seconds"] / before[1]["seconds"], 3),
+                "dask_defaults_runs": before}
+        for run in before + runs:
+            print(f"{'Dask defaults, ' if run['dask_defaults'] else ''}{run['workers']} worker(s) "
+                  f"(MALLOC_TRIM_THRESHOLD_ in the workers: {', '.join(run['worker_trim_threshold'])}; cluster start "
+                  f"{run['start_s']} s): "
+                  f"{run['takes']} takes ({run['failed']} failed) in {run['seconds']} s "
                   f"({run['seconds_without_start']} s after the cluster started): {run['takes_per_min']} takes/min, "
                   f"{run['frames_per_s']} frames/s; mean task {run['mean_task_s']} s ({run['mean_task_cpu_s']} s CPU); "
                   f"peak worker memory {run['peak_worker_mib']} MiB; {run['compilations']} numba compilations; "
-                  f"load average before {run['load_before']}")
+                  f"costliest task {run['max_task_cpu_s']} s CPU ({run['costliest_take']}); load average before "
+                  f"{run['load_before']}, "
+                  f"after {run['load_after']}")
         print(f"per take, measured in turn: steps in one process {base['plain']:.2f} s, as a batch task without "
               f"Dask {base['task']:.2f} s (session: +{100 * figures['session_overhead']:.1f} %), single-take CLI "
               f"(label, fill, solve) {base['cli']:.2f} s ({figures['cli_over_plain']:.2f}× the steps)")
+        print(f"CPU per take ({', '.join(measured)}): {base['plain_cpu']:.2f} s in one process "
+              f"({base['task_cpu']:.2f} s as a task without Dask), {figures['worker_cpu_same_takes_s']:.2f} s in a "
+              f"worker ({figures['worker_cpu_over_process_cpu']:.2f}x the task in one process); over all the takes "
+              f"{one['mean_task_cpu_s']:.2f} s in a worker, {two['mean_task_cpu_s']:.2f} s with 2 workers (CPU-time "
+              f"scaling {figures['cpu_scaling_2_workers']:.2f}: 1.00 when the two workers do not slow each other)")
+        if before:
+            print(f"Dask's defaults, same run: {figures['dask_defaults_worker_cpu_same_takes_s']:.2f} s CPU per take "
+                  f"in a worker ({figures['dask_defaults_worker_cpu_over_process_cpu']:.2f}x the task in one process; "
+                  f"{before[0]['mean_task_cpu_s']:.2f} s over all the takes), scaling with 2 workers "
+                  f"{figures['dask_defaults_scaling_2_workers']:.2f}x")
         print(f"batch, 1 worker: {per_take:.2f} s per take against {one['mean_task_s']:.2f} s inside the tasks "
               f"(Dask and cluster start: +{100 * figures['dask_overhead']:.1f} %); scaling with 2 workers "
               f"{figures['scaling_2_workers']:.2f}× ({figures['scaling_2_workers_without_start']:.2f}× without the "
