@@ -72,7 +72,9 @@ def command_info(args: argparse.Namespace) -> int:
         "markers": take.n_markers, "missing_share": round(float(missing), 4),
         "marker_names": list(take.marker_names),
     }
-    system = system_labels_info(take.parameters.get("SYSTEM_LABELS"))
+    from core.live.recorder import SYSTEM_GROUP, system_labels_summary
+
+    system = system_labels_summary(take.parameters.get(SYSTEM_GROUP))
     if system:
         info["system_labels"] = system
     if args.json:
@@ -89,32 +91,6 @@ def command_info(args: argparse.Namespace) -> int:
     for name, share in zip(take.marker_names, per_marker, strict=True):
         print(f"  {name:<32} {100 * (1 - share):6.1f} % observed")
     return 0
-
-
-def system_labels_info(group: object) -> dict | None:
-    """What a take's ``SYSTEM_LABELS`` parameter group (a live recording: the capture system's own labels)
-    says: ``source``, ``labels`` (count), ``labelled_share`` (of the points) and the sidecar ``file`` holding
-    them per point; None without the group or when its values are not what a recording writes."""
-    if not isinstance(group, dict):
-        return None
-    import numpy as np
-
-    def text(value: object) -> str:
-        items = value if isinstance(value, list | tuple) else [value]
-        return str(items[0]).strip() if items and isinstance(items[0], str) else ""
-
-    def number(value: object) -> float | None:
-        try:
-            values = np.asarray(value, dtype=float).ravel()
-        except (TypeError, ValueError):
-            return None
-        return float(values[0]) if values.size and np.isfinite(values[0]) else None
-
-    share, count = number(group.get("SHARE")), number(group.get("COUNT"))
-    if share is None or count is None:
-        return None
-    return {"source": text(group.get("SOURCE")) or "the capture system", "labels": int(count),
-            "labelled_share": round(share, 4), "file": text(group.get("FILE"))}
 
 
 def command_simulate(args: argparse.Namespace) -> int:

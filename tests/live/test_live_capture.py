@@ -17,14 +17,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.cli.main import system_labels_info
 from core.errors import InputError
 from core.io import load_take
 from core.labelling.online import OnlineLabeller
 from core.labelling.scene import label_scene
 from core.live import recorder
 from core.live.capture import LiveCapture
-from core.live.recorder import FrameJournal, read_journal, read_system_labels
+from core.live.recorder import FrameJournal, read_journal, read_system_labels, system_labels_summary
 from core.live.server import StandInServer, make_replay
 from core.live.sources import SourceError, parse_address
 from core.live.supervision import Supervisor
@@ -62,6 +61,22 @@ def wait_for(condition, seconds: float = 5.0) -> bool:
     return condition()
 
 
+def record_replay(replay, protocol: str, folder: Path, name: str, frames: int, out: str):
+    """Stream ``replay`` once from a stand-in server, record it with ``auto`` hands into the session
+    ``folder/session`` as take ``name`` until ``frames`` frames arrived, written to ``folder/out``; the
+    capture's result."""
+    server = StandInServer(replay, protocol, 0, loop_take=False).start()
+    capture = LiveCapture(make_source(protocol, f"127.0.0.1:{server.port}"), "glove-13", "auto",
+                          session=folder / "session", name=name, background_calibration=False)
+    try:
+        capture.start()
+        assert wait_for(lambda: capture.frames_received >= frames, 10.0)
+    finally:
+        result = capture.stop(folder / out)
+        server.stop()
+    return result
+
+
 @pytest.mark.parametrize("protocol", ["qtm", "natnet"])
 def test_real_clients_stream_the_points_unchanged(take, protocol):
     server = StandInServer(make_replay(take, 200, unlabelled=True), protocol, 0).start()
@@ -86,15 +101,8 @@ def test_real_clients_stream_the_points_unchanged(take, protocol):
 
 
 def test_capture_records_labels_and_enters_the_session(take, tmp_path):
-    server = StandInServer(make_replay(take, 100, unlabelled=True), "qtm", 0, loop_take=False).start()
-    capture = LiveCapture(make_source("qtm", f"127.0.0.1:{server.port}"), "glove-13", "auto",
-                          session=tmp_path / "session", name="trial 1", background_calibration=False)
-    try:
-        capture.start()
-        assert wait_for(lambda: capture.frames_received >= take.n_frames, 10.0)
-    finally:
-        result = capture.stop(tmp_path / "trial.c3d")
-        server.stop()
+    result = record_replay(make_replay(take, 100, unlabelled=True), "qtm", tmp_path, "trial 1", take.n_frames,
+                           "trial.c3d")
     figures = result.figures
     assert figures["frames_received"] == take.n_frames and figures["frames_dropped"] == 0
     assert figures["latency_ms_p99"] is not None and figures["labelled_share"] > 0.85
@@ -133,15 +141,7 @@ def test_the_systems_labels_are_kept_with_the_take(labelled_take, tmp_path, prot
     take = labelled_take
     replay = make_replay(take, 100)
     assert replay.labels and len(replay.labels) < take.n_markers        # labelled markers and ghosts
-    server = StandInServer(replay, protocol, 0, loop_take=False).start()
-    capture = LiveCapture(make_source(protocol, f"127.0.0.1:{server.port}"), "glove-13", "auto",
-                          session=tmp_path / "session", name="sys", background_calibration=False)
-    try:
-        capture.start()
-        assert wait_for(lambda: capture.frames_received >= take.n_frames, 10.0)
-    finally:
-        result = capture.stop(tmp_path / "sys.c3d")
-        server.stop()
+    result = record_replay(replay, protocol, tmp_path, "sys", take.n_frames, "sys.c3d")
     labelled = sum(int(np.isfinite(frame).all(axis=1).sum()) for frame in replay.labelled)
     others = sum(len(frame) for frame in replay.unlabelled)
     figures = result.figures
@@ -188,23 +188,15 @@ def test_the_systems_labels_are_kept_with_the_take(labelled_take, tmp_path, prot
     assert np.array_equal(journal.system().codes, system.codes) and journal.system_names == system.names
     assert sorted(journal.take().parameters["SYSTEM_LABELS"]["NAMES"]) == sorted(replay.labels)
     # handmocap info says so
-    info = system_labels_info(recorded.parameters["SYSTEM_LABELS"])
+    info = system_labels_summary(recorded.parameters["SYSTEM_LABELS"])
     assert info == {"source": info["source"], "labels": len(replay.labels),
                     "labelled_share": pytest.approx(figures["system_labelled_share"], abs=1e-4),
                     "file": str(result.system_file.absolute())}
-    assert system_labels_info({"SHARE": "x", "COUNT": [1]}) is None and system_labels_info(None) is None
+    assert system_labels_summary({"SHARE": "x", "COUNT": [1]}) is None and system_labels_summary(None) is None
 
 
 def test_a_stream_without_the_systems_labels_says_nothing_of_them(take, tmp_path):
-    server = StandInServer(make_replay(take, 100, unlabelled=True), "qtm", 0, loop_take=False).start()
-    capture = LiveCapture(make_source("qtm", f"127.0.0.1:{server.port}"), "glove-13", "auto",
-                          session=tmp_path / "session", name="plain", background_calibration=False)
-    try:
-        capture.start()
-        assert wait_for(lambda: capture.frames_received >= 200, 10.0)
-    finally:
-        result = capture.stop(tmp_path / "plain.c3d")
-        server.stop()
+    result = record_replay(make_replay(take, 100, unlabelled=True), "qtm", tmp_path, "plain", 200, "plain.c3d")
     assert result.system is None and result.figures["system_labelled_share"] is None
     assert "SYSTEM_LABELS" not in load_take(tmp_path / "plain.c3d").parameters
     assert not (tmp_path / "session" / "live" / "plain.system-labels.npz").exists()
