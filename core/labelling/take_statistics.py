@@ -67,6 +67,21 @@ def unambiguous_links(current: np.ndarray, following: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
+def _nearest_two(distances: np.ndarray, nearest: np.ndarray, best: np.ndarray, second: np.ndarray) -> None:
+    """Per row of ``distances (R, C)``, written: the column of its smallest value (the first of equals), that
+    value and the next smallest (inf when none)."""
+    for row in range(distances.shape[0]):
+        column, lowest, next_lowest = 0, np.inf, np.inf
+        for j in range(distances.shape[1]):
+            value = distances[row, j]
+            if value < lowest:
+                column, lowest, next_lowest = j, value, lowest
+            elif value < next_lowest:
+                next_lowest = value
+        nearest[row], best[row], second[row] = column, lowest, next_lowest
+
+
+@njit(cache=True)
 def _links_kernel(current: np.ndarray, following: np.ndarray, ratio: float) -> np.ndarray:
     windows, count, others = current.shape[0], current.shape[1], following.shape[1]
     links = np.full((windows, count), -1, dtype=np.int64)
@@ -85,24 +100,8 @@ def _links_kernel(current: np.ndarray, following: np.ndarray, ratio: float) -> n
                 dz = current[window, i, 2] - following[window, j, 2]
                 value = np.sqrt(dx * dx + dy * dy + dz * dz)
                 distances[i, j] = value if np.isfinite(value) else np.inf
-        for i in range(count):
-            nearest, best, second = 0, np.inf, np.inf
-            for j in range(others):
-                value = distances[i, j]
-                if value < best:
-                    nearest, best, second = j, value, best
-                elif value < second:
-                    second = value
-            forward_nearest[i], forward_best[i], forward_second[i] = nearest, best, second
-        for j in range(others):
-            nearest, best, second = 0, np.inf, np.inf
-            for i in range(count):
-                value = distances[i, j]
-                if value < best:
-                    nearest, best, second = i, value, best
-                elif value < second:
-                    second = value
-            backward_nearest[j], backward_best[j], backward_second[j] = nearest, best, second
+        _nearest_two(distances, forward_nearest, forward_best, forward_second)
+        _nearest_two(distances.T, backward_nearest, backward_best, backward_second)
         for i in range(count):
             best, nearest = forward_best[i], forward_nearest[i]
             if (np.isfinite(best) and backward_nearest[nearest] == i and forward_second[i] >= ratio * best
