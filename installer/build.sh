@@ -4,7 +4,7 @@
 #   dist/handmocap-<version>-<os>-<arch>.tar.gz     that folder with install.sh/uninstall.sh (Linux)
 #   dist/handmocap-<version>-py3-none-any.whl       the wheel (pip install into any Python 3.11 venv)
 # The bundle is started once on a virtual screen so that its numba kernels are compiled into the
-# bundle (<bundle>/_internal/core/**/__pycache__) before it is packed.
+# bundle (<bundle>/_internal/handmocap/core/**/__pycache__) before it is packed.
 # Usage: bash installer/build.sh        (about 10-20 minutes on 2 cores; build/ and dist/ are git-ignored)
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -19,17 +19,14 @@ fi
 version="$(.venv/bin/python -c 'import importlib.metadata as m; print(m.version("handmocap"))')"
 
 echo "building the wheel"
-# setuptools would reuse a stale build/lib, and the files listed in an old handmocap.egg-info (a by-product
-# of the editable install; the installed metadata lives in .venv)
-rm -rf dist/handmocap-*.whl build/lib build/bdist.* handmocap.egg-info
+rm -rf dist/handmocap-*.whl
 .venv/bin/python -m pip wheel -q --no-deps -w dist .
-rm -rf build/lib build/bdist.*
 
 echo "freezing the application (PyInstaller)"
 .venv/bin/pyinstaller --noconfirm --log-level WARN --distpath dist --workpath build/pyinstaller \
   installer/handmocap.spec
 bundle="dist/handmocap"
-.venv/bin/python -m compileall -q "$bundle/_internal/core"    # byte code of the shipped sources
+.venv/bin/python -m compileall -q "$bundle/_internal/handmocap/core"    # byte code of the shipped sources
 
 echo "first start of the bundle: compiling its numba kernels into the bundle"
 scratch="$(mktemp -d)"

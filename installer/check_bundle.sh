@@ -75,15 +75,16 @@ python_bin="${PYTHON:-python3.11}"
 "$python_bin" -m venv "$work/venv"
 "$work/venv/bin/python" -m pip install -q --upgrade pip
 "$work/venv/bin/python" -m pip install -q "$wheel"
-# resources come from the installed package, not from the source tree
+# one import package, and the resources come from it, not from the source tree
 (cd "$work" && "$work/venv/bin/python" -c '
 import sys
-from core.model import TEMPLATE_PATH
-from core.model.markers import LAYOUT_DIR
-from core.prior.pca_prior import DEFAULT_PRIOR_PATH
+import handmocap
+from handmocap.core.model import TEMPLATE_PATH
+from handmocap.core.model.markers import LAYOUT_DIR
+from handmocap.core.prior.pca_prior import DEFAULT_PRIOR_PATH
 for path in (TEMPLATE_PATH, LAYOUT_DIR, DEFAULT_PRIOR_PATH):
     assert path.exists() and sys.prefix in str(path), path
-print("   resources found in", TEMPLATE_PATH.parents[2])
+print("   handmocap", handmocap.__version__, "resources found in", TEMPLATE_PATH.parents[1])
 ')
 check wheel "$work/venv/bin/handmocap" "$work/venv/bin/python"
 echo "check_bundle.sh: the bundle and the wheel work"

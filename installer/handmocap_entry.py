@@ -5,6 +5,6 @@ import sys
 
 if __name__ == "__main__":
     multiprocessing.freeze_support()  # Dask's local workers are spawned processes of this executable
-    from app.cli.main import main
+    from handmocap.app.cli.main import main
 
     sys.exit(main())

@@ -38,6 +38,14 @@ fi
 
 [ -x .venv/bin/python ] || "$python_bin" -m venv .venv
 
+# The one import package handmocap of the development install: a real folder of links to the repository's
+# __init__.py and folders. The editable install puts only .venv/src on sys.path (pyproject.toml: dev-mode-dirs),
+# so what Python, mypy, import-linter, pytest, PyInstaller and numba see is the same handmocap as the wheel's.
+mkdir -p .venv/src/handmocap
+for entry in __init__.py app core widgets resources; do
+  ln -sfn "../../../$entry" ".venv/src/handmocap/$entry"
+done
+
 # Install only when what decides the installation changed (the project file, this script, the extras
 # asked for); the source itself is installed in editable mode and needs no reinstall.
 extras=""
@@ -59,6 +67,6 @@ kernels_stamp=".venv/.handmocap-kernels"
 kernels_key="$(find core -name '*.py' -print0 | sort -z | xargs -0 cat | sha256sum | cut -c1-32)"
 if [ "$(cat "$kernels_stamp" 2>/dev/null || true)" != "$kernels_key" ]; then
   echo "compiling the numba kernels (once after installing or updating; about a minute)"
-  .venv/bin/python -m core.workflows.warm_up
+  .venv/bin/python -m handmocap.core.workflows.warm_up
   echo "$kernels_key" > "$kernels_stamp"
 fi

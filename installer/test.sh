@@ -6,7 +6,7 @@ set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$root"
 bash installer/setup.sh --test
-.venv/bin/ruff check app core widgets tests
+.venv/bin/ruff check __init__.py app core widgets tests
 .venv/bin/lint-imports
 .venv/bin/mypy
 # one pytest worker per core (pytest-xdist), each taking whole test files (module fixtures, e.g. a Dask

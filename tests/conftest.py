@@ -11,9 +11,9 @@ from functools import lru_cache
 
 import pytest
 
-from core.evaluation.data import REAL_RECORDING, SHARED_DATA
-from core.io import Take, load_take
-from core.model import HandModel, load_template
+from handmocap.core.evaluation.data import REAL_RECORDING, SHARED_DATA
+from handmocap.core.io import Take, load_take
+from handmocap.core.model import HandModel, load_template
 
 
 @lru_cache(maxsize=1)

@@ -8,10 +8,11 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_core_imports_without_gui_modules():
-    modules = sorted(".".join(path.relative_to(ROOT).with_suffix("").parts)
+    modules = sorted(".".join(("handmocap", *path.relative_to(ROOT).with_suffix("").parts))
                      for path in (ROOT / "core").rglob("*.py") if path.name != "__init__.py")
     code = (f"import sys, importlib; [importlib.import_module(m) for m in {modules!r}];"
-            "bad = [m for m in ('PySide6', 'pyvista', 'pyvistaqt', 'vtk', 'pyqtgraph', 'widgets', 'app')"
+            "bad = [m for m in ('PySide6', 'pyvista', 'pyvistaqt', 'vtk', 'pyqtgraph', 'handmocap.widgets',"
+            " 'handmocap.app')"
             " if m in sys.modules]; print(bad); sys.exit(1 if bad else 0)")
     completed = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert completed.returncode == 0, completed.stdout + completed.stderr

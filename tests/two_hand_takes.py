@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from core.io import Take
-from core.model import load_layout
-from core.simulate import simulate_scene
+from handmocap.core.io import Take
+from handmocap.core.model import load_layout
+from handmocap.core.simulate import simulate_scene
 
 LAYOUT = "glove-13"
 #: a lab's names for the markers of glove-13 (the same placement, the lab's words)

@@ -25,8 +25,8 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from widgets.energy_strip import EnergyStrip
-from widgets.shortcuts import SHORTCUTS, key_text
+from handmocap.widgets.energy_strip import EnergyStrip
+from handmocap.widgets.shortcuts import SHORTCUTS, key_text
 
 POINT_RADIUS_PX = 5.0          # marker circle radius on screen
 SELECTED_RADIUS_PX = 9.0       # ring around the selected marker

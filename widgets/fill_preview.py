@@ -10,8 +10,8 @@ import pyqtgraph as pg
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
-from widgets.gap_list import METHOD_ORDER, METHOD_TITLES
-from widgets.marker_lanes import BACKGROUND, GAP_COLOUR, METHOD_COLOURS, css
+from handmocap.widgets.gap_list import METHOD_ORDER, METHOD_TITLES
+from handmocap.widgets.marker_lanes import BACKGROUND, GAP_COLOUR, METHOD_COLOURS, css
 
 AXES = ("X", "Y", "Z")
 MEASURED_PEN = (205, 210, 218)

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from PySide6.QtWidgets import QDialog, QDoubleSpinBox, QFormLayout, QLabel, QVBoxLayout, QWidget
 
-from widgets.dialog_buttons import ok_cancel_buttons
+from handmocap.widgets.dialog_buttons import ok_cancel_buttons
 
 #: the rate offered before any was given (Hz)
 DEFAULT_FRAME_RATE_HZ = 100.0

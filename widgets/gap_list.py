@@ -35,11 +35,11 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from core.gaps import FILL_METHODS, FillCheck, Gap
-from core.gaps.check import DISPLACE_FACTOR, LOCAL_HORIZON_S
-from core.model.provenance import PROVENANCE_NAMES
-from widgets.marker_lanes import GAP_COLOUR, METHOD_COLOURS, css
-from widgets.marker_panel import MISSING_TEXT, SORT_ROLE, ColumnTableModel
+from handmocap.core.gaps import FILL_METHODS, FillCheck, Gap
+from handmocap.core.gaps.check import DISPLACE_FACTOR, LOCAL_HORIZON_S
+from handmocap.core.model.provenance import PROVENANCE_NAMES
+from handmocap.widgets.marker_lanes import GAP_COLOUR, METHOD_COLOURS, css
+from handmocap.widgets.marker_panel import MISSING_TEXT, SORT_ROLE, ColumnTableModel
 
 GAP_STATES = ("open", "filled", "rejected")
 #: methods in the order the detail panel lists them

@@ -22,8 +22,8 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from core.model import HandModel, MarkerSet, marker_positions, skin_vertices
-from widgets.viewport import HandViewport
+from handmocap.core.model import HandModel, MarkerSet, marker_positions, skin_vertices
+from handmocap.widgets.viewport import HandViewport
 
 MAX_VIEWS = 4
 PLAYBACK_FPS = 30.0

@@ -10,7 +10,7 @@ import pyqtgraph as pg
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QHeaderView, QTableWidget, QTableWidgetItem, QWidget
 
-from core.layout import LayoutMetrics
+from handmocap.core.layout import LayoutMetrics
 
 RUN_PENS = ((110, 180, 255), (255, 160, 70), (120, 220, 120), (230, 120, 220), (200, 200, 200))
 SPECIFIC_PEN = (255, 160, 70)

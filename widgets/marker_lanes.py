@@ -34,9 +34,9 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from core.gaps import FILL_METHODS
-from core.model.provenance import FILL_CODES, MEASURED, MISSING
-from core.review import LANE_EDITED, LANE_FILLED, LANE_GAP, LANE_LOW_CONFIDENCE, LANE_NONE, LANE_OBSERVED
+from handmocap.core.gaps import FILL_METHODS
+from handmocap.core.model.provenance import FILL_CODES, MEASURED, MISSING
+from handmocap.core.review import LANE_EDITED, LANE_FILLED, LANE_GAP, LANE_LOW_CONFIDENCE, LANE_NONE, LANE_OBSERVED
 
 NO_DATA = -2                  # before the first or after the last sample of the marker
 GAP = MISSING                 # -1: no sample (not filled)

@@ -24,10 +24,10 @@ from PySide6.QtGui import (
 )
 from PySide6.QtWidgets import QApplication
 
-from core.errors import InputError
-from core.io.durable import durable_path
-from core.layout.label_placement import place_labels
-from core.layout.placement_sheet import PlacementSheet, SheetView, rasterise_view
+from handmocap.core.errors import InputError
+from handmocap.core.io.durable import durable_path
+from handmocap.core.layout.label_placement import place_labels
+from handmocap.core.layout.placement_sheet import PlacementSheet, SheetView, rasterise_view
 
 PAGE_MM = (210.0, 297.0)          # A4 portrait
 MARGIN_MM = 12.0

@@ -13,9 +13,9 @@ from PySide6.QtCore import QModelIndex, QObject, Qt, Signal
 from PySide6.QtGui import QBrush, QColor, QIcon
 from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
-from core.review import MarkerStats, ReviewSettings
-from widgets.marker_lanes import LOW_CONFIDENCE_COLOUR
-from widgets.marker_panel import MISSING_TEXT, SORT_ROLE, ColumnTableModel, filtered_table, swatch
+from handmocap.core.review import MarkerStats, ReviewSettings
+from handmocap.widgets.marker_lanes import LOW_CONFIDENCE_COLOUR
+from handmocap.widgets.marker_panel import MISSING_TEXT, SORT_ROLE, ColumnTableModel, filtered_table, swatch
 
 #: plain words in the headers, the precise term in each tooltip (:data:`COLUMN_TIPS`)
 COLUMNS = ("Marker", "Seen %", "Filled %", "Gaps", "Longest\ngap", "Off model\n(mm)", "Sure by\n(mm)")

@@ -46,9 +46,9 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from core.io import READ_SUFFIXES, TAKE_FILE_FILTER, recognised_format
-from core.session import TAKE_STATES
-from widgets.marker_lanes import css
+from handmocap.core.io import READ_SUFFIXES, TAKE_FILE_FILTER, recognised_format
+from handmocap.core.session import TAKE_STATES
+from handmocap.widgets.marker_lanes import css
 
 #: files the session can take in (the readers of ``core.io.load_take``)
 TAKE_SUFFIXES = READ_SUFFIXES

@@ -15,7 +15,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from widgets.shortcuts import rows
+from handmocap.widgets.shortcuts import rows
 
 
 class ShortcutsDialog(QDialog):

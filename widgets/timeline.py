@@ -23,7 +23,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from widgets.shortcuts import bind
+from handmocap.widgets.shortcuts import bind
 
 SPEEDS = (0.1, 0.25, 0.5, 1.0, 2.0, 4.0)
 TICK_MS = 15

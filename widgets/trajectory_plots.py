@@ -24,9 +24,9 @@ from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QBrush, QColor, QShowEvent
 from PySide6.QtWidgets import QCheckBox, QGraphicsItem, QHBoxLayout, QLabel, QPushButton, QVBoxLayout, QWidget
 
-from core.model.provenance import FILL_CODES
-from core.review.take import runs
-from widgets.marker_lanes import BACKGROUND, CURSOR_PEN, GAP_COLOUR, METHOD_COLOURS, SELECTION_COLOUR, css
+from handmocap.core.model.provenance import FILL_CODES
+from handmocap.core.review.take import runs
+from handmocap.widgets.marker_lanes import BACKGROUND, CURSOR_PEN, GAP_COLOUR, METHOD_COLOURS, SELECTION_COLOUR, css
 
 #: spike threshold: median + SPIKE_MADS × (1.4826 × MAD) of a label's |acceleration|. 1.4826 × MAD is the
 #: standard deviation for Gaussian noise; on a simulated 3000-frame take with 0.3 mm noise and grasping

@@ -10,9 +10,9 @@ import numpy as np
 from PySide6.QtGui import QImage, QPainter
 from PySide6.QtWidgets import QWidget
 
-from core.errors import InputError
-from core.io.durable import durable_path
-from widgets.viewport import HandViewport
+from handmocap.core.errors import InputError
+from handmocap.core.io.durable import durable_path
+from handmocap.widgets.viewport import HandViewport
 
 
 def window_image(window: QWidget, views: Iterable[HandViewport]) -> QImage:

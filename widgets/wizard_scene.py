@@ -16,7 +16,7 @@ from PySide6.QtWidgets import QVBoxLayout, QWidget
 from pyvistaqt import QtInteractor
 from vtkmodules.util.numpy_support import vtk_to_numpy
 
-from widgets.viewport import ClickFilter, close_plotter, screen_distances
+from handmocap.widgets.viewport import ClickFilter, close_plotter, screen_distances
 
 SKIN_COLOUR = (0.91, 0.73, 0.62)
 POINT_COLOUR = (0.75, 0.78, 0.82)

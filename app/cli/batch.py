@@ -14,9 +14,9 @@ import json
 import signal
 import sys
 
-from app.cli.common import OVERWRITE_HELP, add_json_flag
-from app.cli.progress import ProgressLine
-from core.errors import InputError
+from handmocap.app.cli.common import OVERWRITE_HELP, add_json_flag
+from handmocap.app.cli.progress import ProgressLine
+from handmocap.core.errors import InputError
 
 
 def _duration(seconds: float | None) -> str:
@@ -52,11 +52,11 @@ class _ProgressLine:
 def command_batch(args: argparse.Namespace) -> int:
     """``handmocap batch``: run the pipeline on the session's takes that need it and write the study report;
     exit 1 when a take failed, 2 on bad input or an interruption."""
-    from core.batch.pipeline import load_pipeline
-    from core.batch.report import write_study_report
-    from core.batch.runner import check_pipeline_inputs, open_study, plan_batch, run_batch
-    from core.batch.scheduler import check_scheduler_address
-    from core.batch.state import read_state
+    from handmocap.core.batch.pipeline import load_pipeline
+    from handmocap.core.batch.report import write_study_report
+    from handmocap.core.batch.runner import check_pipeline_inputs, open_study, plan_batch, run_batch
+    from handmocap.core.batch.scheduler import check_scheduler_address
+    from handmocap.core.batch.state import read_state
 
     # everything that can be checked is, before a session, an output folder or a cluster is made
     if args.scheduler is not None:

@@ -6,13 +6,13 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from app.cli.common import add_json_flag, add_outputs, print_figures, print_summary, progress_printer
+from handmocap.app.cli.common import add_json_flag, add_outputs, print_figures, print_summary, progress_printer
 
 
 def command_calibrate(args: argparse.Namespace) -> int:
     """``handmocap calibrate``: fit the template to a hand scan, write the model (report, glTF), print the fit;
     exit 2 on bad input."""
-    from core.calibration.pipeline import calibrate_scan, load_template_file
+    from handmocap.core.calibration.pipeline import calibrate_scan, load_template_file
 
     template = load_template_file(args.template, side=args.side)
     result = calibrate_scan(args.scan, args.landmarks, template=template,
@@ -20,7 +20,7 @@ def command_calibrate(args: argparse.Namespace) -> int:
                             clean=not args.no_clean, strictness=args.strictness)
     result.save(args.out, args.report)
     if args.gltf:
-        from core.model.gltf import save_gltf_hand
+        from handmocap.core.model.gltf import save_gltf_hand
 
         save_gltf_hand(result.model, args.gltf)
     summary = result.report.to_json()
@@ -37,7 +37,7 @@ def command_calibrate(args: argparse.Namespace) -> int:
 
 def command_bench_calibrate(args: argparse.Namespace) -> int:
     """``handmocap bench calibrate``: print the seconds of the whole calibration of a synthetic scan."""
-    from core.evaluation.calibration import bench_calibrate
+    from handmocap.core.evaluation.calibration import bench_calibrate
 
     figures = bench_calibrate(n_points=args.points)
     print_summary(f"calibrated a {figures['scan_points']:,}-point scan in {figures['seconds']:.1f} s", figures,
@@ -47,7 +47,7 @@ def command_bench_calibrate(args: argparse.Namespace) -> int:
 
 def command_evaluate_calibration(args: argparse.Namespace) -> int:
     """``handmocap evaluate calibration``: print the calibration accuracy on synthetic re-proportioned subjects."""
-    from core.evaluation.calibration import SUBJECTS, evaluate_calibration
+    from handmocap.core.evaluation.calibration import SUBJECTS, evaluate_calibration
 
     subjects = min(args.subjects or len(SUBJECTS), len(SUBJECTS))
     print_figures(evaluate_calibration(subjects=subjects, n_points=args.points), args.json)

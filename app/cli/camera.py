@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from app.cli.common import (
+from handmocap.app.cli.common import (
     OVERWRITE_HELP,
     add_json_flag,
     add_outputs,
@@ -15,7 +15,7 @@ from app.cli.common import (
     print_figures,
     progress_printer,
 )
-from core.errors import InputError
+from handmocap.core.errors import InputError
 
 
 def _squares(text: str) -> tuple[int, int]:
@@ -30,8 +30,8 @@ def _squares(text: str) -> tuple[int, int]:
 def command_calibrate(args: argparse.Namespace) -> int:
     """``handmocap camera calibrate``: write a camera's intrinsics from board images, folders of them or videos;
     exit 2 on bad input (a board not found says which size or kind was found instead)."""
-    from core.camera.files import save_camera
-    from core.camera.intrinsics import BoardSpec, board_views, calibrate_views
+    from handmocap.core.camera.files import save_camera
+    from handmocap.core.camera.intrinsics import BoardSpec, board_views, calibrate_views
 
     check_outputs(args)
     if args.squares is not None and args.inner_corners is not None:
@@ -68,8 +68,8 @@ def command_calibrate(args: argparse.Namespace) -> int:
 
 
 def _blobs(args: argparse.Namespace, camera):
-    from core.camera.extrinsics import detect_blobs
-    from core.camera.frames import open_frames
+    from handmocap.core.camera.extrinsics import detect_blobs
+    from handmocap.core.camera.frames import open_frames
 
     with open_frames(args.video) as video:
         if video.size != camera.size:
@@ -85,10 +85,10 @@ def _blobs(args: argparse.Namespace, camera):
 def command_register(args: argparse.Namespace) -> int:
     """``handmocap camera register``: write the camera's extrinsics and clock from the take's markers in its
     video; exit 2 on bad input."""
-    from core.camera.files import load_camera, save_camera
-    from core.camera.model import CameraClock
-    from core.camera.registration import register_take
-    from core.io import load_take
+    from handmocap.core.camera.files import load_camera, save_camera
+    from handmocap.core.camera.model import CameraClock
+    from handmocap.core.camera.registration import register_take
+    from handmocap.core.io import load_take
 
     check_outputs(args)
     camera = load_camera(args.camera)
@@ -113,11 +113,11 @@ def command_register(args: argparse.Namespace) -> int:
 
 def command_overlay(args: argparse.Namespace) -> int:
     """``handmocap camera overlay``: write the video with the take's markers drawn on it; exit 2 on bad input."""
-    from core.camera.files import load_camera
-    from core.camera.frames import open_frames
-    from core.camera.overlay import draw_overlay, project_take
-    from core.camera.writers import write_video
-    from core.io import is_marker_label, load_take
+    from handmocap.core.camera.files import load_camera
+    from handmocap.core.camera.frames import open_frames
+    from handmocap.core.camera.overlay import draw_overlay, project_take
+    from handmocap.core.camera.writers import write_video
+    from handmocap.core.io import is_marker_label, load_take
 
     check_outputs(args)
     camera = load_camera(args.camera)
@@ -140,12 +140,12 @@ def command_overlay(args: argparse.Namespace) -> int:
 def command_simulate(args: argparse.Namespace) -> int:
     """``handmocap camera simulate``: write a synthetic take, its camera video, board images and true camera
     to a folder; exit 2 on bad input."""
-    from core.camera.files import save_camera
-    from core.camera.intrinsics import BoardSpec
-    from core.camera.writers import write_depth_frames, write_video
-    from core.io import save_take
-    from core.io.durable import write_atomic
-    from core.simulate.camera import board_views, simulate_camera_take
+    from handmocap.core.camera.files import save_camera
+    from handmocap.core.camera.intrinsics import BoardSpec
+    from handmocap.core.camera.writers import write_depth_frames, write_video
+    from handmocap.core.io import save_take
+    from handmocap.core.io.durable import write_atomic
+    from handmocap.core.simulate.camera import board_views, simulate_camera_take
 
     folder = Path(args.out_folder)
     if folder.exists() and not folder.is_dir():
@@ -176,7 +176,7 @@ def command_simulate(args: argparse.Namespace) -> int:
 
 def command_evaluate_camera(args: argparse.Namespace) -> int:
     """``handmocap evaluate camera``: print the camera calibration accuracy on synthetic cameras."""
-    from core.evaluation.camera import HELD_OUT_SEEDS, evaluate_camera
+    from handmocap.core.evaluation.camera import HELD_OUT_SEEDS, evaluate_camera
 
     seeds = tuple(args.seeds) if args.seeds else HELD_OUT_SEEDS
     print_figures(evaluate_camera(seeds), args.json)

@@ -8,9 +8,9 @@ import math
 import os
 from pathlib import Path
 
-from app.cli.progress import ProgressLine
-from core.errors import InputError
-from core.io.durable import check_target
+from handmocap.app.cli.progress import ProgressLine
+from handmocap.core.errors import InputError
+from handmocap.core.io.durable import check_target
 
 OVERWRITE_HELP = "replace output files that already exist (without it the command stops before any work)"
 """The one meaning of ``--overwrite`` in every command."""

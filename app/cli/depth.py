@@ -8,17 +8,17 @@ import argparse
 import json
 from pathlib import Path
 
-from app.cli.common import add_outputs, check_output, check_outputs, progress_printer
-from core.errors import InputError
+from handmocap.app.cli.common import add_outputs, check_output, check_outputs, progress_printer
+from handmocap.core.errors import InputError
 
 
 def _camera(args: argparse.Namespace, size: tuple[int, int]):
     """The depth camera: ``--intrinsics FX,FY,CX,CY`` or a camera file (JSON/YAML/XML) of the same size."""
-    from core.fusion.depth_track import parse_intrinsics
+    from handmocap.core.fusion.depth_track import parse_intrinsics
 
     text = args.intrinsics
     if "," not in text and Path(text).suffix.lower() in (".json", ".yaml", ".yml", ".xml"):
-        from core.camera.files import load_camera
+        from handmocap.core.camera.files import load_camera
 
         camera = load_camera(text)
         if camera.size != size:
@@ -26,14 +26,14 @@ def _camera(args: argparse.Namespace, size: tuple[int, int]):
                              f"{size[0]}×{size[1]}")
         if any(camera.distortion):
             raise InputError(f"{text} has lens distortion; give the depth camera's ideal intrinsics FX,FY,CX,CY")
-        from core.camera.model import Camera
+        from handmocap.core.camera.model import Camera
 
         return Camera(camera.matrix, camera.distortion, size, registered=True, name=camera.name)
     return parse_intrinsics(text, size)
 
 
 def _write_json(path: str, document: dict) -> None:
-    from core.io.durable import write_atomic
+    from handmocap.core.io.durable import write_atomic
 
     write_atomic(path, (json.dumps(document, indent=1) + "\n").encode())
 
@@ -41,7 +41,7 @@ def _write_json(path: str, document: dict) -> None:
 def _write_png(path: Path, image) -> None:
     import cv2
 
-    from core.io.durable import write_atomic
+    from handmocap.core.io.durable import write_atomic
 
     ok, data = cv2.imencode(".png", image)
     if not ok:
@@ -51,9 +51,9 @@ def _write_png(path: Path, image) -> None:
 
 def command_depth_fit(args: argparse.Namespace) -> int:
     """``handmocap depth fit``: one depth frame's fit as JSON (and an overlay PNG); exit 2 on bad input."""
-    from core.fusion.depth_fit import DepthFitter
-    from core.fusion.depth_overlay import draw_depth_fit
-    from core.fusion.depth_track import read_depth_image
+    from handmocap.core.fusion.depth_fit import DepthFitter
+    from handmocap.core.fusion.depth_overlay import draw_depth_fit
+    from handmocap.core.fusion.depth_track import read_depth_image
 
     check_outputs(args)
     args.depth_unit_mm = _unit(args.depth_unit_mm)
@@ -79,8 +79,8 @@ def command_depth_fit(args: argparse.Namespace) -> int:
 
 def command_depth_track(args: argparse.Namespace) -> int:
     """``handmocap depth track``: every frame of a folder, tracked, as JSON (and overlays); exit 2 on bad input."""
-    from core.fusion.depth_overlay import draw_depth_fit
-    from core.fusion.depth_track import DepthTracker, depth_frame_paths, read_depth_image
+    from handmocap.core.fusion.depth_overlay import draw_depth_fit
+    from handmocap.core.fusion.depth_track import DepthTracker, depth_frame_paths, read_depth_image
 
     check_outputs(args)
     args.depth_unit_mm = _unit(args.depth_unit_mm)

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from app.cli.common import add_outputs, add_rate_argument, progress_printer
-from core.errors import InputError
+from handmocap.app.cli.common import add_outputs, add_rate_argument, progress_printer
+from handmocap.core.errors import InputError
 
 
 def _session_take(argument: str, take: str | None) -> tuple[Path, str] | None:
@@ -38,8 +38,8 @@ def _session_take(argument: str, take: str | None) -> tuple[Path, str] | None:
 def _file_review(path: str, frame_rate: float | None = None):
     """The review of a labelled take file (at ``frame_rate`` Hz when given) and the subject's hand models and
     marker sets it holds."""
-    from app.cli.review import _load_review, _subject_hands
-    from core.io.labelled_c3d import subject_calibrations
+    from handmocap.app.cli.review import _load_review, _subject_hands
+    from handmocap.core.io.labelled_c3d import subject_calibrations
 
     if not Path(path).is_file():
         raise InputError(f"{path}: no such take file")
@@ -50,7 +50,7 @@ def _file_review(path: str, frame_rate: float | None = None):
 
 def _solve_missing_hands(review, models: dict, marker_sets: dict, quiet: bool) -> None:
     """Solve, in memory, every hand of ``review`` that has no solved frame (layered IK over the take)."""
-    from core.workflows.resolve import resolve_jobs, run_resolve_jobs
+    from handmocap.core.workflows.resolve import resolve_jobs, run_resolve_jobs
 
     if all(np.isfinite(hand.joint_angles).all(axis=1).any() for hand in review.hands):
         return
@@ -63,9 +63,9 @@ def _solve_missing_hands(review, models: dict, marker_sets: dict, quiet: bool) -
 
 def command_export(args: argparse.Namespace) -> int:
     """``handmocap export``: write a labelled take or a session's take in the chosen format; exit 2 on bad input."""
-    from core.model import load_template
-    from core.review.export import EXPORT_FORMATS, export_review
-    from core.session import Session
+    from handmocap.core.model import load_template
+    from handmocap.core.review.export import EXPORT_FORMATS, export_review
+    from handmocap.core.session import Session
 
     angles = EXPORT_FORMATS[args.format][2]
     with ExitStack() as cleanup:
@@ -99,8 +99,8 @@ def command_export(args: argparse.Namespace) -> int:
 
 def _check_hand_outputs(review, out: str, overwrite: bool) -> None:
     """Check the per-hand BVH files (``OUT_right.bvh``...) of a take with two solved hands before writing."""
-    from app.cli.common import check_output
-    from core.review.export import per_hand_path
+    from handmocap.app.cli.common import check_output
+    from handmocap.core.review.export import per_hand_path
 
     solved = [hand for hand in review.hands if np.isfinite(hand.joint_angles).all(axis=1).any()]
     if len(solved) > 1:

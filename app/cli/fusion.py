@@ -7,7 +7,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from app.cli.common import (
+from handmocap.app.cli.common import (
     add_json_flag,
     add_outputs,
     add_rate_argument,
@@ -15,7 +15,7 @@ from app.cli.common import (
     print_figures,
     progress_printer,
 )
-from core.errors import InputError
+from handmocap.core.errors import InputError
 
 COLOUR_NAMES = ("colour", "color", "rgb")
 
@@ -26,8 +26,8 @@ def _recording(folder: Path, depth_unit: float, rate: float, background: str | N
     import cv2
     import numpy as np
 
-    from core.camera.frames import open_frames
-    from core.fusion import RGBDFrames
+    from handmocap.core.camera.frames import open_frames
+    from handmocap.core.fusion import RGBDFrames
 
     if not folder.is_dir():
         raise InputError(f"RGB-D folder {folder} does not exist or is not a folder")
@@ -56,11 +56,11 @@ def _recording(folder: Path, depth_unit: float, rate: float, background: str | N
 
 def command_fuse(args: argparse.Namespace) -> int:
     """``handmocap fuse``: write a take solved with its markers and an RGB-D recording; exit 2 on bad input."""
-    from core.camera.files import load_camera
-    from core.fusion import FusionSettings, fuse_take
-    from core.fusion.pso import SwarmSettings
-    from core.io import load_take
-    from core.model import best_layout_for
+    from handmocap.core.camera.files import load_camera
+    from handmocap.core.fusion import FusionSettings, fuse_take
+    from handmocap.core.fusion.pso import SwarmSettings
+    from handmocap.core.io import load_take
+    from handmocap.core.model import best_layout_for
 
     check_outputs(args)
     take = load_take(args.take, frame_rate=args.rate)
@@ -88,8 +88,8 @@ def command_fuse(args: argparse.Namespace) -> int:
 
 def command_evaluate_fusion(args: argparse.Namespace) -> int:
     """``handmocap evaluate fusion``: print fusion against markers-only IK on synthetic RGB-D takes."""
-    from core.evaluation.fusion import HELD_OUT_SEEDS, evaluate_fusion
-    from core.fusion import FusionSettings
+    from handmocap.core.evaluation.fusion import HELD_OUT_SEEDS, evaluate_fusion
+    from handmocap.core.fusion import FusionSettings
 
     seeds = tuple(args.seeds) if args.seeds else HELD_OUT_SEEDS
     print_figures(evaluate_fusion(seeds, FusionSettings(), swarm=not args.no_pso), args.json)

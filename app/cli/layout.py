@@ -5,8 +5,15 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from app.cli.common import add_json_flag, add_outputs, add_rate_argument, print_figures, print_json, progress_printer
-from core.errors import InputError
+from handmocap.app.cli.common import (
+    add_json_flag,
+    add_outputs,
+    add_rate_argument,
+    print_figures,
+    print_json,
+    progress_printer,
+)
+from handmocap.core.errors import InputError
 
 
 def _motions(values: list[str]) -> str | list[str]:
@@ -16,9 +23,9 @@ def _motions(values: list[str]) -> str | list[str]:
 
 def command_layout_optimise(args: argparse.Namespace) -> int:
     """``handmocap layout optimise``: write a reduced marker layout optimised for a motion set; exit 2 on bad input."""
-    from core.layout import PSOSettings
-    from core.layout.workflow import optimise_layout
-    from core.model import load_template, save_layout
+    from handmocap.core.layout import PSOSettings
+    from handmocap.core.layout.workflow import optimise_layout
+    from handmocap.core.model import load_template, save_layout
 
     report = progress_printer(f"optimising the layout ({args.method})")
     settings = PSOSettings(particles=args.particles, iterations=args.iterations)
@@ -34,8 +41,8 @@ def command_layout_optimise(args: argparse.Namespace) -> int:
 
 def command_layout_evaluate(args: argparse.Namespace) -> int:
     """``handmocap layout evaluate``: print a layout's metrics and held-out reconstruction error."""
-    from core.layout import default_subspace_dims, evaluate_layout, motion_set
-    from core.model import load_layout, load_template
+    from handmocap.core.layout import default_subspace_dims, evaluate_layout, motion_set
+    from handmocap.core.model import load_layout, load_template
 
     layout = load_layout(args.layout)
     dims = args.dims or default_subspace_dims(len(layout.markers))
@@ -53,10 +60,10 @@ def command_layout_evaluate(args: argparse.Namespace) -> int:
 
 def command_layout_fit(args: argparse.Namespace) -> int:
     """``handmocap layout fit``: write a layout refitted to where its markers sit in a take; exit 2 on bad input."""
-    from core.calibration.marker_placement import fit_marker_placement
-    from core.io import load_take
-    from core.model import load_layout, load_template, save_layout
-    from core.model.hand_columns import name_side
+    from handmocap.core.calibration.marker_placement import fit_marker_placement
+    from handmocap.core.io import load_take
+    from handmocap.core.model import load_layout, load_template, save_layout
+    from handmocap.core.model.hand_columns import name_side
 
     take = load_take(args.take, frame_rate=args.rate)
     names = list(take.marker_names)
@@ -82,9 +89,9 @@ def command_layout_fit(args: argparse.Namespace) -> int:
 def command_layout_learn(args: argparse.Namespace) -> int:
     """``handmocap layout learn``: learn a lab's labelling template from labelled takes, write it, print what was
     found (per hand: each marker's digit and segment, the placement residual; the objects); exit 2 on bad input."""
-    from core.io import load_take
-    from core.labelling.templates import learn_template
-    from core.model.lab_template import save_lab_template
+    from handmocap.core.io import load_take
+    from handmocap.core.labelling.templates import learn_template
+    from handmocap.core.model.lab_template import save_lab_template
 
     takes = [load_take(path, frame_rate=args.rate) for path in args.takes]
     name = args.name or Path(args.out).stem
@@ -113,9 +120,9 @@ def command_layout_learn(args: argparse.Namespace) -> int:
 
 def command_layout_sheet(args: argparse.Namespace) -> int:
     """``handmocap layout sheet``: write the placement sheet (PNG or PDF) of a layout; exit 2 on bad input."""
-    from core.layout.placement_sheet import placement_sheet
-    from core.model import load_layout, load_template
-    from widgets.placement_sheet import save_placement_sheet
+    from handmocap.core.layout.placement_sheet import placement_sheet
+    from handmocap.core.model import load_layout, load_template
+    from handmocap.widgets.placement_sheet import save_placement_sheet
 
     layout = load_layout(args.layout)
     path = save_placement_sheet(placement_sheet(load_template(args.side), layout), args.out)
@@ -125,7 +132,7 @@ def command_layout_sheet(args: argparse.Namespace) -> int:
 
 def command_layout_view(args: argparse.Namespace) -> int:
     """``handmocap layout view``: run the layout view; with --screenshot, exit 1 when it is not saved."""
-    from app.gui.layout_view import run_layout_view
+    from handmocap.app.gui.layout_view import run_layout_view
 
     return run_layout_view(args.screenshot, args.compare, args.frame)
 
@@ -133,9 +140,9 @@ def command_layout_view(args: argparse.Namespace) -> int:
 def command_layout_table(args: argparse.Namespace) -> int:
     """``handmocap layout table``: print the held-out grasp error against the number of markers, grasp-specific
     against generic layouts."""
-    from core.layout import PSOSettings
-    from core.layout.workflow import error_against_markers
-    from core.model import load_template
+    from handmocap.core.layout import PSOSettings
+    from handmocap.core.layout.workflow import error_against_markers
+    from handmocap.core.model import load_template
 
     settings = PSOSettings(particles=args.particles, iterations=args.iterations)
     print(f"held-out grasp reconstruction error (mm) of layouts optimised for {args.specific} and for "
@@ -157,7 +164,7 @@ def command_layout_table(args: argparse.Namespace) -> int:
 
 def command_bench_pso(args: argparse.Namespace) -> int:
     """``handmocap bench pso``: print the time and energy of PSO against greedy layout optimisation."""
-    from core.layout.workflow import bench_pso
+    from handmocap.core.layout.workflow import bench_pso
 
     figures = bench_pso(n_markers=args.markers, seeds=args.seeds)
     print(f"PSO {figures['pso_seconds']:.2f} s (E {figures['pso_energy']}, {figures['pso_evaluations']} layouts), "

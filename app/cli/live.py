@@ -9,14 +9,14 @@ import sys
 import time
 from pathlib import Path
 
-from app.cli.common import add_json_flag, add_outputs, add_rate_argument, check_outputs, print_json
-from core.errors import InputError
+from handmocap.app.cli.common import add_json_flag, add_outputs, add_rate_argument, check_outputs, print_json
+from handmocap.core.errors import InputError
 
 
 def command_serve(args: argparse.Namespace) -> int:
     """``handmocap live serve``: replay a take over QTM's RT protocol or NatNet on 127.0.0.1 until Ctrl+C."""
-    from core.io import load_take
-    from core.live.server import StandInServer, make_replay
+    from handmocap.core.io import load_take
+    from handmocap.core.live.server import StandInServer, make_replay
 
     take = load_take(args.take, frame_rate=args.rate)
     replay = make_replay(take, args.rate, unlabelled=args.unlabelled)
@@ -35,9 +35,9 @@ def command_serve(args: argparse.Namespace) -> int:
 
 def command_record(args: argparse.Namespace) -> int:
     """``handmocap live record``: record from QTM or Motive, labelling live; the take goes into the session."""
-    from core.live.capture import LiveCapture, live_report
-    from core.live.systems import make_source
-    from core.model.lab_template import load_lab_template
+    from handmocap.core.live.capture import LiveCapture, live_report
+    from handmocap.core.live.systems import make_source
+    from handmocap.core.model.lab_template import load_lab_template
 
     check_outputs(args)
     if args.seconds is not None and not args.seconds > 0:
@@ -95,8 +95,8 @@ def _control(capture, args: argparse.Namespace) -> None:
 
 def command_recover(args: argparse.Namespace) -> int:
     """``handmocap live recover``: the take of a recording's journal (after a crash) as a C3D."""
-    from core.io.c3d_writer import write_c3d
-    from core.live.recorder import read_journal
+    from handmocap.core.io.c3d_writer import write_c3d
+    from handmocap.core.live.recorder import read_journal
 
     check_outputs(args)
     journal = read_journal(args.journal)

@@ -12,16 +12,16 @@ import signal
 import sys
 from pathlib import Path
 
-from app.cli import batch as batch_commands
-from app.cli import calibrate as calibrate_commands
-from app.cli import camera as camera_commands
-from app.cli import depth as depth_commands
-from app.cli import export as export_commands
-from app.cli import fusion as fusion_commands
-from app.cli import layout as layout_commands
-from app.cli import live as live_commands
-from app.cli import review as review_commands
-from app.cli.common import (
+from handmocap.app.cli import batch as batch_commands
+from handmocap.app.cli import calibrate as calibrate_commands
+from handmocap.app.cli import camera as camera_commands
+from handmocap.app.cli import depth as depth_commands
+from handmocap.app.cli import export as export_commands
+from handmocap.app.cli import fusion as fusion_commands
+from handmocap.app.cli import layout as layout_commands
+from handmocap.app.cli import live as live_commands
+from handmocap.app.cli import review as review_commands
+from handmocap.app.cli.common import (
     add_json_flag,
     add_outputs,
     add_rate_argument,
@@ -32,8 +32,8 @@ from app.cli.common import (
     print_summary,
     progress_printer,
 )
-from app.cli.progress import close_all as close_progress
-from core.errors import HandMocapError, InputError
+from handmocap.app.cli.progress import close_all as close_progress
+from handmocap.core.errors import HandMocapError, InputError
 
 #: modules that add their own subcommands (``register(commands, bench_commands, evaluate_commands)``)
 SUBCOMMAND_MODULES = (layout_commands, review_commands, calibrate_commands, camera_commands, export_commands,
@@ -53,7 +53,7 @@ def _version() -> str:
 
 def command_gui(args: argparse.Namespace) -> int:
     """``handmocap gui``: run the application on the given takes; with --screenshot, exit 1 when it is not saved."""
-    from app.gui.launch import run_gui
+    from handmocap.app.gui.launch import run_gui
 
     return run_gui(args.files, screenshot=args.screenshot, frame=args.frame, solve=args.solve, demo=args.demo,
                    size=args.size, frame_rate=args.rate)
@@ -61,7 +61,7 @@ def command_gui(args: argparse.Namespace) -> int:
 
 def command_info(args: argparse.Namespace) -> int:
     """``handmocap info``: print a take's frames, rate, units, markers, vendor, missing share; exit 2 on bad input."""
-    from core.io import load_take
+    from handmocap.core.io import load_take
 
     take = load_take(args.file, frame_rate=args.rate)
     missing = take.missing_fraction
@@ -72,7 +72,7 @@ def command_info(args: argparse.Namespace) -> int:
         "markers": take.n_markers, "missing_share": round(float(missing), 4),
         "marker_names": list(take.marker_names),
     }
-    from core.live.recorder import SYSTEM_GROUP, system_labels_summary
+    from handmocap.core.live.recorder import SYSTEM_GROUP, system_labels_summary
 
     system = system_labels_summary(take.parameters.get(SYSTEM_GROUP))
     if system:
@@ -95,8 +95,8 @@ def command_info(args: argparse.Namespace) -> int:
 
 def command_simulate(args: argparse.Namespace) -> int:
     """``handmocap simulate``: write a synthetic take and its ground truth; exit 2 on bad input."""
-    from core.io import save_take
-    from core.simulate import save_truth, simulate_take
+    from handmocap.core.io import save_take
+    from handmocap.core.simulate import save_truth, simulate_take
 
     if args.frames <= 0:
         raise InputError("--frames must be positive")
@@ -117,13 +117,13 @@ def command_simulate(args: argparse.Namespace) -> int:
 def command_solve(args: argparse.Namespace) -> int:
     """``handmocap solve``: write the inverse kinematics of each hand of a labelled take (result, CSV; one file
     per hand when there are two); exit 2 on bad input."""
-    from core.io import load_take
-    from core.io.labelled_c3d import subject_calibrations
-    from core.model import detect_hands, hand_layout, load_template, marker_columns
-    from core.prior import PosturePrior
-    from core.review.export import per_hand_path
-    from core.workflows.labelling import subject_model
-    from core.workflows.resolve import hand_marker_set, solve_labelled_take
+    from handmocap.core.io import load_take
+    from handmocap.core.io.labelled_c3d import subject_calibrations
+    from handmocap.core.model import detect_hands, hand_layout, load_template, marker_columns
+    from handmocap.core.prior import PosturePrior
+    from handmocap.core.review.export import per_hand_path
+    from handmocap.core.workflows.labelling import subject_model
+    from handmocap.core.workflows.resolve import hand_marker_set, solve_labelled_take
 
     take = load_take(args.take, frame_rate=args.rate)
     subjects = {subject.side: subject for subject in subject_calibrations(take.parameters, args.take)}
@@ -165,7 +165,7 @@ def command_solve(args: argparse.Namespace) -> int:
 
 def command_bench_ik(args: argparse.Namespace) -> int:
     """``handmocap bench ik``: print the layered IK frames per second on a simulated take."""
-    from core.evaluation.ik import bench_ik
+    from handmocap.core.evaluation.ik import bench_ik
 
     figures = bench_ik(frames=args.frames or 3000)
     print_summary(f"layered IK, {figures['markers']} markers: {figures['frames_per_s']:.0f} frames/s", figures,
@@ -175,7 +175,7 @@ def command_bench_ik(args: argparse.Namespace) -> int:
 
 def command_bench_load(args: argparse.Namespace) -> int:
     """``handmocap bench load``: print the seconds to read a generated 40-marker C3D."""
-    from core.io.generate import bench_load
+    from handmocap.core.io.generate import bench_load
 
     figures = bench_load(n_frames=args.frames or 100_000)
     print_summary(f"read {figures['frames']} frames × {figures['markers']} markers in {figures['seconds']:.3f} s",
@@ -185,7 +185,7 @@ def command_bench_load(args: argparse.Namespace) -> int:
 
 def command_evaluate_ik(args: argparse.Namespace) -> int:
     """``handmocap evaluate ik``: print layered against standard IK (grasp-4) and dense accuracy."""
-    from core.evaluation.ik import evaluate_ik
+    from handmocap.core.evaluation.ik import evaluate_ik
 
     print_figures(evaluate_ik(frames=args.frames or 1500), args.json)
     return 0
@@ -193,7 +193,7 @@ def command_evaluate_ik(args: argparse.Namespace) -> int:
 
 def command_template(args: argparse.Namespace) -> int:
     """``handmocap template build``: write the template hand mesh (default: the shipped file)."""
-    from core.model.template_mesh import DEFAULT_TEMPLATE_PATH, write_default_template
+    from handmocap.core.model.template_mesh import DEFAULT_TEMPLATE_PATH, write_default_template
 
     path = check_output(args.out or DEFAULT_TEMPLATE_PATH, args.overwrite)
     write_default_template(path)
@@ -203,7 +203,7 @@ def command_template(args: argparse.Namespace) -> int:
 
 def command_prior(args: argparse.Namespace) -> int:
     """``handmocap prior build``: write a posture prior from solved takes or the canonical postures, and describe it."""
-    from core.prior import DEFAULT_PRIOR_PATH, build_default_prior, build_prior_from_results, describe_prior
+    from handmocap.core.prior import DEFAULT_PRIOR_PATH, build_default_prior, build_prior_from_results, describe_prior
 
     if args.results:
         path = check_output(args.out or "prior.npz", args.overwrite)
@@ -353,7 +353,7 @@ def _write_crash_log() -> Path:
     """Save the current traceback to ``~/.cache/handmocap/last-error.log``; returns the path."""
     import traceback
 
-    from core.io.durable import write_text_atomic
+    from handmocap.core.io.durable import write_text_atomic
 
     log = Path.home() / ".cache" / "handmocap" / "last-error.log"
     log.parent.mkdir(parents=True, exist_ok=True)

@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from app.cli.common import (
+from handmocap.app.cli.common import (
     add_json_flag,
     add_outputs,
     add_rate_argument,
@@ -16,14 +16,14 @@ from app.cli.common import (
     print_summary,
     progress_printer,
 )
-from core.errors import InputError
+from handmocap.core.errors import InputError
 
 
 def _load_review(path: str, frame_rate: float | None = None):
     """A review of a labelled take: our labelled C3D (labels, fills, edits) or any labelled file; at
     ``frame_rate`` (Hz, ``--rate``) when given."""
-    from core.io import load_take
-    from core.review import ReviewTake, review_from_labelled_c3d
+    from handmocap.core.io import load_take
+    from handmocap.core.review import ReviewTake, review_from_labelled_c3d
 
     if Path(path).suffix.lower() == ".c3d":
         review = review_from_labelled_c3d(path)
@@ -36,10 +36,10 @@ def _load_review(path: str, frame_rate: float | None = None):
 def _subject_hands(parameters: dict, source: str) -> tuple[dict, dict]:
     """The subject's hand models and calibrated marker sets per side that auto-label stored in a labelled
     C3D (its ``HAND_SUBJECT`` group), for the model fill; empty when the take has none."""
-    from core.io.labelled_c3d import subject_calibrations
-    from core.model import load_layout
-    from core.model.lab_template import load_lab_template
-    from core.workflows.labelling import subject_model
+    from handmocap.core.io.labelled_c3d import subject_calibrations
+    from handmocap.core.model import load_layout
+    from handmocap.core.model.lab_template import load_lab_template
+    from handmocap.core.workflows.labelling import subject_model
 
     models, marker_sets = {}, {}
     for subject in subject_calibrations(parameters, source):
@@ -56,12 +56,12 @@ def _subject_hands(parameters: dict, source: str) -> tuple[dict, dict]:
 
 def command_label(args: argparse.Namespace) -> int:
     """``handmocap label``: write the auto-labelled take (and report) and print the outcome; exit 2 on bad input."""
-    from core.io import load_take, looks_unlabelled
-    from core.io.durable import write_text_atomic
-    from core.model import load_layout, marker_columns
-    from core.model.lab_template import LabTemplate, load_lab_template
-    from core.review import ReviewTake, export_labelled_c3d
-    from core.workflows.labelling import auto_label
+    from handmocap.core.io import load_take, looks_unlabelled
+    from handmocap.core.io.durable import write_text_atomic
+    from handmocap.core.model import load_layout, marker_columns
+    from handmocap.core.model.lab_template import LabTemplate, load_lab_template
+    from handmocap.core.review import ReviewTake, export_labelled_c3d
+    from handmocap.core.workflows.labelling import auto_label
 
     take = load_take(args.raw, frame_rate=args.rate)
     layout = load_lab_template(args.layout) or load_layout(args.layout)
@@ -113,9 +113,9 @@ def command_label(args: argparse.Namespace) -> int:
 
 def command_fill(args: argparse.Namespace) -> int:
     """``handmocap fill``: write the labelled take with its short gaps filled, print the counts; exit 2 on bad input."""
-    from core.io import looks_unlabelled
-    from core.review import PROVENANCE_NAMES, export_labelled_c3d
-    from core.workflows import fill_review_gaps, find_review_gaps, gap_groups
+    from handmocap.core.io import looks_unlabelled
+    from handmocap.core.review import PROVENANCE_NAMES, export_labelled_c3d
+    from handmocap.core.workflows import fill_review_gaps, find_review_gaps, gap_groups
 
     review = _load_review(args.labelled, args.rate)
     if not review.n_labels:
@@ -146,7 +146,7 @@ def command_fill(args: argparse.Namespace) -> int:
 
 def command_bench_label(args: argparse.Namespace) -> int:
     """``handmocap bench label``: print the labelling + IK frames per second (one hand; scene)."""
-    from core.evaluation.labelling_bench import bench_label
+    from handmocap.core.evaluation.labelling_bench import bench_label
 
     figures = bench_label(frames=args.frames) if args.frames else bench_label()
     print_summary(f"labelling + IK: one hand {figures['frames_per_s_one_hand']:.0f} frames/s, "
@@ -156,14 +156,14 @@ def command_bench_label(args: argparse.Namespace) -> int:
 
 def _evaluate_conditions(args: argparse.Namespace) -> int:
     """``evaluate label`` with ``--sweep``, ``--full`` or a condition (noise, occlusion, mirror, hands)."""
-    from core.evaluation.labelling_robustness import (
+    from handmocap.core.evaluation.labelling_robustness import (
         HELD_OUT_SEEDS,
         SWEEP,
         Condition,
         evaluate_condition,
         evaluate_long_take,
     )
-    from core.evaluation.labelling_robustness import format_sweep as format_table
+    from handmocap.core.evaluation.labelling_robustness import format_sweep as format_table
 
     figures: dict = {}
     seeds = tuple(range(HELD_OUT_SEEDS[0], HELD_OUT_SEEDS[0] + args.seeds))
@@ -195,8 +195,8 @@ def _evaluate_conditions(args: argparse.Namespace) -> int:
 def _evaluate_lab_take(args: argparse.Namespace) -> int:
     """``evaluate label --take``: strip, shuffle and relabel a lab's labelled take; print the figures per hand
     and object (correct / wrong / missed %, longest wrong run and its marker)."""
-    from core.evaluation.take_labelling import evaluate_take_labelling
-    from core.io import load_take
+    from handmocap.core.evaluation.take_labelling import evaluate_take_labelling
+    from handmocap.core.io import load_take
 
     take = load_take(args.take, frame_rate=args.rate)
     figures = evaluate_take_labelling(take, args.layout, args.learn_on, hands=args.hands or "auto",
@@ -228,7 +228,7 @@ def _evaluate_lab_take(args: argparse.Namespace) -> int:
 def command_evaluate_label(args: argparse.Namespace) -> int:
     """``handmocap evaluate label``: print the labelling accuracy on simulated takes and the real recording, or
     (``--take``) on a lab's own labelled take."""
-    from core.evaluation.labelling import evaluate_labelling, evaluate_real_recording
+    from handmocap.core.evaluation.labelling import evaluate_labelling, evaluate_real_recording
 
     if args.take:
         return _evaluate_lab_take(args)
@@ -262,10 +262,10 @@ def command_evaluate_label(args: argparse.Namespace) -> int:
 
 def command_evaluate_gaps(args: argparse.Namespace) -> int:
     """``handmocap evaluate gaps``: print the gap-fill error per method on hidden stretches of a take."""
-    from core.evaluation.gaps import evaluate_gap_fill, evaluate_hidden_gaps, format_gap_fill_table
-    from core.evaluation.labelling import REAL_RECORDING
-    from core.io import Take, load_take
-    from core.model import load_layout, load_template
+    from handmocap.core.evaluation.gaps import evaluate_gap_fill, evaluate_hidden_gaps, format_gap_fill_table
+    from handmocap.core.evaluation.labelling import REAL_RECORDING
+    from handmocap.core.io import Take, load_take
+    from handmocap.core.model import load_layout, load_template
 
     path = Path(args.take) if args.take else REAL_RECORDING
     if not path.exists():

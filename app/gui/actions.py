@@ -7,7 +7,7 @@ from collections.abc import Callable
 from PySide6.QtGui import QAction
 from PySide6.QtWidgets import QStyle, QWidget
 
-from widgets.shortcuts import bind
+from handmocap.widgets.shortcuts import bind
 
 
 def make_action(parent: QWidget, text: str, slot: Callable, shortcut: str | None = None,

@@ -16,13 +16,13 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from app.gui.document import TakeDocument
-from core.errors import HandMocapError
-from core.io import Take
-from core.model import HandModel, MarkerLayout, add_layout_folder, best_layout_for, remove_layout_folder
-from core.model.lab_template import LabTemplate
-from core.review.events import ReviewChanged
-from core.session import Session, TakeEntry
+from handmocap.app.gui.document import TakeDocument
+from handmocap.core.errors import HandMocapError
+from handmocap.core.io import Take
+from handmocap.core.model import HandModel, MarkerLayout, add_layout_folder, best_layout_for, remove_layout_folder
+from handmocap.core.model.lab_template import LabTemplate
+from handmocap.core.review.events import ReviewChanged
+from handmocap.core.session import Session, TakeEntry
 
 
 @dataclass

@@ -39,16 +39,16 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.application import Application
-from app.gui.document import TakeDocument
-from core.batch.open_take import OpenTakeResult, process_review_copy, record_done
-from core.batch.pipeline import EXPORTS, HANDS, SOLVE_METHODS, STEPS, Pipeline, load_pipeline, save_pipeline
-from core.batch.runner import BatchPlan, BatchProgress, TakeJob, plan_batch, run_batch
-from core.batch.task import step_description
-from core.errors import HandMocapError
-from core.gaps import FILL_METHODS
-from core.model import layout_names
-from core.review import ReviewTake
+from handmocap.app.gui.application import Application
+from handmocap.app.gui.document import TakeDocument
+from handmocap.core.batch.open_take import OpenTakeResult, process_review_copy, record_done
+from handmocap.core.batch.pipeline import EXPORTS, HANDS, SOLVE_METHODS, STEPS, Pipeline, load_pipeline, save_pipeline
+from handmocap.core.batch.runner import BatchPlan, BatchProgress, TakeJob, plan_batch, run_batch
+from handmocap.core.batch.task import step_description
+from handmocap.core.errors import HandMocapError
+from handmocap.core.gaps import FILL_METHODS
+from handmocap.core.model import layout_names
+from handmocap.core.review import ReviewTake
 
 
 class BatchPanel(QDialog):
@@ -150,7 +150,7 @@ class BatchPanel(QDialog):
 
     def pipeline(self) -> Pipeline:
         """The pipeline the editor shows (checked as a pipeline file is; InputError otherwise)."""
-        from core.batch.pipeline import pipeline_from_dict
+        from handmocap.core.batch.pipeline import pipeline_from_dict
 
         return pipeline_from_dict({
             "steps": [step for step, box in self.steps.items() if box.isChecked()],

@@ -36,11 +36,11 @@ from PySide6.QtWidgets import (
     QWizardPage,
 )
 
-from app.gui.actions import make_action
-from app.gui.workers import TaskRunner
-from core.calibration.cleaning import clean_scan, skin_mask
-from core.calibration.landmarks import MIN_LANDMARKS, load_landmarks, save_landmarks
-from core.calibration.pipeline import (
+from handmocap.app.gui.actions import make_action
+from handmocap.app.gui.workers import TaskRunner
+from handmocap.core.calibration.cleaning import clean_scan, skin_mask
+from handmocap.core.calibration.landmarks import MIN_LANDMARKS, load_landmarks, save_landmarks
+from handmocap.core.calibration.pipeline import (
     CalibrationResult,
     finish_calibration,
     load_template_file,
@@ -49,11 +49,11 @@ from core.calibration.pipeline import (
     run_alignment,
     run_fit,
 )
-from core.calibration.scan import Scan, load_scan
-from core.errors import HandMocapError, InputError
-from core.model import HandModel
-from core.model.template_mesh import LANDMARK_DESCRIPTIONS, LANDMARK_NAMES
-from widgets.wizard_scene import CalibrationScene
+from handmocap.core.calibration.scan import Scan, load_scan
+from handmocap.core.errors import HandMocapError, InputError
+from handmocap.core.model import HandModel
+from handmocap.core.model.template_mesh import LANDMARK_DESCRIPTIONS, LANDMARK_NAMES
+from handmocap.widgets.wizard_scene import CalibrationScene
 
 REMOVED_COLOUR = np.array([220, 40, 40], dtype=np.uint8)
 LIVE_INTERVAL_MS = 120
@@ -667,7 +667,7 @@ class SavePage(QWizardPage):
 
     def save(self) -> bool:
         """Write the model (and glTF); returns whether everything was written."""
-        from core.model.gltf import save_gltf_hand
+        from handmocap.core.model.gltf import save_gltf_hand
 
         result = self.state.result
         written = []

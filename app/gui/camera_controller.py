@@ -32,28 +32,28 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.actions import make_action
-from app.gui.application import (
+from handmocap.app.gui.actions import make_action
+from handmocap.app.gui.application import (
     Application,
     CurrentDocumentChanged,
     DocumentClosing,
     FrameChanged,
     SelectionChanged,
 )
-from app.gui.document import TakeDocument
-from app.gui.review_controller import point_colours
-from core.camera.files import load_camera
-from core.camera.frames import FrameSource, open_frames
-from core.camera.model import Camera, CameraClock
-from core.camera.overlay import markers_at
-from core.errors import HandMocapError, InputError
-from core.model.skeleton import JOINT_PARENTS
-from core.review.events import ReviewChanged
-from core.session import Session
-from core.session.cameras import TakeCamera, add_camera, save_take_camera, take_cameras
-from widgets.camera_view import CameraView
-from widgets.dialog_buttons import ok_cancel_buttons
-from widgets.viewport import HandViewport
+from handmocap.app.gui.document import TakeDocument
+from handmocap.app.gui.review_controller import point_colours
+from handmocap.core.camera.files import load_camera
+from handmocap.core.camera.frames import FrameSource, open_frames
+from handmocap.core.camera.model import Camera, CameraClock
+from handmocap.core.camera.overlay import markers_at
+from handmocap.core.errors import HandMocapError, InputError
+from handmocap.core.model.skeleton import JOINT_PARENTS
+from handmocap.core.review.events import ReviewChanged
+from handmocap.core.session import Session
+from handmocap.core.session.cameras import TakeCamera, add_camera, save_take_camera, take_cameras
+from handmocap.widgets.camera_view import CameraView
+from handmocap.widgets.dialog_buttons import ok_cancel_buttons
+from handmocap.widgets.viewport import HandViewport
 
 RAW_COLOUR = (0.55, 0.80, 1.00)          # points of a take without labels (the 3D view's marker colour)
 FRUSTUM_DEPTH_MM = 150.0                 # how far the frustum reaches when the take has no markers in front
@@ -429,7 +429,7 @@ class CameraController(QObject):
     # ------------------------------------------------------------------------------------ wizard
     def open_wizard(self) -> None:
         """The camera calibration wizard for the shown camera (or a new camera file when there is none)."""
-        from app.gui.camera_wizard import CameraWizard
+        from handmocap.app.gui.camera_wizard import CameraWizard
 
         self._wizard = CameraWizard(self.host, self)
         self._wizard.show()

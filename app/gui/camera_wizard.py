@@ -38,11 +38,11 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.workers import TaskRunner
-from core.camera.extrinsics import Blobs, Registration, detect_blobs, register_from_board
-from core.camera.files import save_camera
-from core.camera.frames import open_frames
-from core.camera.intrinsics import (
+from handmocap.app.gui.workers import TaskRunner
+from handmocap.core.camera.extrinsics import Blobs, Registration, detect_blobs, register_from_board
+from handmocap.core.camera.files import save_camera
+from handmocap.core.camera.frames import open_frames
+from handmocap.core.camera.intrinsics import (
     BOARD_KINDS,
     BoardSpec,
     IntrinsicCalibration,
@@ -50,16 +50,16 @@ from core.camera.intrinsics import (
     detect_board,
     detect_board_in_files,
 )
-from core.camera.model import Camera
-from core.camera.overlay import markers_at
-from core.camera.registration import TakeRegistration, register_take
-from core.camera.sync import SyncResult, sync_markers
-from core.errors import CancelledError, HandMocapError, InputError
-from core.io.documents import read_document
-from core.io.input_schemas import BOARD_MARKERS
+from handmocap.core.camera.model import Camera
+from handmocap.core.camera.overlay import markers_at
+from handmocap.core.camera.registration import TakeRegistration, register_take
+from handmocap.core.camera.sync import SyncResult, sync_markers
+from handmocap.core.errors import CancelledError, HandMocapError, InputError
+from handmocap.core.io.documents import read_document
+from handmocap.core.io.input_schemas import BOARD_MARKERS
 
 if TYPE_CHECKING:
-    from app.gui.camera_controller import CameraController
+    from handmocap.app.gui.camera_controller import CameraController
 
 IMAGE_FILTER = "Board images (*.png *.jpg *.jpeg)"
 #: video frames searched for the marked board (evenly spread over the video)

@@ -18,15 +18,15 @@ from pathlib import Path
 
 import numpy as np
 
-from core.camera.files import load_camera, save_camera
-from core.camera.writers import write_depth_frames, write_video
-from core.errors import HandMocapError
-from core.evaluation.data import REAL_RECORDING
-from core.io import save_take
-from core.session import Session
-from core.session.cameras import add_camera
-from core.simulate import simulate_take
-from core.simulate.camera import random_camera, simulate_camera_take
+from handmocap.core.camera.files import load_camera, save_camera
+from handmocap.core.camera.writers import write_depth_frames, write_video
+from handmocap.core.errors import HandMocapError
+from handmocap.core.evaluation.data import REAL_RECORDING
+from handmocap.core.io import save_take
+from handmocap.core.session import Session
+from handmocap.core.session.cameras import add_camera
+from handmocap.core.simulate import simulate_take
+from handmocap.core.simulate.camera import random_camera, simulate_camera_take
 
 RAW_TAKE = "simulated raw take (dense, unlabelled).c3d"
 LABELLED_TAKE = "simulated grasps (dense, labelled).trc"

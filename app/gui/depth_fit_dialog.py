@@ -35,9 +35,9 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.workers import TaskRunner, one_line
-from core.errors import HandMocapError
-from core.fusion.depth_fit import DepthFit
+from handmocap.app.gui.workers import TaskRunner, one_line
+from handmocap.core.errors import HandMocapError
+from handmocap.core.fusion.depth_fit import DepthFit
 
 #: the SR305's values (``../shared/data/rgbd``), a starting point the operator edits
 DEFAULT_INTRINSICS = (476.007, 476.007, 313.683, 242.755)
@@ -59,9 +59,9 @@ def depth_fit_task(frame: Path, intrinsics: str, unit_mm: float, side: str) -> C
     """Worker task: read the frame, fit the hand, draw the overlay (:class:`DepthFitResult`)."""
 
     def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> DepthFitResult:
-        from core.fusion.depth_fit import DepthFitter
-        from core.fusion.depth_overlay import draw_depth_fit
-        from core.fusion.depth_track import parse_intrinsics, read_depth_image
+        from handmocap.core.fusion.depth_fit import DepthFitter
+        from handmocap.core.fusion.depth_overlay import draw_depth_fit
+        from handmocap.core.fusion.depth_track import parse_intrinsics, read_depth_image
 
         depth = read_depth_image(frame, unit_mm)
         camera = parse_intrinsics(intrinsics, (depth.shape[1], depth.shape[0]))
@@ -248,7 +248,7 @@ class DepthFitDialog(QDialog):
         try:
             import cv2
 
-            from core.io.durable import write_atomic
+            from handmocap.core.io.durable import write_atomic
 
             document = {"frame": str(self.result.frame), "intrinsics": self.result.intrinsics,
                         "depth_unit_mm": self.result.unit_mm, **self.result.fit.to_dict()}

@@ -10,11 +10,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from core.errors import HandMocapError
-from core.ik import IKResult
-from core.io import Take, looks_unlabelled
-from core.io.labelled_c3d import SubjectCalibration
-from core.model import (
+from handmocap.core.errors import HandMocapError
+from handmocap.core.ik import IKResult
+from handmocap.core.io import Take, looks_unlabelled
+from handmocap.core.io.labelled_c3d import SubjectCalibration
+from handmocap.core.model import (
     HandModel,
     MarkerSet,
     detect_hands,
@@ -23,13 +23,13 @@ from core.model import (
     marker_columns,
     track_layout,
 )
-from core.review import Command, CompoundCommand, DefineHand, FrameSpan, ReviewTake, SetSolve, UndoStack
-from core.review.commands import replaced_hand
-from core.session import OpenTake
-from core.workflows.resolve import subject_markers
+from handmocap.core.review import Command, CompoundCommand, DefineHand, FrameSpan, ReviewTake, SetSolve, UndoStack
+from handmocap.core.review.commands import replaced_hand
+from handmocap.core.session import OpenTake
+from handmocap.core.workflows.resolve import subject_markers
 
 if TYPE_CHECKING:
-    from app.gui.loose_takes import LooseTake
+    from handmocap.app.gui.loose_takes import LooseTake
 
 
 @dataclass(eq=False)

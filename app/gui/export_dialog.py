@@ -30,12 +30,12 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from core.errors import HandMocapError
-from core.io.labelled_c3d import SubjectCalibration
-from core.model import HandModel
-from core.review import ReviewTake
-from core.review.export import EXPORT_FORMATS, export_review
-from widgets.shortcuts import bind
+from handmocap.core.errors import HandMocapError
+from handmocap.core.io.labelled_c3d import SubjectCalibration
+from handmocap.core.model import HandModel
+from handmocap.core.review import ReviewTake
+from handmocap.core.review.export import EXPORT_FORMATS, export_review
+from handmocap.widgets.shortcuts import bind
 
 #: format -> (menu text, file dialog filter)
 FORMAT_TEXTS = {

@@ -21,8 +21,8 @@ import numpy as np
 from PySide6.QtCore import QObject, Signal
 from PySide6.QtWidgets import QWidget
 
-from app.gui.actions import make_action
-from app.gui.application import (
+from handmocap.app.gui.actions import make_action
+from handmocap.app.gui.application import (
     Application,
     CurrentDocumentChanged,
     DocumentClosed,
@@ -30,18 +30,18 @@ from app.gui.application import (
     Job,
     JobsChanged,
 )
-from app.gui.camera_controller import CameraController
-from app.gui.document import TakeDocument
-from app.gui.workers import TaskRunner
-from core.camera.frames import open_frames
-from core.camera.model import Camera
-from core.errors import HandMocapError, InputError
-from core.fusion import FusionResult, FusionSettings, RGBDFrames, fuse_take
-from core.fusion.energy import TERMS
-from core.fusion.hand_render import HandRenderer, crop_around
-from core.model import HandModel, load_layout, marker_columns, marker_positions, resolve_layout
-from core.review import Command, CompoundCommand, DefineHand, SetSolve
-from core.review.events import ReviewChanged
+from handmocap.app.gui.camera_controller import CameraController
+from handmocap.app.gui.document import TakeDocument
+from handmocap.app.gui.workers import TaskRunner
+from handmocap.core.camera.frames import open_frames
+from handmocap.core.camera.model import Camera
+from handmocap.core.errors import HandMocapError, InputError
+from handmocap.core.fusion import FusionResult, FusionSettings, RGBDFrames, fuse_take
+from handmocap.core.fusion.energy import TERMS
+from handmocap.core.fusion.hand_render import HandRenderer, crop_around
+from handmocap.core.model import HandModel, load_layout, marker_columns, marker_positions, resolve_layout
+from handmocap.core.review import Command, CompoundCommand, DefineHand, SetSolve
+from handmocap.core.review.events import ReviewChanged
 
 JOB_NAME = "fusion"
 #: samples of the silhouette crop's longer side: at most a 2-4 px step on a 640×480 camera, smooth enough to draw

@@ -11,11 +11,12 @@ from PySide6.QtCore import QElapsedTimer, Qt, QTimer
 from PySide6.QtGui import QColor, QIcon, QPainter, QPixmap
 from PySide6.QtWidgets import QApplication, QSplashScreen
 
-from app.gui.palette import apply_dark_palette
-from core.errors import InputError
+from handmocap.app.gui.palette import apply_dark_palette
+from handmocap.core.errors import InputError
+from handmocap.core.io.resources import resource_path
 
 SCREENSHOT_TIMEOUT_MS = 120_000
-ICONS = Path(__file__).resolve().parents[2] / "resources" / "icons"
+ICONS = resource_path("icons")
 ICON_SIZES = (16, 32, 48, 64, 128, 256, 512)   # pixels of the shipped PNGs (handmocap-<size>.png)
 SPLASH_SIZE = (480, 300)                         # pixels of the start-up splash: the icon, a line of text below
 SPLASH_ICON = 200                                # pixels of the icon on it
@@ -50,7 +51,7 @@ def run_gui(files: list[str], screenshot: str | None = None, frame: int | None =
     splash.show()
     _tell(splash, "Starting Hand Mocap Studio…")
 
-    from app.gui.main_window import APP_NAME, MainWindow
+    from handmocap.app.gui.main_window import APP_NAME, MainWindow
 
     app.setApplicationName(APP_NAME)
     app.setStyle("Fusion")
@@ -105,7 +106,7 @@ def run_gui(files: list[str], screenshot: str | None = None, frame: int | None =
 
 def session_folder(path: Path) -> Path | None:
     """The session folder ``path`` names (the folder or its manifest, ``session.json``), else None."""
-    from core.session.session import MANIFEST_NAME
+    from handmocap.core.session.session import MANIFEST_NAME
 
     if path.name == MANIFEST_NAME and path.is_file():
         return path.parent
@@ -142,8 +143,8 @@ def _prepare_kernels(splash: QSplashScreen) -> None:
 
     The stamp file in the user cache folder names the executable and its modification time, so a new or
     moved bundle prepares its kernels once again."""
-    from core.io.durable import write_text_atomic
-    from core.workflows.warm_up import warm_up
+    from handmocap.core.io.durable import write_text_atomic
+    from handmocap.core.workflows.warm_up import warm_up
 
     executable = Path(sys.executable).resolve()
     key = hashlib.sha1(f"{executable}:{executable.stat().st_mtime_ns}".encode()).hexdigest()[:16]

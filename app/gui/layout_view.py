@@ -39,17 +39,25 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.palette import visible_check_boxes
-from app.gui.workers import TaskRunner
-from core.errors import HandMocapError, InputError
-from core.layout import PSOSettings, default_subspace_dims, evaluate_layout, motion_set
-from core.layout.placement_sheet import placement_sheet
-from core.layout.workflow import GENERIC_MOTIONS, error_against_markers, optimise_layout
-from core.model import HandModel, MarkerLayout, layout_names, load_layout, load_template, resolve_layout, save_layout
-from widgets.layout_compare import MAX_VIEWS, LayoutCompareView
-from widgets.layout_plots import EnergyPlot, ErrorPlot, LayoutMetricsTable
-from widgets.placement_sheet import save_placement_sheet
-from widgets.window_image import save_screenshot, window_image
+from handmocap.app.gui.palette import visible_check_boxes
+from handmocap.app.gui.workers import TaskRunner
+from handmocap.core.errors import HandMocapError, InputError
+from handmocap.core.layout import PSOSettings, default_subspace_dims, evaluate_layout, motion_set
+from handmocap.core.layout.placement_sheet import placement_sheet
+from handmocap.core.layout.workflow import GENERIC_MOTIONS, error_against_markers, optimise_layout
+from handmocap.core.model import (
+    HandModel,
+    MarkerLayout,
+    layout_names,
+    load_layout,
+    load_template,
+    resolve_layout,
+    save_layout,
+)
+from handmocap.widgets.layout_compare import MAX_VIEWS, LayoutCompareView
+from handmocap.widgets.layout_plots import EnergyPlot, ErrorPlot, LayoutMetricsTable
+from handmocap.widgets.placement_sheet import save_placement_sheet
+from handmocap.widgets.window_image import save_screenshot, window_image
 
 MOTION_CHOICES = (("Grasps (Cutkosky taxonomy)", "grasps"), ("Gestures", "gestures"), ("All motions", "all"),
                   ("Solved takes…", "results"))
@@ -651,7 +659,7 @@ def run_layout_view(screenshot: str | None = None, compare: list[str] | None = N
 
     from PySide6.QtWidgets import QApplication
 
-    from app.gui.palette import apply_dark_palette
+    from handmocap.app.gui.palette import apply_dark_palette
 
     app = QApplication.instance() or QApplication(sys.argv[:1])
     app.setStyle("Fusion")

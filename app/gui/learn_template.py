@@ -39,16 +39,16 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.application import Application
-from app.gui.palette import visible_check_boxes
-from app.gui.workers import Task, TaskRunner, one_line
-from core.errors import CancelledError, HandMocapError
-from core.io import TAKE_FILE_FILTER, FrameRateMissingError, Take, is_marker_label, load_take
-from core.labelling.templates import LearnedTemplate, learn_template
-from core.model.lab_template import LabTemplate, TemplateHand, layout_path, save_lab_template
-from core.model.markers import LAYOUT_DIR, MarkerSpec
-from core.model.skeleton import DIGITS
-from widgets.frame_rate_dialog import FrameRatePrompt
+from handmocap.app.gui.application import Application
+from handmocap.app.gui.palette import visible_check_boxes
+from handmocap.app.gui.workers import Task, TaskRunner, one_line
+from handmocap.core.errors import CancelledError, HandMocapError
+from handmocap.core.io import TAKE_FILE_FILTER, FrameRateMissingError, Take, is_marker_label, load_take
+from handmocap.core.labelling.templates import LearnedTemplate, learn_template
+from handmocap.core.model.lab_template import LabTemplate, TemplateHand, layout_path, save_lab_template
+from handmocap.core.model.markers import LAYOUT_DIR, MarkerSpec
+from handmocap.core.model.skeleton import DIGITS
+from handmocap.widgets.frame_rate_dialog import FrameRatePrompt
 
 LOAD_SHARE = 0.25                 # share of the progress bar for reading the take files
 NAME_PATTERN = re.compile(r"^[A-Za-z0-9](?:[A-Za-z0-9._-]*[A-Za-z0-9-])?$")   # a session keeps it as <name>.json

@@ -48,8 +48,8 @@ from PySide6.QtWidgets import (
 )
 from pyvistaqt import QtInteractor
 
-from core.errors import InputError
-from widgets.dialog_buttons import ok_cancel_buttons
+from handmocap.core.errors import InputError
+from handmocap.widgets.dialog_buttons import ok_cancel_buttons
 
 DRAW_HZ = 30
 PANEL_HZ = 5
@@ -359,9 +359,9 @@ def _rgb(colour: str) -> np.ndarray:
 
 def open_live_capture(parent: QWidget, session: Path | None, layouts: list[str]) -> LiveWindow | None:
     """Ask where to connect, connect (one line when it cannot) and show the live window."""
-    from core.live.capture import LiveCapture
-    from core.live.systems import make_source
-    from core.model.lab_template import load_lab_template
+    from handmocap.core.live.capture import LiveCapture
+    from handmocap.core.live.systems import make_source
+    from handmocap.core.model.lab_template import load_lab_template
 
     dialog = ConnectDialog(parent, session, layouts)
     if dialog.exec() != QDialog.DialogCode.Accepted:

@@ -6,7 +6,7 @@ from collections.abc import Callable
 
 from PySide6.QtCore import QObject, QTimer, Signal
 
-from app.gui.workers import Task, TaskRunner
+from handmocap.app.gui.workers import Task, TaskRunner
 
 
 class LoadQueue(QObject):

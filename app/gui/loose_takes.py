@@ -25,11 +25,11 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from app.gui.document import TakeDocument
-from core.errors import HandMocapError
-from core.io import Take, looks_unlabelled
-from core.io.durable import write_text_atomic
-from core.session import OpenTake, Session
+from handmocap.app.gui.document import TakeDocument
+from handmocap.core.errors import HandMocapError
+from handmocap.core.io import Take, looks_unlabelled
+from handmocap.core.io.durable import write_text_atomic
+from handmocap.core.session import OpenTake, Session
 
 LOOSE_FOLDER = "loose-takes"
 SOURCE_NAME = "source.json"     # the file the folder's review belongs to: path, size, SHA-256

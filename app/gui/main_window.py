@@ -31,8 +31,8 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.actions import make_action
-from app.gui.application import (
+from handmocap.app.gui.actions import make_action
+from handmocap.app.gui.application import (
     Application,
     CurrentDocumentChanged,
     DocumentClosed,
@@ -45,31 +45,31 @@ from app.gui.application import (
     SessionFolderChanged,
     SessionPart,
 )
-from app.gui.camera_controller import CameraController
-from app.gui.document import TakeDocument
-from app.gui.export_dialog import default_export_path, export_action
-from app.gui.fusion_controller import FusionController
-from app.gui.load_queue import LoadQueue
-from app.gui.loose_takes import loose_document, remembered_frame_rate
-from app.gui.plots_controller import PlotsController
-from app.gui.review_controller import ReviewController
-from app.gui.session_controller import SessionController
-from app.gui.workers import TaskRunner, one_line
-from core.errors import CancelledError, HandMocapError, InputError
-from core.ik import METHODS, IKResult
-from core.io import READ_SUFFIXES, TAKE_FILE_FILTER, FrameRateMissingError, Take, load_take
-from core.model import detect_hands, layout_names, skin_vertices
-from core.review.events import ReviewChanged
-from core.workflows.resolve import hand_marker_set, solve_labelled_take
-from widgets.elided_combo import ElidedComboBox
-from widgets.frame_rate_dialog import FrameRatePrompt
-from widgets.marker_panel import MarkerPanel
-from widgets.message_panel import MessagePanel, PanelLogHandler
-from widgets.shortcuts import bind
-from widgets.shortcuts_dialog import ShortcutsDialog
-from widgets.timeline import TimelineWidget
-from widgets.viewport import HandViewport
-from widgets.window_image import save_screenshot, window_image
+from handmocap.app.gui.camera_controller import CameraController
+from handmocap.app.gui.document import TakeDocument
+from handmocap.app.gui.export_dialog import default_export_path, export_action
+from handmocap.app.gui.fusion_controller import FusionController
+from handmocap.app.gui.load_queue import LoadQueue
+from handmocap.app.gui.loose_takes import loose_document, remembered_frame_rate
+from handmocap.app.gui.plots_controller import PlotsController
+from handmocap.app.gui.review_controller import ReviewController
+from handmocap.app.gui.session_controller import SessionController
+from handmocap.app.gui.workers import TaskRunner, one_line
+from handmocap.core.errors import CancelledError, HandMocapError, InputError
+from handmocap.core.ik import METHODS, IKResult
+from handmocap.core.io import READ_SUFFIXES, TAKE_FILE_FILTER, FrameRateMissingError, Take, load_take
+from handmocap.core.model import detect_hands, layout_names, skin_vertices
+from handmocap.core.review.events import ReviewChanged
+from handmocap.core.workflows.resolve import hand_marker_set, solve_labelled_take
+from handmocap.widgets.elided_combo import ElidedComboBox
+from handmocap.widgets.frame_rate_dialog import FrameRatePrompt
+from handmocap.widgets.marker_panel import MarkerPanel
+from handmocap.widgets.message_panel import MessagePanel, PanelLogHandler
+from handmocap.widgets.shortcuts import bind
+from handmocap.widgets.shortcuts_dialog import ShortcutsDialog
+from handmocap.widgets.timeline import TimelineWidget
+from handmocap.widgets.viewport import HandViewport
+from handmocap.widgets.window_image import save_screenshot, window_image
 
 HAND_SIDES = ("right", "left", "both")
 APP_NAME = "Hand Mocap Studio"
@@ -448,7 +448,7 @@ class MainWindow(QMainWindow):
     def open_demo(self) -> None:
         """Open the demo session (made on the loader thread the first time): the labelled takes are
         solved with IK and the raw take is auto-labelled, one after the other."""
-        from app.gui.demo import prepare_demo_session
+        from handmocap.app.gui.demo import prepare_demo_session
 
         self.loader.queue("Preparing the demo session…", lambda progress, cancelled: prepare_demo_session(),
                           self._demo_ready)
@@ -843,7 +843,7 @@ class MainWindow(QMainWindow):
 
     def open_layout_tools(self) -> None:
         """The marker layout window: optimise, compare, save into the session, print a placement sheet."""
-        from app.gui.layout_view import open_layout_view
+        from handmocap.app.gui.layout_view import open_layout_view
 
         session = self.sessions.session
         self._layout_window = open_layout_view(self, session=session,
@@ -851,8 +851,8 @@ class MainWindow(QMainWindow):
 
     def open_live_capture(self) -> None:
         """Connect to QTM or Motive and supervise a capture live; the take enters the open session."""
-        from app.gui.live_window import open_live_capture
-        from core.model import layout_names
+        from handmocap.app.gui.live_window import open_live_capture
+        from handmocap.core.model import layout_names
 
         session = self.app.session
         folder = session.folder if session is not None else None
@@ -860,19 +860,19 @@ class MainWindow(QMainWindow):
 
     def open_learn_template(self) -> None:
         """Learn a lab's labelling template from labelled takes; it is saved into the session's layouts."""
-        from app.gui.learn_template import open_learn_template
+        from handmocap.app.gui.learn_template import open_learn_template
 
         self._learn_template_dialog = open_learn_template(self, self.app, self.sessions.browser.selected_take())
 
     def open_depth_fit(self) -> None:
         """The single depth-frame fit (``handmocap depth fit``): the fitted hand drawn on the depth, trusted or not."""
-        from app.gui.depth_fit_dialog import open_depth_fit
+        from handmocap.app.gui.depth_fit_dialog import open_depth_fit
 
         self._depth_fit_dialog = open_depth_fit(self)
 
     def open_calibration(self) -> None:
         """The scan calibration wizard; the subject model it saves goes into the open session."""
-        from app.gui.calibration_wizard import open_calibration_wizard
+        from handmocap.app.gui.calibration_wizard import open_calibration_wizard
 
         session = self.app.session
         self._calibration_wizard = open_calibration_wizard(

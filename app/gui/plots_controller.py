@@ -14,17 +14,17 @@ import numpy as np
 from PySide6.QtCore import QObject
 from PySide6.QtWidgets import QWidget
 
-from app.gui.application import (
+from handmocap.app.gui.application import (
     Application,
     CurrentDocumentChanged,
     DocumentClosed,
     FrameChanged,
     SelectionChanged,
 )
-from app.gui.document import TakeDocument
-from app.gui.review_controller import label_colours
-from core.review.events import Change, ReviewChanged
-from widgets.trajectory_plots import Trace, TrajectoryPlots, make_trace
+from handmocap.app.gui.document import TakeDocument
+from handmocap.app.gui.review_controller import label_colours
+from handmocap.core.review.events import Change, ReviewChanged
+from handmocap.widgets.trajectory_plots import Trace, TrajectoryPlots, make_trace
 
 REDRAWN_BY = Change.LABELS | Change.FILLS | Change.STRUCTURE   # a solve alone moves no marker
 

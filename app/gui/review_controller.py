@@ -39,8 +39,8 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.actions import make_action
-from app.gui.application import (
+from handmocap.app.gui.actions import make_action
+from handmocap.app.gui.application import (
     Application,
     CurrentDocumentChanged,
     DocumentClosing,
@@ -49,15 +49,15 @@ from app.gui.application import (
     Selection,
     SelectionChanged,
 )
-from app.gui.document import TakeDocument
-from app.gui.export_dialog import default_export_path
-from app.gui.workers import TaskRunner
-from core.errors import HandMocapError
-from core.gaps import FILL_METHODS, FillCheck
-from core.io.c3d_events import CONTEXTS
-from core.model import layout_names, marker_positions, skin_vertices
-from core.model.objects import load_scene_spec, rigid_body_from_points, save_scene_spec
-from core.review import (
+from handmocap.app.gui.document import TakeDocument
+from handmocap.app.gui.export_dialog import default_export_path
+from handmocap.app.gui.workers import TaskRunner
+from handmocap.core.errors import HandMocapError
+from handmocap.core.gaps import FILL_METHODS, FillCheck
+from handmocap.core.io.c3d_events import CONTEXTS
+from handmocap.core.model import layout_names, marker_positions, skin_vertices
+from handmocap.core.model.objects import load_scene_spec, rigid_body_from_points, save_scene_spec
+from handmocap.core.review import (
     PROBLEM_KINDS,
     AcceptFills,
     AddEvent,
@@ -76,8 +76,8 @@ from core.review import (
     export_joint_angles_csv,
     export_labelled_c3d,
 )
-from core.review.events import Change, ReviewChanged
-from core.workflows import (
+from handmocap.core.review.events import Change, ReviewChanged
+from handmocap.core.workflows import (
     GapGroup,
     ReviewGap,
     auto_label,
@@ -90,14 +90,14 @@ from core.workflows import (
     run_resolve_jobs,
     short_open_gaps,
 )
-from widgets.dialog_buttons import ok_cancel_buttons
-from widgets.fill_preview import FillPreview
-from widgets.gap_list import GapList, GapRow
-from widgets.label_picker import LabelPicker
-from widgets.marker_lanes import MarkerLanes, lanes_from_review
-from widgets.review_table import ReviewTable
-from widgets.timeline import TimelineWidget
-from widgets.viewport import HandViewport
+from handmocap.widgets.dialog_buttons import ok_cancel_buttons
+from handmocap.widgets.fill_preview import FillPreview
+from handmocap.widgets.gap_list import GapList, GapRow
+from handmocap.widgets.label_picker import LabelPicker
+from handmocap.widgets.marker_lanes import MarkerLanes, lanes_from_review
+from handmocap.widgets.review_table import ReviewTable
+from handmocap.widgets.timeline import TimelineWidget
+from handmocap.widgets.viewport import HandViewport
 
 _log = logging.getLogger(__name__)
 UNLABELLED_COLOUR = (0.62, 0.62, 0.64)

@@ -24,8 +24,8 @@ from pathlib import Path
 from PySide6.QtCore import QObject, QTimer, Signal
 from PySide6.QtWidgets import QFileDialog, QWidget
 
-from app.gui.actions import make_action
-from app.gui.application import (
+from handmocap.app.gui.actions import make_action
+from handmocap.app.gui.application import (
     Application,
     CurrentDocumentChanged,
     DocumentOpened,
@@ -33,18 +33,18 @@ from app.gui.application import (
     SessionFolderChanged,
     SessionPart,
 )
-from app.gui.document import TakeDocument
-from app.gui.load_queue import LoadQueue
-from app.gui.review_controller import AutoLabelSettings
-from core.errors import HandMocapError
-from core.io import FrameRateMissingError, Take, load_take
-from core.io.durable import write_atomic
-from core.io.labelled_c3d import SubjectCalibration
-from core.model import HandModel, MarkerSet
-from core.session import OpenTake, Session
-from core.session.storage import read_marker_set, write_marker_set
-from widgets.frame_rate_dialog import FrameRatePrompt
-from widgets.session_browser import SessionBrowser, TakeRow
+from handmocap.app.gui.document import TakeDocument
+from handmocap.app.gui.load_queue import LoadQueue
+from handmocap.app.gui.review_controller import AutoLabelSettings
+from handmocap.core.errors import HandMocapError
+from handmocap.core.io import FrameRateMissingError, Take, load_take
+from handmocap.core.io.durable import write_atomic
+from handmocap.core.io.labelled_c3d import SubjectCalibration
+from handmocap.core.model import HandModel, MarkerSet
+from handmocap.core.session import OpenTake, Session
+from handmocap.core.session.storage import read_marker_set, write_marker_set
+from handmocap.widgets.frame_rate_dialog import FrameRatePrompt
+from handmocap.widgets.session_browser import SessionBrowser, TakeRow
 
 AUTOSAVE_MS = 15_000
 TAKE_MODEL_NAME = "labelling_hand_{side}.npz"   # the hand model auto-label calibrated to the take
@@ -187,7 +187,7 @@ class SessionController(QObject):
 
     def open_batch_panel(self) -> None:
         """Session ▸ Process takes…: the batch panel of the open session (:mod:`app.gui.batch_panel`)."""
-        from app.gui.batch_panel import BatchPanel
+        from handmocap.app.gui.batch_panel import BatchPanel
 
         if self.session is not None:
             BatchPanel(self.app, self.host).show()

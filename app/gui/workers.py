@@ -22,7 +22,7 @@ from typing import Any
 
 from PySide6.QtCore import QObject, QThread, Signal, Slot
 
-from core.errors import CancelledError, HandMocapError
+from handmocap.core.errors import CancelledError, HandMocapError
 
 Task = Callable[[Callable[[float], None], Callable[[], bool]], Any]
 

@@ -17,12 +17,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from core.batch.pipeline import Pipeline
-from core.batch.state import file_sha256, write_state
-from core.batch.steps import StepsResult, export_take, output_paths, review_figures, run_steps, undo_all
-from core.batch.task import step_description
-from core.model import HandModel, MarkerSet
-from core.review import CompoundCommand, ReviewTake
+from handmocap.core.batch.pipeline import Pipeline
+from handmocap.core.batch.state import file_sha256, write_state
+from handmocap.core.batch.steps import StepsResult, export_take, output_paths, review_figures, run_steps, undo_all
+from handmocap.core.batch.task import step_description
+from handmocap.core.model import HandModel, MarkerSet
+from handmocap.core.review import CompoundCommand, ReviewTake
 
 
 @dataclass

@@ -30,10 +30,10 @@ from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any
 
-from core.errors import InputError
-from core.gaps import FILL_METHODS
-from core.io.documents import read_document
-from core.io.input_schemas import PIPELINE
+from handmocap.core.errors import InputError
+from handmocap.core.gaps import FILL_METHODS
+from handmocap.core.io.documents import read_document
+from handmocap.core.io.input_schemas import PIPELINE
 
 STEPS = ("label", "calibrate", "fill", "solve", "export")
 HANDS = ("auto", "right", "left", "both")
@@ -176,7 +176,7 @@ def _toml_value(value: Any) -> str:
 
 def save_pipeline(pipeline: Pipeline, path: str | Path) -> None:
     """Write ``pipeline`` as TOML (``.toml``) or JSON, atomically."""
-    from core.io.durable import write_text_atomic
+    from handmocap.core.io.durable import write_text_atomic
 
     path = Path(path)
     text = pipeline_toml(pipeline) if path.suffix.lower() == ".toml" else json.dumps(pipeline.to_dict(), indent=2)

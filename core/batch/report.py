@@ -14,7 +14,7 @@ import io
 from pathlib import Path
 from typing import Any
 
-from core.session.files import write_file
+from handmocap.core.session.files import write_file
 
 REPORT_NAME = "batch-report.html"
 COLUMNS = ("take", "status", "labelled %", "filled %", "longest gap (frames)", "residual mm", "warnings", "seconds",

@@ -33,14 +33,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from core.batch.pipeline import Pipeline
-from core.batch.scheduler import check_scheduler_address
-from core.batch.state import file_sha256, input_key, read_state, valid_take_id, write_state
-from core.batch.task import exports_complete, process_take
-from core.batch.worker import PRELOAD, local_worker_settings
-from core.errors import InputError
-from core.io import READ_SUFFIXES, FrameRateMissingError, recognised_format
-from core.session.session import Session
+from handmocap.core.batch.pipeline import Pipeline
+from handmocap.core.batch.scheduler import check_scheduler_address
+from handmocap.core.batch.state import file_sha256, input_key, read_state, valid_take_id, write_state
+from handmocap.core.batch.task import exports_complete, process_take
+from handmocap.core.batch.worker import PRELOAD, local_worker_settings
+from handmocap.core.errors import InputError
+from handmocap.core.io import READ_SUFFIXES, FrameRateMissingError, recognised_format
+from handmocap.core.session.session import Session
 
 #: times a task may be on a worker that dies before its take fails (Dask's ``allowed-failures``)
 ALLOWED_FAILURES = 1
@@ -159,9 +159,9 @@ def _add_take(session: Session, path: Path, pipeline: Pipeline, hands: list[str]
 def check_pipeline_inputs(pipeline: Pipeline) -> None:
     """InputError (one line) when the pipeline's layout (or lab template) or objects spec cannot be read,
     so that a bad one stops the batch before anything starts rather than failing every take."""
-    from core.model import load_layout
-    from core.model.lab_template import load_lab_template
-    from core.model.objects import load_scene_spec
+    from handmocap.core.model import load_layout
+    from handmocap.core.model.lab_template import load_lab_template
+    from handmocap.core.model.objects import load_scene_spec
 
     if pipeline.runs("label") or pipeline.runs("calibrate") or pipeline.runs("solve"):
         load_layout(pipeline.layout)
@@ -212,7 +212,7 @@ def plan_batch(session: Session, pipeline: Pipeline, only: str | None = None, re
 def _outputs_current(known: dict[str, Any], pipeline: Pipeline, output: Path, stem: str) -> bool:
     """Whether the exports a done take's state records are those this batch writes (same kinds, same paths
     in ``output``) and are still there with the content they were written with (sha256)."""
-    from core.batch.steps import output_paths
+    from handmocap.core.batch.steps import output_paths
 
     if not pipeline.runs("export"):
         return True
@@ -243,7 +243,7 @@ def _stem(take_id: str, name: str) -> str:
 
 def _check_outputs(jobs: list[TakeJob], pipeline: Pipeline, output: Path, state: dict) -> None:
     """InputError naming the first output that exists and was not written by a batch of its take."""
-    from core.batch.steps import output_paths
+    from handmocap.core.batch.steps import output_paths
 
     for job in jobs:
         if job.take_id in state:

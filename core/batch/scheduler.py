@@ -19,7 +19,7 @@ from __future__ import annotations
 import os
 import re
 
-from core.errors import InputError
+from handmocap.core.errors import InputError
 
 #: schemes a batch may use, in the order the message lists them
 SCHEMES = ("tcp", "tls", "ws", "wss", "ucx", "inproc")

@@ -28,9 +28,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from core.errors import InputError
-from core.session.files import make_folder, read_bytes, write_file
-from core.session.storage import strict_json
+from handmocap.core.errors import InputError
+from handmocap.core.session.files import make_folder, read_bytes, write_file
+from handmocap.core.session.storage import strict_json
 
 STATE_NAME = "batch.json"
 STATE_FORMAT = "handmocap-batch"

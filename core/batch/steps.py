@@ -14,18 +14,18 @@ from pathlib import Path
 
 import numpy as np
 
-from core.batch.pipeline import Pipeline
-from core.errors import CancelledError, InputError
-from core.gaps import find_gaps
-from core.ik import IKSettings, solve_positions
-from core.io.labelled_c3d import SubjectCalibration, subject_calibrations
-from core.model import HandModel, MarkerSet, load_layout, load_template
-from core.model.provenance import MEASURED
-from core.review import ReviewTake, SetSolve, export_bvh, export_joint_angles_csv, export_labelled_c3d
-from core.review.commands import Command
-from core.workflows.filling import fill_review_gaps, gap_groups
-from core.workflows.labelling import auto_label, subject_model
-from core.workflows.resolve import resolve_jobs
+from handmocap.core.batch.pipeline import Pipeline
+from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.gaps import find_gaps
+from handmocap.core.ik import IKSettings, solve_positions
+from handmocap.core.io.labelled_c3d import SubjectCalibration, subject_calibrations
+from handmocap.core.model import HandModel, MarkerSet, load_layout, load_template
+from handmocap.core.model.provenance import MEASURED
+from handmocap.core.review import ReviewTake, SetSolve, export_bvh, export_joint_angles_csv, export_labelled_c3d
+from handmocap.core.review.commands import Command
+from handmocap.core.workflows.filling import fill_review_gaps, gap_groups
+from handmocap.core.workflows.labelling import auto_label, subject_model
+from handmocap.core.workflows.resolve import resolve_jobs
 
 HEALTH_LINES = 5  #: health warnings a take's summary quotes (the count is always given)
 

@@ -27,12 +27,12 @@ from typing import Any
 
 from numba.core import event
 
-from core.batch.pipeline import Pipeline, pipeline_from_dict
-from core.batch.state import file_sha256, read_state, write_state
-from core.batch.steps import export_take, output_paths, review_figures, run_steps, undo_all
-from core.errors import HandMocapError
-from core.review import CompoundCommand
-from core.session.session import OpenTake, Session
+from handmocap.core.batch.pipeline import Pipeline, pipeline_from_dict
+from handmocap.core.batch.state import file_sha256, read_state, write_state
+from handmocap.core.batch.steps import export_take, output_paths, review_figures, run_steps, undo_all
+from handmocap.core.errors import HandMocapError
+from handmocap.core.review import CompoundCommand
+from handmocap.core.session.session import OpenTake, Session
 
 
 def step_description(pipeline: Pipeline, key: str) -> str:

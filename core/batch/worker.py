@@ -112,12 +112,12 @@ def warm_up() -> float:
     from numba's cache (they are compiled only when the installer's warm-up never ran). Objects' kernels are
     left to the first task that labels objects."""
     started = time.perf_counter()
-    import core.batch.task  # noqa: F401  (the task's own imports: session, review, exports)
-    from core.batch.pipeline import pipeline_from_dict
-    from core.batch.steps import run_steps
-    from core.gaps.pca import fill_pca
-    from core.io import Take
-    from core.review import ReviewTake
+    import handmocap.core.batch.task  # noqa: F401  (the task's own imports: session, review, exports)
+    from handmocap.core.batch.pipeline import pipeline_from_dict
+    from handmocap.core.batch.steps import run_steps
+    from handmocap.core.gaps.pca import fill_pca
+    from handmocap.core.io import Take
+    from handmocap.core.review import ReviewTake
 
     points = _hand_points(WARM_UP_FRAMES, unlabelled=True)
     take = Take(marker_names=[f"point_{index:03d}" for index in range(points.shape[1])], marker_positions=points,
@@ -133,7 +133,7 @@ def _hand_points(frames: int, unlabelled: bool) -> Any:
     the simulator, whose imports and take cost more than the steps warmed here.)"""
     import numpy as np
 
-    from core.model import load_layout, load_template, marker_positions_batch, resolve_layout
+    from handmocap.core.model import load_layout, load_template, marker_positions_batch, resolve_layout
 
     model = load_template()
     seconds = np.arange(frames) / 100.0

@@ -15,15 +15,15 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial import cKDTree
 
-from core.calibration.nonrigid import closest_point_pairs
-from core.calibration.rigid import similarity_transform
-from core.errors import CancelledError, InputError
-from core.ik.kernel import solve_frame_kernel
-from core.model import HandModel, MarkerSet, skin_vertices
-from core.model.hand_model import mesh_vertex_normals
-from core.model.kinematics import ANCESTOR, rotation_from_vector, vector_from_rotation
-from core.model.skeleton import DIGITS, N_PARAMS, Skeleton, default_joint_limits
-from core.model.template_mesh import ray_surface_point
+from handmocap.core.calibration.nonrigid import closest_point_pairs
+from handmocap.core.calibration.rigid import similarity_transform
+from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.ik.kernel import solve_frame_kernel
+from handmocap.core.model import HandModel, MarkerSet, skin_vertices
+from handmocap.core.model.hand_model import mesh_vertex_normals
+from handmocap.core.model.kinematics import ANCESTOR, rotation_from_vector, vector_from_rotation
+from handmocap.core.model.skeleton import DIGITS, N_PARAMS, Skeleton, default_joint_limits
+from handmocap.core.model.template_mesh import ray_surface_point
 
 LANDMARK_WEIGHT = 20          # a landmark counts as this many closest-point pairs
 SAMPLE_VERTICES = 1500        # template vertices used for closest points in the alignment

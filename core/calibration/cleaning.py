@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from core.calibration.nearest import nearest_neighbours
-from core.calibration.scan import Scan
-from core.errors import InputError
+from handmocap.core.calibration.nearest import nearest_neighbours
+from handmocap.core.calibration.scan import Scan
+from handmocap.core.errors import InputError
 
 #: Kovac et al. 2003, uniform daylight: R > 95, G > 40, B > 20, max - min > 15, |R - G| > 15 (then R > G, R > B)
 KOVAC_THRESHOLDS = np.array([95.0, 40.0, 20.0, 15.0, 15.0])

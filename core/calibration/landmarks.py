@@ -11,11 +11,11 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError
-from core.io.documents import read_document
-from core.io.durable import write_text_atomic
-from core.io.input_schemas import LANDMARKS
-from core.model.template_mesh import LANDMARK_NAMES
+from handmocap.core.errors import InputError
+from handmocap.core.io.documents import read_document
+from handmocap.core.io.durable import write_text_atomic
+from handmocap.core.io.input_schemas import LANDMARKS
+from handmocap.core.model.template_mesh import LANDMARK_NAMES
 
 MIN_LANDMARKS = 6
 _UNIT_SCALE = {"mm": 1.0, "m": 1000.0}

@@ -13,12 +13,12 @@ from collections.abc import Callable
 
 import numpy as np
 
-from core.errors import CancelledError, InputError
-from core.ik import IKSettings, solve_positions
-from core.ik.solver import match_layout
-from core.model import HandModel, MarkerLayout, MarkerSpec, resolve_layout
-from core.model.markers import frame_joint_of, joint_rest_point
-from core.model.skeleton import DIGITS, JOINT_NAMES
+from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.ik import IKSettings, solve_positions
+from handmocap.core.ik.solver import match_layout
+from handmocap.core.model import HandModel, MarkerLayout, MarkerSpec, resolve_layout
+from handmocap.core.model.markers import frame_joint_of, joint_rest_point
+from handmocap.core.model.skeleton import DIGITS, JOINT_NAMES
 
 MIN_OFFSET_MM, MAX_OFFSET_MM = 2.0, 20.0
 

@@ -46,9 +46,9 @@ from scipy import sparse
 from scipy.sparse.linalg import splu
 from scipy.spatial import cKDTree
 
-from core.calibration.nearest import nearest_neighbours
-from core.errors import CancelledError, InputError
-from core.model.hand_model import mesh_vertex_normals
+from handmocap.core.calibration.nearest import nearest_neighbours
+from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.model.hand_model import mesh_vertex_normals
 
 MAX_NORMAL_ANGLE_DEG = 60.0
 REJECT_MEDIAN_FACTOR = 3.0

@@ -29,13 +29,19 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from core.calibration.align import Alignment, align_template, anatomical_landmarks, landmark_pairs, mirror_check
-from core.calibration.cleaning import clean_scan
-from core.calibration.landmarks import MIN_LANDMARKS, load_landmarks, validate_landmarks
-from core.calibration.mean_value import mean_value_coordinates
-from core.calibration.nearest import nearest_neighbours
-from core.calibration.nonrigid import FitSchedule, estimate_normals, fit_nonrigid
-from core.calibration.report import (
+from handmocap.core.calibration.align import (
+    Alignment,
+    align_template,
+    anatomical_landmarks,
+    landmark_pairs,
+    mirror_check,
+)
+from handmocap.core.calibration.cleaning import clean_scan
+from handmocap.core.calibration.landmarks import MIN_LANDMARKS, load_landmarks, validate_landmarks
+from handmocap.core.calibration.mean_value import mean_value_coordinates
+from handmocap.core.calibration.nearest import nearest_neighbours
+from handmocap.core.calibration.nonrigid import FitSchedule, estimate_normals, fit_nonrigid
+from handmocap.core.calibration.report import (
     LARGE_RESIDUAL_MM,
     UNSUPPORTED_MM,
     CalibrationReport,
@@ -44,14 +50,14 @@ from core.calibration.report import (
     point_to_mesh_distances,
     unsupported_areas,
 )
-from core.calibration.rigid import similarity_transform
-from core.calibration.scan import METRE_DIAGONAL_LIMIT, Scan, load_scan
-from core.errors import CancelledError, InputError
-from core.io.durable import write_text_atomic
-from core.model import HandModel, load_template
-from core.model.hand_model import MAX_INFLUENCES, mesh_vertex_normals
-from core.model.skeleton import N_JOINTS, Skeleton
-from core.model.template_mesh import LANDMARK_NAMES
+from handmocap.core.calibration.rigid import similarity_transform
+from handmocap.core.calibration.scan import METRE_DIAGONAL_LIMIT, Scan, load_scan
+from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.io.durable import write_text_atomic
+from handmocap.core.model import HandModel, load_template
+from handmocap.core.model.hand_model import MAX_INFLUENCES, mesh_vertex_normals
+from handmocap.core.model.skeleton import N_JOINTS, Skeleton
+from handmocap.core.model.template_mesh import LANDMARK_NAMES
 
 MAX_SCAN_POINTS = 300_000       # larger scans are subsampled (randomly, seeded) before cleaning
 REPORT_SAMPLE = 40_000          # scan points used for the scan-to-model statistics
@@ -108,7 +114,7 @@ def load_template_file(path: str | Path | None, side: str = "right") -> HandMode
         return load_template(side)
     path = Path(path)
     if path.suffix.lower() in (".gltf", ".glb"):
-        from core.model.gltf import load_gltf_hand
+        from handmocap.core.model.gltf import load_gltf_hand
 
         return load_gltf_hand(path)
     if path.suffix.lower() == ".npz":

@@ -13,8 +13,8 @@ from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from core.calibration.nearest import nearest_neighbours
-from core.model.skeleton import JOINT_NAMES
+from handmocap.core.calibration.nearest import nearest_neighbours
+from handmocap.core.model.skeleton import JOINT_NAMES
 
 SWAP_RESIDUAL_MM = 8.0         # a landmark with a larger residual is examined for a swap
 LARGE_RESIDUAL_MM = 5.0        # a landmark with a larger residual after the fit is reported

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from core.calibration.nearest import nearest_neighbours
-from core.errors import InputError
+from handmocap.core.calibration.nearest import nearest_neighbours
+from handmocap.core.errors import InputError
 
 MAX_NORMAL_ANGLE_DEG = 60.0   # ICP rejects pairs whose normals disagree by more than this
 REJECT_MEDIAN_FACTOR = 3.0    # ICP also rejects pairs farther than this many median pair distances

@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError
-from core.io.durable import durable_stream
-from core.model.hand_model import mesh_vertex_normals
+from handmocap.core.errors import InputError
+from handmocap.core.io.durable import durable_stream
+from handmocap.core.model.hand_model import mesh_vertex_normals
 
 METRE_DIAGONAL_LIMIT = 2.0   # a hand scan with a bounding-box diagonal below this is in metres
 

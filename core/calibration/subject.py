@@ -25,10 +25,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from core.errors import CancelledError, InputError
-from core.ik import IKSettings, solve_positions
-from core.model import N_PARAMS, HandModel, MarkerLayout, MarkerSet, resolve_layout
-from core.model.kinematics import (
+from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.ik import IKSettings, solve_positions
+from handmocap.core.model import N_PARAMS, HandModel, MarkerLayout, MarkerSet, resolve_layout
+from handmocap.core.model.kinematics import (
     ANCESTOR,
     forward_kinematics_kernel,
     points_and_jacobian_kernel,
@@ -36,7 +36,7 @@ from core.model.kinematics import (
     skinned_points_kernel,
     vector_from_rotation,
 )
-from core.model.skeleton import JOINT_PARENTS, N_JOINTS, Skeleton, default_joint_limits
+from handmocap.core.model.skeleton import JOINT_PARENTS, N_JOINTS, Skeleton, default_joint_limits
 
 SCALE_PRIOR = 10.0
 """w_s: mm of residual-equivalent cost per unit of bone scale change (a 10 % change costs 1 mm)."""

@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.calibration.align import anatomical_landmarks
-from core.calibration.scan import Scan
-from core.model import HandModel, load_template, skin_vertices
-from core.model.hand_model import mesh_vertex_normals
-from core.model.skeleton import N_GLOBAL, N_PARAMS, HandProportions
-from core.model.template_mesh import LANDMARK_NAMES, build_template
+from handmocap.core.calibration.align import anatomical_landmarks
+from handmocap.core.calibration.scan import Scan
+from handmocap.core.model import HandModel, load_template, skin_vertices
+from handmocap.core.model.hand_model import mesh_vertex_normals
+from handmocap.core.model.skeleton import N_GLOBAL, N_PARAMS, HandProportions
+from handmocap.core.model.template_mesh import LANDMARK_NAMES, build_template
 
 SKIN_TONE = np.array([212.0, 158.0, 128.0])   # RGB, passes the Kovac rule with a wide margin
 POSTURE_JITTER_RAD = 0.05                      # spread of the default posture around the flat hand

@@ -18,9 +18,9 @@ from itertools import combinations, permutations
 import cv2
 import numpy as np
 
-from core.camera.model import Camera
-from core.errors import InputError
-from core.ik import kabsch
+from handmocap.core.camera.model import Camera
+from handmocap.core.errors import InputError
+from handmocap.core.ik import kabsch
 
 #: a blob is a component brighter than the midpoint of ``level`` (the image's 99th percentile: scene content,
 #: markers cover far less than 1 % of it) and the peak; its centre weighs the pixels within

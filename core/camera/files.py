@@ -19,12 +19,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from core.camera.model import Camera, CameraClock
-from core.camera.opencv_storage import read_storage, storage_text
-from core.errors import InputError
-from core.io.documents import check_document, read_document, read_limited
-from core.io.durable import write_text_atomic
-from core.io.input_schemas import CAMERA
+from handmocap.core.camera.model import Camera, CameraClock
+from handmocap.core.camera.opencv_storage import read_storage, storage_text
+from handmocap.core.errors import InputError
+from handmocap.core.io.documents import check_document, read_document, read_limited
+from handmocap.core.io.durable import write_text_atomic
+from handmocap.core.io.input_schemas import CAMERA
 
 FORMAT = "handmocap-camera"
 VERSION = 1

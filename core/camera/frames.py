@@ -20,8 +20,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from core.camera.model import MAX_IMAGE_SIDE
-from core.errors import InputError
+from handmocap.core.camera.model import MAX_IMAGE_SIDE
+from handmocap.core.errors import InputError
 
 #: bytes of decoded frames a source keeps (640×480 colour: 0.9 MB a frame); a decoded frame may take half
 FRAME_MEMORY_BUDGET = 256 * 1024 * 1024

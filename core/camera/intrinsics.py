@@ -23,9 +23,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from core.camera.frames import image_file_size
-from core.camera.model import Camera
-from core.errors import InputError
+from handmocap.core.camera.frames import image_file_size
+from handmocap.core.camera.model import Camera
+from handmocap.core.errors import InputError
 
 BOARD_KINDS = ("charuco", "chessboard")
 #: corners a view needs to count (fewer do not constrain a homography well)
@@ -226,7 +226,7 @@ def board_views(inputs: list[str | Path], video_views: int = VIDEO_VIEWS, mixed_
     """The board views of ``inputs``: image files, folders (their images in natural name order) and videos
     (``video_views`` frames evenly spread). One camera has one image size: views of another size than most are
     set aside (``mixed_sizes="skip"``; a folder may hold a stray photograph) or refused (``"refuse"``)."""
-    from core.camera.frames import open_frames
+    from handmocap.core.camera.frames import open_frames
 
     views: list[BoardView] = []
     sizes: list[tuple[int, int]] = []

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
-from core.errors import InputError
+from handmocap.core.errors import InputError
 
 #: OpenCV's distortion vectors have 4, 5, 8, 12 or 14 coefficients (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1..s4 [tx ty]]]])
 DISTORTION_LENGTHS = (4, 5, 8, 12, 14)

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from core.errors import InputError
+from handmocap.core.errors import InputError
 
 #: deepest nesting of mappings and sequences (a camera file needs 3)
 MAX_DEPTH = 16

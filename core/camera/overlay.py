@@ -9,7 +9,7 @@ import colorsys
 import cv2
 import numpy as np
 
-from core.camera.model import Camera
+from handmocap.core.camera.model import Camera
 
 UNLABELLED_BGR = (170, 170, 170)
 SELECTED_BGR = (0, 255, 255)

@@ -14,11 +14,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.camera.extrinsics import Blobs, MarkerFrame, Registration, register_from_markers
-from core.camera.model import Camera, CameraClock
-from core.camera.overlay import markers_at
-from core.camera.sync import SyncResult, sync_markers
-from core.errors import InputError
+from handmocap.core.camera.extrinsics import Blobs, MarkerFrame, Registration, register_from_markers
+from handmocap.core.camera.model import Camera, CameraClock
+from handmocap.core.camera.overlay import markers_at
+from handmocap.core.camera.sync import SyncResult, sync_markers
+from handmocap.core.errors import InputError
 
 #: offset step (s) of the initial search: the hand moves a few pixels in it
 SEARCH_STEP_S = 0.03

@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 from numba import njit
 
-from core.camera.model import Camera
+from handmocap.core.camera.model import Camera
 
 #: points nearer than this (mm, camera z) are clipped: their triangles are not drawn
 NEAR_MM = 10.0

@@ -16,10 +16,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.camera.extrinsics import Blobs
-from core.camera.model import Camera, CameraClock
-from core.camera.render import render_mesh
-from core.errors import InputError
+from handmocap.core.camera.extrinsics import Blobs
+from handmocap.core.camera.model import Camera, CameraClock
+from handmocap.core.camera.render import render_mesh
+from handmocap.core.errors import InputError
 
 #: a blob further than this (px) from every projected marker costs this much
 TRUNCATION_PX = 10.0

@@ -9,9 +9,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from core.camera.frames import VideoFrames
-from core.errors import InputError
-from core.io.durable import durable_path, write_atomic
+from handmocap.core.camera.frames import VideoFrames
+from handmocap.core.errors import InputError
+from handmocap.core.io.durable import durable_path, write_atomic
 
 #: codec per video suffix: Motion-JPEG in AVI (every frame a key frame: fast random access), MPEG-4 in MP4
 CODECS = {".avi": "MJPG", ".mp4": "mp4v"}

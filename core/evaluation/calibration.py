@@ -38,14 +38,14 @@ from collections.abc import Callable
 
 import numpy as np
 
-from core.calibration.pipeline import calibrate_scan
-from core.calibration.report import point_to_mesh_distances
-from core.calibration.synthetic_scan import anatomical_landmarks_from_truth, synthetic_scan
-from core.errors import CancelledError
-from core.ik import IKSettings, solve_positions, solve_take
-from core.model import HandModel, load_layout, load_template, marker_positions_batch, resolve_layout
-from core.model.skeleton import JOINT_NAMES, HandProportions
-from core.simulate import simulate_joint_angles, simulate_take
+from handmocap.core.calibration.pipeline import calibrate_scan
+from handmocap.core.calibration.report import point_to_mesh_distances
+from handmocap.core.calibration.synthetic_scan import anatomical_landmarks_from_truth, synthetic_scan
+from handmocap.core.errors import CancelledError
+from handmocap.core.ik import IKSettings, solve_positions, solve_take
+from handmocap.core.model import HandModel, load_layout, load_template, marker_positions_batch, resolve_layout
+from handmocap.core.model.skeleton import JOINT_NAMES, HandProportions
+from handmocap.core.simulate import simulate_joint_angles, simulate_take
 
 TAKE_NOISE_MM = 0.3          # marker noise of the simulated takes (σ per coordinate, DESIGN.md "Simulator")
 
@@ -159,7 +159,7 @@ def bench_calibrate(n_points: int = 200_000, seed: int = 0) -> dict:
     scan, truth = synthetic_scan(subject_proportions(2), n_points=n_points, seed=seed)
     landmarks = anatomical_landmarks_from_truth(truth)
     template = load_template()
-    from core.calibration.pipeline import joint_coordinates
+    from handmocap.core.calibration.pipeline import joint_coordinates
 
     joint_coordinates(template)
     start = time.perf_counter()

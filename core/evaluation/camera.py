@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.camera.extrinsics import MarkerFrame, detect_blobs, register_from_board, register_from_markers
-from core.camera.intrinsics import BoardSpec, calibrate_intrinsics, detect_board
-from core.camera.model import Camera, CameraClock, rotation_angle_deg
-from core.camera.sync import sync_markers
-from core.simulate.camera import (
+from handmocap.core.camera.extrinsics import MarkerFrame, detect_blobs, register_from_board, register_from_markers
+from handmocap.core.camera.intrinsics import BoardSpec, calibrate_intrinsics, detect_board
+from handmocap.core.camera.model import Camera, CameraClock, rotation_angle_deg
+from handmocap.core.camera.sync import sync_markers
+from handmocap.core.simulate.camera import (
     MARKER_RADIUS,
     OBJECT_MARKER_RADIUS,
     board_views,

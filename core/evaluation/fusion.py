@@ -21,14 +21,14 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from core.camera.render import rasterise
-from core.fusion.hand_render import HandRenderer, crop_around
-from core.fusion.pose import digit_points
-from core.fusion.tracker import FusionResult, FusionSettings, RGBDFrames, fuse_take
-from core.io import Take
-from core.model import load_layout, load_template
-from core.simulate.camera import SimulatedCameraTake, render_scene, simulate_camera_take
-from core.simulate.take import simulate_take
+from handmocap.core.camera.render import rasterise
+from handmocap.core.fusion.hand_render import HandRenderer, crop_around
+from handmocap.core.fusion.pose import digit_points
+from handmocap.core.fusion.tracker import FusionResult, FusionSettings, RGBDFrames, fuse_take
+from handmocap.core.io import Take
+from handmocap.core.model import load_layout, load_template
+from handmocap.core.simulate.camera import SimulatedCameraTake, render_scene, simulate_camera_take
+from handmocap.core.simulate.take import simulate_take
 
 HELD_OUT_SEEDS = (201, 202, 203)
 #: finger motion of the n-th seed (:func:`core.simulate.motion.simulate_joint_angles`): grasps and gestures mixed

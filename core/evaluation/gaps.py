@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.errors import InputError
-from core.gaps.check import FILL_METHODS, ModelContext, fill_gap
-from core.gaps.fills import SPLINE_CONTEXT
-from core.io import Take
-from core.model import HandModel, MarkerLayout, load_template
-from core.review import ReviewTake
-from core.workflows import fill_review_gaps, gap_groups
+from handmocap.core.errors import InputError
+from handmocap.core.gaps.check import FILL_METHODS, ModelContext, fill_gap
+from handmocap.core.gaps.fills import SPLINE_CONTEXT
+from handmocap.core.io import Take
+from handmocap.core.model import HandModel, MarkerLayout, load_template
+from handmocap.core.review import ReviewTake
+from handmocap.core.workflows import fill_review_gaps, gap_groups
 
 
 def finger_marker_names(context: ModelContext) -> list[str]:

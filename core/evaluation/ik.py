@@ -11,11 +11,11 @@ import time
 
 import numpy as np
 
-from core.errors import InputError
-from core.ik import IKSettings, solve_positions
-from core.model import load_layout, load_template, marker_columns, mean_vertex_error, resolve_layout
-from core.prior import load_default_prior
-from core.simulate import simulate_take
+from handmocap.core.errors import InputError
+from handmocap.core.ik import IKSettings, solve_positions
+from handmocap.core.model import load_layout, load_template, marker_columns, mean_vertex_error, resolve_layout
+from handmocap.core.prior import load_default_prior
+from handmocap.core.simulate import simulate_take
 
 
 def _truth_targets(simulated, names: list[str]) -> np.ndarray:

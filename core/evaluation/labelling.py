@@ -22,11 +22,11 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError
-from core.evaluation.data import REAL_RECORDING
-from core.evaluation.labelling_metrics import labelling_accuracy
-from core.labelling.models import SceneSettings
-from core.labelling.scene import label_scene
+from handmocap.core.errors import InputError
+from handmocap.core.evaluation.data import REAL_RECORDING
+from handmocap.core.evaluation.labelling_metrics import labelling_accuracy
+from handmocap.core.labelling.models import SceneSettings
+from handmocap.core.labelling.scene import label_scene
 
 TARGETS = {"correct_share": 0.995, "ghost_labelled_share": 0.005, "longest_swap_frames": 10}
 
@@ -48,7 +48,7 @@ def evaluate_labelling(layouts: Sequence[str] = ("dense", "glove-13"), seeds: Se
     ``scene_objects`` rigid objects, per layout and seed (``online``: in online mode); returns
     ``{"runs": [...], "summary": {...}}`` with each run's accuracy, time and whether it meets the
     targets, and the pooled figures per layout and case."""
-    from core.simulate import SimulatedScene, SimulatedTake, simulate_scene, simulate_take
+    from handmocap.core.simulate import SimulatedScene, SimulatedTake, simulate_scene, simulate_take
 
     runs = []
     for layout in layouts:
@@ -97,8 +97,8 @@ def unlabelled_real_take(path: str | Path = REAL_RECORDING, frames: int | None =
     of the frames, and Gaussian noise of ``noise_mm`` per axis added to every point. Returns ``(take,
     point_marker (F,P) index into the recording's markers (-1 ghost),
     recording marker names)``."""
-    from core.io import Take, load_take
-    from core.simulate.take import _ghosts, _shuffled_points
+    from handmocap.core.io import Take, load_take
+    from handmocap.core.simulate.take import _ghosts, _shuffled_points
 
     path = Path(path)
     if not path.exists():
@@ -120,7 +120,7 @@ def evaluate_real_recording(path: str | Path = REAL_RECORDING, frames: int | Non
                             online: bool = False) -> dict:
     """Label the stripped, shuffled real recording with ``layout`` on the right hand (module docstring;
     ``online``: in online mode)."""
-    from core.model import load_layout, marker_columns
+    from handmocap.core.model import load_layout, marker_columns
 
     take, point_marker, recording_names = unlabelled_real_take(path, frames)
     hand_names = load_layout(layout).names

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import time
 
-from core.labelling.scene import label_scene
+from handmocap.core.labelling.scene import label_scene
 
 
 def bench_label(frames: int = 2000, seed: int = 1, layout: str = "dense", scene_layout: str = "dense",
@@ -19,7 +19,7 @@ def bench_label(frames: int = 2000, seed: int = 1, layout: str = "dense", scene_
     wall-clock figures; ``cpu_frames_per_s_*`` divide by the process CPU time instead (the figure a
     core of its own would give when other programs share the machine).
     """
-    from core.simulate import simulate_scene, simulate_take
+    from handmocap.core.simulate import simulate_scene, simulate_take
 
     one = simulate_take(layout=layout, n_frames=frames, seed=seed, noise_mm=0.3, ghost_rate=0.05, occlusion=True,
                         unlabelled=True)

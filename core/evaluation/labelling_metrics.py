@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from core.labelling.scene import SceneLabelling
+    from handmocap.core.labelling.scene import SceneLabelling
 
 
 def _longest_run(flags: np.ndarray) -> int:

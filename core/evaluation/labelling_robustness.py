@@ -16,10 +16,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.evaluation.labelling import REAL_RECORDING, unlabelled_real_take
-from core.evaluation.labelling_metrics import labelling_accuracy
-from core.io import Take
-from core.labelling.scene import label_scene
+from handmocap.core.evaluation.labelling import REAL_RECORDING, unlabelled_real_take
+from handmocap.core.evaluation.labelling_metrics import labelling_accuracy
+from handmocap.core.io import Take
+from handmocap.core.labelling.scene import label_scene
 
 HELD_OUT_SEEDS = (101, 102, 103)
 """Simulation seeds the labeller was not tuned on (development used seeds 1-3)."""
@@ -76,7 +76,7 @@ def hide_runs(take: Take, point_marker: np.ndarray, share: float, rng: np.random
 
 
 def _simulated(layout: str, seed: int, frames: int, condition: Condition) -> tuple[Take, np.ndarray, str]:
-    from core.simulate import simulate_scene
+    from handmocap.core.simulate import simulate_scene
 
     side = "left" if condition.mirror else "right"
     scene = simulate_scene(layout=layout, n_frames=frames, seed=seed, hands=side, n_objects=0,
@@ -85,7 +85,7 @@ def _simulated(layout: str, seed: int, frames: int, condition: Condition) -> tup
 
 
 def _real(frames: int, seed: int, condition: Condition, layout: str) -> tuple[Take, np.ndarray, str]:
-    from core.model import load_layout, marker_columns
+    from handmocap.core.model import load_layout, marker_columns
 
     take, point_marker, names = unlabelled_real_take(REAL_RECORDING, frames, seed=seed, noise_mm=condition.noise_mm)
     to_layout = marker_columns(load_layout(layout).names, names)
@@ -181,7 +181,7 @@ def format_sweep(results: list[dict]) -> str:
 
 def evaluate_long_take(frames: int | None = None, seed: int = 0, noise_mm: float = 0.0) -> dict:
     """The real recording labelled whole against its two halves labelled alone (issue 10 part 4)."""
-    from core.model import load_layout, marker_columns
+    from handmocap.core.model import load_layout, marker_columns
 
     take, point_marker, names = unlabelled_real_take(REAL_RECORDING, frames, seed=seed, noise_mm=noise_mm)
     to_layout = marker_columns(load_layout("glove-13").names, names)

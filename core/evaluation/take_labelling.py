@@ -16,18 +16,18 @@ from dataclasses import replace
 
 import numpy as np
 
-from core.errors import InputError
-from core.io import Take, is_marker_label
-from core.labelling.scene import label_scene
-from core.labelling.templates import learn_template
-from core.model import MarkerLayout
-from core.model.lab_template import LabTemplate
+from handmocap.core.errors import InputError
+from handmocap.core.io import Take, is_marker_label
+from handmocap.core.labelling.scene import label_scene
+from handmocap.core.labelling.templates import learn_template
+from handmocap.core.model import MarkerLayout
+from handmocap.core.model.lab_template import LabTemplate
 
 
 def stripped_take(take: Take, columns: np.ndarray, seed: int, ghost_rate: float = 0.0) -> tuple[Take, np.ndarray]:
     """The take's ``columns`` as unlabelled points, shuffled per frame, with ghosts in ``ghost_rate`` of the
     frames: the take and ``point_marker (F,P)``, the index into ``columns`` of each point (-1 ghost)."""
-    from core.simulate.take import _ghosts, _shuffled_points
+    from handmocap.core.simulate.take import _ghosts, _shuffled_points
 
     rng = np.random.default_rng([seed, 21])
     positions = take.marker_positions[:, columns]

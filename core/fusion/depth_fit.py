@@ -27,17 +27,17 @@ import cv2
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from core.camera.model import Camera
-from core.errors import CancelledError, InputError
-from core.fusion.energy import EnergyWeights, FrameEnergy
-from core.fusion.hand_render import MIDDLE_MCP, Crop, HandRenderer
-from core.fusion.hand_segment import HandCandidate, SegmentSettings, find_hands
-from core.fusion.icp import ArticulatedICP, FitExtras, ICPSettings
-from core.fusion.kinematic_terms import chain_points
-from core.fusion.observation import Observation, observe
-from core.model import HandModel, MarkerSet, load_layout, load_template, resolve_layout
-from core.model.kinematics import vector_from_rotation
-from core.model.skeleton import (
+from handmocap.core.camera.model import Camera
+from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.fusion.energy import EnergyWeights, FrameEnergy
+from handmocap.core.fusion.hand_render import MIDDLE_MCP, Crop, HandRenderer
+from handmocap.core.fusion.hand_segment import HandCandidate, SegmentSettings, find_hands
+from handmocap.core.fusion.icp import ArticulatedICP, FitExtras, ICPSettings
+from handmocap.core.fusion.kinematic_terms import chain_points
+from handmocap.core.fusion.observation import Observation, observe
+from handmocap.core.model import HandModel, MarkerSet, load_layout, load_template, resolve_layout
+from handmocap.core.model.kinematics import vector_from_rotation
+from handmocap.core.model.skeleton import (
     JOINT_NAMES,
     N_GLOBAL,
     N_JOINTS,
@@ -46,8 +46,8 @@ from core.model.skeleton import (
     Skeleton,
     default_joint_limits,
 )
-from core.prior import PosturePrior, load_default_prior
-from core.prior.pca_prior import soft_prior_matrix
+from handmocap.core.prior import PosturePrior, load_default_prior
+from handmocap.core.prior.pca_prior import soft_prior_matrix
 
 DEPTH_ONLY = EnergyWeights(marker=0.0, edge=0.0, smoothness=0.0)
 #: the "spread" start posture: thumb abducted away from the palm, fingers apart, every joint straight (rad)

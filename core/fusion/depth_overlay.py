@@ -8,9 +8,9 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from core.fusion.depth_fit import DepthFit
-from core.fusion.hand_render import Crop, HandRenderer
-from core.model.skeleton import N_JOINTS
+from handmocap.core.fusion.depth_fit import DepthFit
+from handmocap.core.fusion.hand_render import Crop, HandRenderer
+from handmocap.core.model.skeleton import N_JOINTS
 
 #: skeleton colour per digit (BGR): thumb red, index orange, middle yellow, ring blue, little magenta
 DIGIT_BGR = ((40, 40, 255), (0, 150, 255), (0, 230, 230), (255, 160, 40), (230, 60, 230))

@@ -19,13 +19,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from core.camera.frames import image_file_size
-from core.camera.model import Camera
-from core.errors import CancelledError, InputError
-from core.fusion.depth_fit import DepthFit, DepthFitSettings, DepthFitter
-from core.fusion.hand_segment import HandCandidate, find_hands
-from core.fusion.icp import FitExtras
-from core.model.kinematics import rotation_from_vector, vector_from_rotation
+from handmocap.core.camera.frames import image_file_size
+from handmocap.core.camera.model import Camera
+from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.fusion.depth_fit import DepthFit, DepthFitSettings, DepthFitter
+from handmocap.core.fusion.hand_segment import HandCandidate, find_hands
+from handmocap.core.fusion.icp import FitExtras
+from handmocap.core.model.kinematics import rotation_from_vector, vector_from_rotation
 
 #: the hand's size is estimated on this many trusted frames, then kept (their median)
 SCALE_FRAMES = 5

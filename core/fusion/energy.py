@@ -19,9 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.fusion.hand_render import HandRenderer, distance_to
-from core.fusion.observation import Observation
-from core.model import MarkerSet, marker_positions
+from handmocap.core.fusion.hand_render import HandRenderer, distance_to
+from handmocap.core.fusion.observation import Observation
+from handmocap.core.model import MarkerSet, marker_positions
 
 TERMS = ("marker", "silhouette", "depth", "edge", "smoothness")
 

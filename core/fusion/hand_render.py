@@ -14,11 +14,11 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from core.camera.model import Camera
-from core.camera.render import rasterise
-from core.model import HandModel
-from core.model.kinematics import skinned_points_kernel
-from core.model.skeleton import JOINT_NAMES
+from handmocap.core.camera.model import Camera
+from handmocap.core.camera.render import rasterise
+from handmocap.core.model import HandModel
+from handmocap.core.model.kinematics import skinned_points_kernel
+from handmocap.core.model.skeleton import JOINT_NAMES
 
 #: a rendered pixel is an edge when its 4-neighbour differs in depth by more than this (mm): an occluding
 #: contour inside the silhouette (a finger over the palm); a finger is ≥ 12 mm thick

@@ -29,8 +29,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from core.camera.model import Camera
-from core.errors import InputError
+from handmocap.core.camera.model import Camera
+from handmocap.core.errors import InputError
 
 
 @dataclass(frozen=True)

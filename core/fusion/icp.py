@@ -36,14 +36,14 @@ import numpy as np
 from scipy.ndimage import distance_transform_edt
 from scipy.spatial import cKDTree
 
-from core.camera.model import Camera
-from core.fusion.hand_render import HandRenderer, Rendering
-from core.fusion.kinematic_terms import BonePoints, CollisionTerm, chain_points, temporal_rows, wrist_rows
-from core.fusion.observation import Observation
-from core.fusion.pose import left_compose
-from core.model import MarkerSet, marker_jacobian
-from core.model.kinematics import ANCESTOR, points_and_jacobian_kernel
-from core.model.skeleton import N_GLOBAL, N_JOINTS, N_PARAMS
+from handmocap.core.camera.model import Camera
+from handmocap.core.fusion.hand_render import HandRenderer, Rendering
+from handmocap.core.fusion.kinematic_terms import BonePoints, CollisionTerm, chain_points, temporal_rows, wrist_rows
+from handmocap.core.fusion.observation import Observation
+from handmocap.core.fusion.pose import left_compose
+from handmocap.core.model import MarkerSet, marker_jacobian
+from handmocap.core.model.kinematics import ANCESTOR, points_and_jacobian_kernel
+from handmocap.core.model.skeleton import N_GLOBAL, N_JOINTS, N_PARAMS
 
 
 @dataclass(frozen=True)

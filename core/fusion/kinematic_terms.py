@@ -18,10 +18,10 @@ from functools import lru_cache
 
 import numpy as np
 
-from core.camera.model import Camera
-from core.model import HandModel
-from core.model.kinematics import ANCESTOR, points_and_jacobian_kernel
-from core.model.skeleton import N_JOINTS, N_PARAMS
+from handmocap.core.camera.model import Camera
+from handmocap.core.model import HandModel
+from handmocap.core.model.kinematics import ANCESTOR, points_and_jacobian_kernel
+from handmocap.core.model.skeleton import N_JOINTS, N_PARAMS
 
 #: collision radius = this share of the sum of the two segments' mesh radii: neighbouring fingers may touch
 #: (their flesh yields) but not pass through each other

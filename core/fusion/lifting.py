@@ -14,9 +14,9 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 from scipy.spatial.transform import Rotation, Slerp
 
-from core.fusion.pose import left_compose
-from core.model import HandModel, MarkerSet, marker_jacobian
-from core.model.skeleton import N_PARAMS
+from handmocap.core.fusion.pose import left_compose
+from handmocap.core.model import HandModel, MarkerSet, marker_jacobian
+from handmocap.core.model.skeleton import N_PARAMS
 
 #: per-parameter scale of the pull to the interpolated pose: rad count 1, wrist translation mm count 0.1
 PULL_SCALE = np.concatenate([np.full(3, 0.1), np.ones(N_PARAMS - 3)])

@@ -14,9 +14,9 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
-from core.camera.model import Camera
-from core.fusion.hand_render import MIDDLE_MCP, Crop, HandRenderer, crop_around, distance_to, edge_map
-from core.fusion.silhouette import band_cut, colour_silhouette, cut_at_wrist, depth_silhouette, wristband_line
+from handmocap.core.camera.model import Camera
+from handmocap.core.fusion.hand_render import MIDDLE_MCP, Crop, HandRenderer, crop_around, distance_to, edge_map
+from handmocap.core.fusion.silhouette import band_cut, colour_silhouette, cut_at_wrist, depth_silhouette, wristband_line
 
 #: the colour silhouette is replaced by the depth one when it covers less than this share of the model's
 #: projected area (colour too poor: hand over a hand-coloured background, bad light)

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.model import HandModel
-from core.model.kinematics import rotation_from_vector, vector_from_rotation
+from handmocap.core.model import HandModel
+from handmocap.core.model.kinematics import rotation_from_vector, vector_from_rotation
 
 
 def left_compose(theta: np.ndarray, step: np.ndarray) -> np.ndarray:

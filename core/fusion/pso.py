@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.errors import CancelledError
+from handmocap.core.errors import CancelledError
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.prior import PosturePrior
+from handmocap.core.prior import PosturePrior
 
 
 class AdaptiveSubspace:

@@ -22,20 +22,20 @@ from typing import Protocol
 
 import numpy as np
 
-from core.camera.model import Camera
-from core.errors import CancelledError, InputError
-from core.fusion.energy import TERMS, EnergyWeights, FrameEnergy
-from core.fusion.hand_render import HandRenderer
-from core.fusion.icp import ArticulatedICP, ICPSettings
-from core.fusion.lifting import lift
-from core.fusion.observation import ideal_image, observe
-from core.fusion.pso import SwarmSettings, particle_swarm
-from core.fusion.subspace import AdaptiveSubspace
-from core.ik import IKSettings, match_layout, solve_positions
-from core.io.durable import durable_stream, verify_zip
-from core.model import HandModel, MarkerLayout, load_layout, load_template, resolve_layout
-from core.model.skeleton import N_GLOBAL, PARAM_NAMES, default_joint_limits
-from core.prior import PosturePrior, load_default_prior
+from handmocap.core.camera.model import Camera
+from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.fusion.energy import TERMS, EnergyWeights, FrameEnergy
+from handmocap.core.fusion.hand_render import HandRenderer
+from handmocap.core.fusion.icp import ArticulatedICP, ICPSettings
+from handmocap.core.fusion.lifting import lift
+from handmocap.core.fusion.observation import ideal_image, observe
+from handmocap.core.fusion.pso import SwarmSettings, particle_swarm
+from handmocap.core.fusion.subspace import AdaptiveSubspace
+from handmocap.core.ik import IKSettings, match_layout, solve_positions
+from handmocap.core.io.durable import durable_stream, verify_zip
+from handmocap.core.model import HandModel, MarkerLayout, load_layout, load_template, resolve_layout
+from handmocap.core.model.skeleton import N_GLOBAL, PARAM_NAMES, default_joint_limits
+from handmocap.core.prior import PosturePrior, load_default_prior
 
 OPTIMISERS = ("icp", "pso")
 #: RGB-D frames whose colour is used for the background estimate when none is given (per-pixel median)

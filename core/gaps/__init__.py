@@ -1,7 +1,7 @@
 """Gaps in marker trajectories: detection, fills (linear, spline, pattern, rigid body, model,
 PCA marker intercorrelation), fill check."""
 
-from core.gaps.check import (
+from handmocap.core.gaps.check import (
     FILL_METHODS,
     METHOD_CODES,
     MISSING,
@@ -12,8 +12,8 @@ from core.gaps.check import (
     fill_gap,
     recommend,
 )
-from core.gaps.detect import Gap, find_gaps
-from core.gaps.fills import (
+from handmocap.core.gaps.detect import Gap, find_gaps
+from handmocap.core.gaps.fills import (
     fill_linear,
     fill_model,
     fill_pattern,
@@ -21,7 +21,7 @@ from core.gaps.fills import (
     fill_spline,
     minimum_acceleration_interpolation,
 )
-from core.gaps.pca import fill_pca
+from handmocap.core.gaps.pca import fill_pca
 
 __all__ = [
     "FILL_METHODS", "METHOD_CODES", "MISSING", "FillCheck", "Gap", "ModelContext", "check_gap",

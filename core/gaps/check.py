@@ -11,9 +11,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from core.errors import CancelledError, InputError
-from core.gaps.detect import Gap, find_gaps
-from core.gaps.fills import (
+from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.gaps.detect import Gap, find_gaps
+from handmocap.core.gaps.fills import (
     MODEL_FIT,
     SPLINE_CONTEXT,
     fill_linear,
@@ -22,13 +22,13 @@ from core.gaps.fills import (
     fill_rigid,
     fill_spline,
 )
-from core.gaps.pca import PCA_WINDOW, fill_pca
-from core.ik import IKResult, match_layout, solve_positions, solve_take
-from core.io import Take
-from core.model import N_PARAMS, HandModel, MarkerLayout, MarkerSet, load_template, resolve_layout
-from core.model.provenance import FILL_CODES as METHOD_CODES  # the fill methods' provenance codes
-from core.model.provenance import MEASURED, MISSING
-from core.prior import load_default_prior
+from handmocap.core.gaps.pca import PCA_WINDOW, fill_pca
+from handmocap.core.ik import IKResult, match_layout, solve_positions, solve_take
+from handmocap.core.io import Take
+from handmocap.core.model import N_PARAMS, HandModel, MarkerLayout, MarkerSet, load_template, resolve_layout
+from handmocap.core.model.provenance import FILL_CODES as METHOD_CODES  # the fill methods' provenance codes
+from handmocap.core.model.provenance import MEASURED, MISSING
+from handmocap.core.prior import load_default_prior
 
 FILL_METHODS = ("linear", "spline", "pattern", "rigid", "model", "pca")
 #: order tried by ``fill_all(method="auto")`` when no stretch near a gap can be hidden to check the fills

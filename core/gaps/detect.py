@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.io import Take
+from handmocap.core.io import Take
 
 
 @dataclass(frozen=True)

@@ -21,9 +21,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.errors import InputError
-from core.model import HandModel, MarkerSet, marker_positions_batch
-from core.model.kinematics import ANCESTOR
+from handmocap.core.errors import InputError
+from handmocap.core.model import HandModel, MarkerSet, marker_positions_batch
+from handmocap.core.model.kinematics import ANCESTOR
 
 SPLINE_CONTEXT = 10
 MODEL_CONTEXT = 2

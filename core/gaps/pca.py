@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.errors import InputError
+from handmocap.core.errors import InputError
 
 #: frames on each side of a gap whose measured samples train the components
 PCA_WINDOW = 400
@@ -138,7 +138,7 @@ def _poses(donors: np.ndarray, reference: np.ndarray, weights: np.ndarray) -> tu
     covariance ``U S V^T``), and origins (N, 3) mm, their weighted centroid. Compiled
     (:func:`core.gaps.pca_kernel.poses_kernel`: a polar decomposition by Newton steps, Horn's quaternion where
     that does not apply)."""
-    from core.gaps.pca_kernel import poses_kernel
+    from handmocap.core.gaps.pca_kernel import poses_kernel
 
     share = weights / weights.sum()
     origins, rotations = poses_kernel(np.ascontiguousarray(donors, dtype=np.float64),

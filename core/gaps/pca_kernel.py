@@ -1,7 +1,7 @@
 """Compiled part of the PCA gap fill: the donors' pose in every frame of a window (:func:`core.gaps.pca._poses`).
 
 Imported when a PCA fill first runs (numba is not needed to import :mod:`core.gaps`); compiled once by
-``python -m core.workflows.warm_up`` and loaded from numba's cache afterwards.
+``python -m handmocap.core.workflows.warm_up`` and loaded from numba's cache afterwards.
 """
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from core.ik.horn import horn_rotation
+from handmocap.core.ik.horn import horn_rotation
 
 #: Newton steps of the polar decomposition before a frame takes Horn's quaternion
 POLAR_STEPS = 30

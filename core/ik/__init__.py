@@ -1,6 +1,6 @@
 """Inverse kinematics: damped Gauss-Newton, full / subspace / layered, joint limits, warm start."""
 
-from core.ik.solver import (
+from handmocap.core.ik.solver import (
            METHODS,
            IKResult,
            IKSettings,

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from core.model.kinematics import (
+from handmocap.core.model.kinematics import (
     forward_kinematics_kernel,
     matmul3,
     points_and_jacobian_kernel,

@@ -16,14 +16,14 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import CancelledError, InputError
-from core.ik.kernel import frame_energy_kernel, solve_frame_kernel
-from core.io.durable import durable_stream, verify_zip
-from core.model import HandModel, MarkerLayout, MarkerSet, marker_columns, marker_positions, resolve_layout
-from core.model.joint_angles import write_joint_angles_csv
-from core.model.kinematics import ANCESTOR, vector_from_rotation
-from core.model.skeleton import N_PARAMS, PARAM_NAMES, default_joint_limits
-from core.prior import load_default_prior
+from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.ik.kernel import frame_energy_kernel, solve_frame_kernel
+from handmocap.core.io.durable import durable_stream, verify_zip
+from handmocap.core.model import HandModel, MarkerLayout, MarkerSet, marker_columns, marker_positions, resolve_layout
+from handmocap.core.model.joint_angles import write_joint_angles_csv
+from handmocap.core.model.kinematics import ANCESTOR, vector_from_rotation
+from handmocap.core.model.skeleton import N_PARAMS, PARAM_NAMES, default_joint_limits
+from handmocap.core.prior import load_default_prior
 
 METHODS = ("layered", "subspace", "full")
 LOST_TRACK_MM = 30.0

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.errors import InputError
+from handmocap.core.errors import InputError
 
 #: length units per mm
 UNITS: dict[str, float] = {"mm": 1.0, "cm": 0.1, "m": 0.001}

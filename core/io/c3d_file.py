@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from core.io.errors import TakeFormatError
-from core.io.take import Take, chosen_frame_rate, mm_per_unit, unique_marker_names, zeros_to_nan
+from handmocap.core.io.errors import TakeFormatError
+from handmocap.core.io.take import Take, chosen_frame_rate, mm_per_unit, unique_marker_names, zeros_to_nan
 
 _log = logging.getLogger(__name__)
 

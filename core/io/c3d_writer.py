@@ -31,10 +31,10 @@ from typing import BinaryIO
 
 import numpy as np
 
-from core.io.c3d_file import _DATA_GROUPS, _LIBRARY_GROUPS, ParameterValue, _parse
-from core.io.durable import durable_stream
-from core.io.errors import TakeFormatError
-from core.io.take import Take
+from handmocap.core.io.c3d_file import _DATA_GROUPS, _LIBRARY_GROUPS, ParameterValue, _parse
+from handmocap.core.io.durable import durable_stream
+from handmocap.core.io.errors import TakeFormatError
+from handmocap.core.io.take import Take
 
 CHUNK_BYTES = 8 << 20  # float32 frame data converted per write (8 MiB)
 _BLOCK = 512

@@ -26,9 +26,9 @@ from os import PathLike
 
 import numpy as np
 
-from core.io.durable import write_text_atomic
-from core.io.errors import FrameRateMissingError, TakeFormatError
-from core.io.take import (
+from handmocap.core.io.durable import write_text_atomic
+from handmocap.core.io.errors import FrameRateMissingError, TakeFormatError
+from handmocap.core.io.take import (
     Take,
     chosen_frame_rate,
     format_number_rows,

@@ -30,7 +30,7 @@ from typing import Any
 
 import fastjsonschema
 
-from core.errors import InputError
+from handmocap.core.errors import InputError
 
 #: default largest file (bytes) and deepest nesting of a document
 MAX_BYTES = 1_000_000

@@ -27,7 +27,7 @@ from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import BinaryIO
 
-from core.errors import InputError
+from handmocap.core.errors import InputError
 
 #: called on the finished temporary file before it replaces the target; raises OSError or InputError if bad
 Verify = Callable[[Path], None]

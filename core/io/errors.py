@@ -4,7 +4,7 @@ from os import PathLike
 from pathlib import Path
 from typing import Self
 
-from core.errors import InputError
+from handmocap.core.errors import InputError
 
 
 class TakeFormatError(InputError):

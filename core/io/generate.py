@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from core.io.c3d_writer import write_c3d
-from core.io.loader import load_take
-from core.io.take import Take
+from handmocap.core.io.c3d_writer import write_c3d
+from handmocap.core.io.loader import load_take
+from handmocap.core.io.take import Take
 
 BENCH_FRAME_RATE_HZ = 120.0
 

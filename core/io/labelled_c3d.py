@@ -50,11 +50,11 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError
-from core.io.c3d_file import _INTEL, ParameterValue, _parse, read_c3d
-from core.io.c3d_writer import RESIDUAL_PROCESSED, write_c3d_points
-from core.io.errors import TakeFormatError
-from core.io.take import Take
+from handmocap.core.errors import InputError
+from handmocap.core.io.c3d_file import _INTEL, ParameterValue, _parse, read_c3d
+from handmocap.core.io.c3d_writer import RESIDUAL_PROCESSED, write_c3d_points
+from handmocap.core.io.errors import TakeFormatError
+from handmocap.core.io.take import Take
 
 _log = logging.getLogger(__name__)
 

@@ -12,16 +12,16 @@ from itertools import islice
 from os import PathLike
 from pathlib import Path
 
-from core.io.c3d_file import read_c3d
-from core.io.c3d_writer import write_c3d
-from core.io.csv_file import read_csv, recognises_axis_csv, write_csv
-from core.io.errors import TakeFormatError
-from core.io.motive_csv import read_motive_csv, recognises_motive_csv
-from core.io.nokov_csv import read_nokov_csv, recognises_nokov_csv
-from core.io.qualisys_tsv import read_tsv
-from core.io.take import Take, check_frame_rate, open_text_lines
-from core.io.trc import read_trc, write_trc
-from core.io.vicon_csv import read_vicon_csv, recognises_vicon_csv
+from handmocap.core.io.c3d_file import read_c3d
+from handmocap.core.io.c3d_writer import write_c3d
+from handmocap.core.io.csv_file import read_csv, recognises_axis_csv, write_csv
+from handmocap.core.io.errors import TakeFormatError
+from handmocap.core.io.motive_csv import read_motive_csv, recognises_motive_csv
+from handmocap.core.io.nokov_csv import read_nokov_csv, recognises_nokov_csv
+from handmocap.core.io.qualisys_tsv import read_tsv
+from handmocap.core.io.take import Take, check_frame_rate, open_text_lines
+from handmocap.core.io.trc import read_trc, write_trc
+from handmocap.core.io.vicon_csv import read_vicon_csv, recognises_vicon_csv
 
 #: lines of a .csv or .txt file its format is recognised from
 HEAD_LINES = 24

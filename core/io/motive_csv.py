@@ -24,10 +24,10 @@ from os import PathLike
 
 import numpy as np
 
-from core.io.axes import axes_rotation
-from core.io.csv_file import split_cells
-from core.io.errors import TakeFormatError
-from core.io.take import (
+from handmocap.core.io.axes import axes_rotation
+from handmocap.core.io.csv_file import split_cells
+from handmocap.core.io.errors import TakeFormatError
+from handmocap.core.io.take import (
     Take,
     chosen_frame_rate,
     mm_per_unit,

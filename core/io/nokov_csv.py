@@ -12,8 +12,8 @@ from 1. Read by the axis-CSV reader (:mod:`core.io.csv_file`) with the vendor na
 import re
 from os import PathLike
 
-from core.io.csv_file import read_csv, split_cells
-from core.io.take import Take
+from handmocap.core.io.csv_file import read_csv, split_cells
+from handmocap.core.io.take import Take
 
 _NOKOV_COLUMN = re.compile(r".*\S-[XYZ]", re.DOTALL)
 

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError
+from handmocap.core.errors import InputError
 
 #: deflate writes at least one bit per 258-byte match, so no member expands more than this from its stored size
 _DEFLATE_MAX_RATIO = 1032

@@ -16,8 +16,8 @@ from collections.abc import Iterable
 from os import PathLike
 from pathlib import Path
 
-from core.io.errors import TakeFormatError
-from core.io.take import (
+from handmocap.core.io.errors import TakeFormatError
+from handmocap.core.io.take import (
     Take,
     chosen_frame_rate,
     open_text_lines,

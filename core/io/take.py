@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.io.errors import FrameRateMissingError, TakeFormatError
+from handmocap.core.io.errors import FrameRateMissingError, TakeFormatError
 
 _MM_PER_UNIT = {
     "mm": 1.0,

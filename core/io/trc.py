@@ -26,10 +26,10 @@ import math
 from os import PathLike
 from pathlib import Path
 
-from core.io.axes import check_units, convert_points
-from core.io.durable import write_text_atomic
-from core.io.errors import TakeFormatError
-from core.io.take import (
+from handmocap.core.io.axes import check_units, convert_points
+from handmocap.core.io.durable import write_text_atomic
+from handmocap.core.io.errors import TakeFormatError
+from handmocap.core.io.take import (
     Take,
     chosen_frame_rate,
     format_number_rows,

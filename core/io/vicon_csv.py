@@ -23,9 +23,9 @@ from os import PathLike
 
 import numpy as np
 
-from core.io.csv_file import delimiter_of, split_cells
-from core.io.errors import TakeFormatError
-from core.io.take import (
+from handmocap.core.io.csv_file import delimiter_of, split_cells
+from handmocap.core.io.errors import TakeFormatError
+from handmocap.core.io.take import (
     Take,
     chosen_frame_rate,
     mm_per_unit,

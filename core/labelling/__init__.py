@@ -1,7 +1,7 @@
 """Automatic labelling of unlabelled optical markers: scenes of hands and rigid objects, per-frame
 joint Hungarian assignment + IK, initialisation, side decision, swap repair, labelling health."""
 
-from core.labelling.models import SceneSettings
-from core.labelling.scene import SceneLabelling, SceneModel, label_scene
+from handmocap.core.labelling.models import SceneSettings
+from handmocap.core.labelling.scene import SceneLabelling, SceneModel, label_scene
 
 __all__ = ["SceneLabelling", "SceneModel", "SceneSettings", "label_scene"]

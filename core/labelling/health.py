@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from core.labelling.scene import SceneLabelling
+    from handmocap.core.labelling.scene import SceneLabelling
 
 #: kinds of :class:`HealthWarning`, with what each means (shown as a tooltip in the review)
 WARNING_KINDS = {

@@ -25,12 +25,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from core.labelling.health import HealthWarning
-from core.model.hand_columns import name_side
-from core.model.lab_template import LabTemplate, PairStatistics, TemplateHand
+from handmocap.core.labelling.health import HealthWarning
+from handmocap.core.model.hand_columns import name_side
+from handmocap.core.model.lab_template import LabTemplate, PairStatistics, TemplateHand
 
 if TYPE_CHECKING:
-    from core.labelling.scene import SceneLabelling
+    from handmocap.core.labelling.scene import SceneLabelling
 
 #: a hypothesis whose cost per pair is this much below the labelling's (squared standard deviations: every
 #: distance two sigmas better on average) replaces it

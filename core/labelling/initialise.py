@@ -22,9 +22,9 @@ from itertools import product
 import numpy as np
 from numba import njit
 
-from core.ik import kabsch
-from core.labelling.models import HandTracker, RigidTrack, SceneSettings, Track, pose_matrix
-from core.model.kinematics import rotation_from_vector, vector_from_rotation
+from handmocap.core.ik import kabsch
+from handmocap.core.labelling.models import HandTracker, RigidTrack, SceneSettings, Track, pose_matrix
+from handmocap.core.model.kinematics import rotation_from_vector, vector_from_rotation
 
 LINK_MARGIN = 1.2
 """The clustering cut is at least this times a model's own largest single-linkage gap."""

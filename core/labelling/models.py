@@ -16,12 +16,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numba import njit
 
-from core.ik import IKSettings, IKSolver
-from core.ik.horn import horn_rotation
-from core.ik.solver import LOST_TRACK_MM
-from core.labelling.take_statistics import SECOND_DIFFERENCE_VARIANCE, TakeStatistics
-from core.model import N_PARAMS, HandModel, MarkerSet, marker_positions
-from core.model.objects import ObjectSpec
+from handmocap.core.ik import IKSettings, IKSolver
+from handmocap.core.ik.horn import horn_rotation
+from handmocap.core.ik.solver import LOST_TRACK_MM
+from handmocap.core.labelling.take_statistics import SECOND_DIFFERENCE_VARIANCE, TakeStatistics
+from handmocap.core.model import N_PARAMS, HandModel, MarkerSet, marker_positions
+from handmocap.core.model.objects import ObjectSpec
 
 
 @njit(cache=True)

@@ -28,12 +28,12 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError
-from core.io import Take
-from core.labelling.health import assess_labelling
-from core.labelling.hypotheses import check_whole_take
-from core.labelling.models import HandTracker, SceneSettings
-from core.labelling.scene import (
+from handmocap.core.errors import InputError
+from handmocap.core.io import Take
+from handmocap.core.labelling.health import assess_labelling
+from handmocap.core.labelling.hypotheses import check_whole_take
+from handmocap.core.labelling.models import HandTracker, SceneSettings
+from handmocap.core.labelling.scene import (
     SceneLabelling,
     _calibrate,
     _link_and_rescue,
@@ -43,10 +43,10 @@ from core.labelling.scene import (
     _Scene,
     _scene,
 )
-from core.labelling.take_statistics import TakeStatistics, measure_take
-from core.model import N_PARAMS, HandModel, MarkerLayout, MarkerSet
-from core.model.lab_template import LabTemplate
-from core.model.objects import ObjectSpec
+from handmocap.core.labelling.take_statistics import TakeStatistics, measure_take
+from handmocap.core.model import N_PARAMS, HandModel, MarkerLayout, MarkerSet
+from handmocap.core.model.lab_template import LabTemplate
+from handmocap.core.model.objects import ObjectSpec
 
 #: frames between two start-up attempts when the window showed no hand (hands="auto")
 STARTUP_RETRY = 25

@@ -52,12 +52,12 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from core.errors import CancelledError, InputError
-from core.io import Take
-from core.labelling.fragments import extend_trajectories, free_fragments
-from core.labelling.health import HealthWarning, assess_labelling
-from core.labelling.hypotheses import check_whole_take
-from core.labelling.initialise import (
+from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.io import Take
+from handmocap.core.labelling.fragments import extend_trajectories, free_fragments
+from handmocap.core.labelling.health import HealthWarning, assess_labelling
+from handmocap.core.labelling.hypotheses import check_whole_take
+from handmocap.core.labelling.initialise import (
     LINK_MARGIN,
     Candidate,
     cluster_cut,
@@ -66,13 +66,21 @@ from core.labelling.initialise import (
     pair_distances,
     reacquire_object,
 )
-from core.labelling.models import HandTracker, RigidTrack, SceneSettings, Track
-from core.labelling.sides import SideDecision, decide_sides
-from core.labelling.swaps import neighbour_pairs, point_tracklets, repair_swaps, unify_tracklets
-from core.labelling.take_statistics import measure_take
-from core.model import N_PARAMS, HandModel, MarkerLayout, MarkerSet, load_layout, load_template, resolve_layout
-from core.model.lab_template import LabTemplate, load_lab_template
-from core.model.objects import ObjectSpec, check_unique_names, load_scene_spec
+from handmocap.core.labelling.models import HandTracker, RigidTrack, SceneSettings, Track
+from handmocap.core.labelling.sides import SideDecision, decide_sides
+from handmocap.core.labelling.swaps import neighbour_pairs, point_tracklets, repair_swaps, unify_tracklets
+from handmocap.core.labelling.take_statistics import measure_take
+from handmocap.core.model import (
+    N_PARAMS,
+    HandModel,
+    MarkerLayout,
+    MarkerSet,
+    load_layout,
+    load_template,
+    resolve_layout,
+)
+from handmocap.core.model.lab_template import LabTemplate, load_lab_template
+from handmocap.core.model.objects import ObjectSpec, check_unique_names, load_scene_spec
 
 HANDS = ("auto", "right", "left", "both")
 HAND_PREFIX = {"right": "R_", "left": "L_"}
@@ -1289,7 +1297,7 @@ def _calibrate(windows: list[tuple[_Run, int]], number: int, model: HandModel, m
                ) -> tuple[HandModel, MarkerSet, dict] | None:
     """Subject calibration of hand track ``number`` from its labelled frames in ``windows``: (run, the
     frame before which its labels are used), pooled."""
-    from core.calibration.subject import calibrate_subject
+    from handmocap.core.calibration.subject import calibrate_subject
 
     labelled_parts, angle_parts = [], []
     for run, stop in windows:

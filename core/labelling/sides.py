@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from core.errors import InputError
-from core.labelling.initialise import clusters_of, find_spread_object, fit_hand
-from core.labelling.models import HandTracker, RigidTrack, SceneSettings
+from handmocap.core.errors import InputError
+from handmocap.core.labelling.initialise import clusters_of, find_spread_object, fit_hand
+from handmocap.core.labelling.models import HandTracker, RigidTrack, SceneSettings
 
 Start = tuple[np.ndarray, np.ndarray]
 """Where a hand starts: point column per marker (K,) (-1 none) and θ (26,)."""

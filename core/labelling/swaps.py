@@ -20,7 +20,7 @@ from collections.abc import Callable
 import numpy as np
 from numba import njit
 
-from core.labelling.take_statistics import unambiguous_links
+from handmocap.core.labelling.take_statistics import unambiguous_links
 
 NEIGHBOURS = 3
 """Each marker is tested against its this many nearest markers on the hand (mean posture of the prior)."""

@@ -28,17 +28,17 @@ from functools import partial
 
 import numpy as np
 
-from core.calibration.marker_placement import fit_marker_placement, rest_positions_of_targets
-from core.errors import CancelledError, InputError
-from core.ik import IKSettings, solve_positions
-from core.io import Take, is_marker_label
-from core.labelling.take_statistics import measure_take
-from core.model import HandModel, MarkerLayout, MarkerSpec, load_template, resolve_layout
-from core.model.hand_columns import name_side  # re-exported: the side a marker name says
-from core.model.lab_template import LabTemplate, PairStatistics, TemplateHand
-from core.model.markers import SIDE_DIRECTIONS
-from core.model.objects import ObjectSpec, rigid_body_from_points
-from core.model.skeleton import DIGITS, JOINT_NAMES
+from handmocap.core.calibration.marker_placement import fit_marker_placement, rest_positions_of_targets
+from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.ik import IKSettings, solve_positions
+from handmocap.core.io import Take, is_marker_label
+from handmocap.core.labelling.take_statistics import measure_take
+from handmocap.core.model import HandModel, MarkerLayout, MarkerSpec, load_template, resolve_layout
+from handmocap.core.model.hand_columns import name_side  # re-exported: the side a marker name says
+from handmocap.core.model.lab_template import LabTemplate, PairStatistics, TemplateHand
+from handmocap.core.model.markers import SIDE_DIRECTIONS
+from handmocap.core.model.objects import ObjectSpec, rigid_body_from_points
+from handmocap.core.model.skeleton import DIGITS, JOINT_NAMES
 
 #: fewest markers a hand needs to be placed (the wrist pose needs 3; a digit chain more)
 MIN_HAND_MARKERS = 5

@@ -13,10 +13,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.errors import InputError
-from core.ik import IKSettings, solve_positions
-from core.layout.objective import RANK_TOLERANCE
-from core.model import (
+from handmocap.core.errors import InputError
+from handmocap.core.ik import IKSettings, solve_positions
+from handmocap.core.layout.objective import RANK_TOLERANCE
+from handmocap.core.model import (
     HandModel,
     MarkerLayout,
     marker_jacobian,
@@ -24,9 +24,9 @@ from core.model import (
     mean_vertex_error,
     resolve_layout,
 )
-from core.model.skeleton import N_GLOBAL
-from core.prior import PosturePrior, load_default_prior
-from core.simulate import simulate_joint_angles
+from handmocap.core.model.skeleton import N_GLOBAL
+from handmocap.core.prior import PosturePrior, load_default_prior
+from handmocap.core.simulate import simulate_joint_angles
 
 LABELLING_RISK_MM = 20.0   # two markers closer than this (two marker diameters plus noise) can be swapped
 

@@ -11,12 +11,12 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError
-from core.model import HandModel
-from core.model.joint_angles import read_result_joint_angles
-from core.model.skeleton import N_GLOBAL, N_PARAMS, N_POSTURE
-from core.prior import canonical_postures
-from core.simulate import global_motion, minimum_jerk_trajectory, simulate_joint_angles
+from handmocap.core.errors import InputError
+from handmocap.core.model import HandModel
+from handmocap.core.model.joint_angles import read_result_joint_angles
+from handmocap.core.model.skeleton import N_GLOBAL, N_PARAMS, N_POSTURE
+from handmocap.core.prior import canonical_postures
+from handmocap.core.simulate import global_motion, minimum_jerk_trajectory, simulate_joint_angles
 
 FACING_THRESHOLD = 0.9
 RIGID_WEIGHT_TOLERANCE = 1e-6

@@ -17,9 +17,9 @@ from math import comb
 
 import numpy as np
 
-from core.errors import CancelledError
-from core.layout.objective import LayoutProblem, layout_energies
-from core.layout.pso import OptimisationResult, ProgressCallback
+from handmocap.core.errors import CancelledError
+from handmocap.core.layout.objective import LayoutProblem, layout_energies
+from handmocap.core.layout.pso import OptimisationResult, ProgressCallback
 
 EXHAUSTIVE_LIMIT = 50_000   # subsets evaluated one by one below this count
 _CHUNK = 2_000              # layouts per batched evaluation

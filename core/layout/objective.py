@@ -19,12 +19,12 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from core.errors import InputError
-from core.layout.feasible import feasible_vertices, keyframes
-from core.model import HandModel, MarkerLayout, MarkerSet, MarkerSpec, resolve_layout
-from core.model.kinematics import ANCESTOR, points_and_jacobian_kernel
-from core.model.skeleton import N_GLOBAL
-from core.prior import PosturePrior, load_default_prior
+from handmocap.core.errors import InputError
+from handmocap.core.layout.feasible import feasible_vertices, keyframes
+from handmocap.core.model import HandModel, MarkerLayout, MarkerSet, MarkerSpec, resolve_layout
+from handmocap.core.model.kinematics import ANCESTOR, points_and_jacobian_kernel
+from handmocap.core.model.skeleton import N_GLOBAL
+from handmocap.core.prior import PosturePrior, load_default_prior
 
 CONDITION_WEIGHT = 0.1     # w₁
 DISTANCE_WEIGHT = 100.0    # w₂
@@ -79,7 +79,7 @@ def vertex_layout(model: HandModel, vertices: np.ndarray, name: str = "optimised
                   offset_mm: float = MARKER_OFFSET_MM, anatomical_names: bool = True) -> MarkerLayout:
     """A layout of markers on the given vertex ids ``(k,)``, named after the segment each sits on
     (``index_dist``, ``thumb_prox``, ``hand_back``..., see :func:`segment_marker_names`) or ``m1..mk``."""
-    from core.layout.placement_sheet import segment_marker_names
+    from handmocap.core.layout.placement_sheet import segment_marker_names
 
     names = (segment_marker_names(model, vertices) if anatomical_names
              else [f"m{i + 1}" for i in range(len(vertices))])

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from core.model import HandModel, MarkerLayout, resolve_layout
-from core.model.skeleton import DIGITS, JOINT_NAMES, JOINT_PARENTS
+from handmocap.core.model import HandModel, MarkerLayout, resolve_layout
+from handmocap.core.model.skeleton import DIGITS, JOINT_NAMES, JOINT_PARENTS
 
 #: what moves with each joint, in the words a capture operator uses
 SEGMENT_NAMES: dict[str, str] = {"wrist": "back of the hand", "thumb_cmc": "thumb metacarpal",

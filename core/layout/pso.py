@@ -31,8 +31,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from core.errors import CancelledError, InputError
-from core.layout.objective import LayoutProblem, layout_energies
+from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.layout.objective import LayoutProblem, layout_energies
 
 ProgressCallback = Callable[[float, float], None]
 PERTURBATIONS = ("uniform", "gaussian")

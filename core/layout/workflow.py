@@ -10,13 +10,19 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import CancelledError, InputError
-from core.layout.evaluate import reconstruction_error
-from core.layout.feasible import motion_set
-from core.layout.greedy import optimise_greedy, select_subset
-from core.layout.objective import LayoutProblem, build_problem, default_subspace_dims, layout_energies, vertex_layout
-from core.layout.pso import OptimisationResult, PSOSettings, optimise_pso
-from core.model import HandModel, MarkerLayout, load_layout, resolve_layout
+from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.layout.evaluate import reconstruction_error
+from handmocap.core.layout.feasible import motion_set
+from handmocap.core.layout.greedy import optimise_greedy, select_subset
+from handmocap.core.layout.objective import (
+    LayoutProblem,
+    build_problem,
+    default_subspace_dims,
+    layout_energies,
+    vertex_layout,
+)
+from handmocap.core.layout.pso import OptimisationResult, PSOSettings, optimise_pso
+from handmocap.core.model import HandModel, MarkerLayout, load_layout, resolve_layout
 
 METHODS = ("pso", "pso-swap", "greedy", "subset")
 TABLE_COUNTS = tuple(range(4, 13))
@@ -143,7 +149,7 @@ def error_against_markers(model: HandModel, counts: tuple[int, ...] | list[int] 
 def bench_pso(n_markers: int = 6, n_keyframes: int = 10, seed: int = 0, seeds: int = 1) -> dict:
     """PSO (1000 particles × 100 iterations) against greedy add-then-swap on the grasp motion set.
     With ``seeds > 1`` also the PSO energy for seeds ``seed .. seed + seeds - 1`` (its spread)."""
-    from core.model import load_template
+    from handmocap.core.model import load_template
 
     model = load_template()
     problem = build_problem(model, motion_set("grasps"), default_subspace_dims(n_markers), n_keyframes)

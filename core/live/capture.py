@@ -31,12 +31,12 @@ from typing import Any
 
 import numpy as np
 
-from core.errors import InputError
-from core.io import Take
-from core.io.c3d_writer import write_c3d
-from core.labelling.online import LabelledFrame, OnlineLabeller
-from core.labelling.scene import SceneLabelling
-from core.live.recorder import (
+from handmocap.core.errors import InputError
+from handmocap.core.io import Take
+from handmocap.core.io.c3d_writer import write_c3d
+from handmocap.core.labelling.online import LabelledFrame, OnlineLabeller
+from handmocap.core.labelling.scene import SceneLabelling
+from handmocap.core.live.recorder import (
     SYSTEM_GROUP,
     FrameJournal,
     RecordingError,
@@ -44,12 +44,12 @@ from core.live.recorder import (
     system_labels,
     write_system_labels,
 )
-from core.live.sources import LiveFrame, LiveSource
-from core.live.supervision import ModelStatus, Supervisor
-from core.model.lab_template import LabTemplate
-from core.review import ApplyLabelling, LabellingArrays
-from core.session.session import Session
-from core.workflows.labelling import hand_tracks, labelling_report
+from handmocap.core.live.sources import LiveFrame, LiveSource
+from handmocap.core.live.supervision import ModelStatus, Supervisor
+from handmocap.core.model.lab_template import LabTemplate
+from handmocap.core.review import ApplyLabelling, LabellingArrays
+from handmocap.core.session.session import Session
+from handmocap.core.workflows.labelling import hand_tracks, labelling_report
 
 RECONNECT_SECONDS = 1.0
 RATE_FRAMES = 20
@@ -515,8 +515,8 @@ class LiveCapture:
 def warm_up(layout: str | LabTemplate, hands: str = "auto", frames: int = 80) -> None:
     """Label a short simulated stream of ``layout`` once, so that the first real frames find the labeller's
     kernels loaded (about a second otherwise, which the frames of the start-up would wait)."""
-    from core.model import load_layout
-    from core.simulate.take import simulate_take
+    from handmocap.core.model import load_layout
+    from handmocap.core.simulate.take import simulate_take
 
     try:
         plain = layout.layout_for("right") if isinstance(layout, LabTemplate) else load_layout(layout)

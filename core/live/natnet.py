@@ -34,7 +34,15 @@ from natnet import DataDescriptions, DataFrame, NatNetClient
 from natnet.exceptions import NatNetError
 from natnet.version import Version
 
-from core.live.sources import LiveFrame, LiveSource, Sink, SourceError, SourceKind, is_loopback, register_source
+from handmocap.core.live.sources import (
+    LiveFrame,
+    LiveSource,
+    Sink,
+    SourceError,
+    SourceKind,
+    is_loopback,
+    register_source,
+)
 
 DEFAULT_PORT = 1510
 OLDEST, NEWEST = Version(3, 0), Version(4, 99)

@@ -30,7 +30,7 @@ import qtm_rt
 from qtm_rt.packet import QRTComponentType, QRTEvent, QRTPacket
 from qtm_rt.protocol import QRTCommandException, QTMProtocol
 
-from core.live.sources import SOURCES, LiveFrame, LiveSource, Sink, SourceError, SourceKind, register_source
+from handmocap.core.live.sources import SOURCES, LiveFrame, LiveSource, Sink, SourceError, SourceKind, register_source
 
 RT_VERSION = "1.25"
 DEFAULT_PORT = 22223

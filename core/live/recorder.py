@@ -37,10 +37,10 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError
-from core.io import Take
-from core.io.durable import write_atomic
-from core.session.files import make_folder, open_append, refuse_links, write_file
+from handmocap.core.errors import InputError
+from handmocap.core.io import Take
+from handmocap.core.io.durable import write_atomic
+from handmocap.core.session.files import make_folder, open_append, refuse_links, write_file
 
 JOURNAL_FORMAT = "handmocap-live-journal"
 SYNC_SECONDS = 0.5

@@ -31,8 +31,8 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-from core.errors import InputError
-from core.io import Take, is_marker_label
+from handmocap.core.errors import InputError
+from handmocap.core.io import Take, is_marker_label
 
 PROTOCOLS = ("qtm", "natnet")
 HOST = "127.0.0.1"

@@ -20,7 +20,7 @@ from typing import Protocol
 
 import numpy as np
 
-from core.errors import InputError
+from handmocap.core.errors import InputError
 
 
 class SourceError(InputError):

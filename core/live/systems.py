@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from core.errors import InputError
-from core.live import natnet, qtm
-from core.live.sources import SOURCES, LiveSource, parse_address
+from handmocap.core.errors import InputError
+from handmocap.core.live import natnet, qtm
+from handmocap.core.live.sources import SOURCES, LiveSource, parse_address
 
 BUILTIN = (qtm.KIND, natnet.KIND)
 

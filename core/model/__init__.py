@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 from functools import lru_cache
-from pathlib import Path
 
-from core.errors import InputError
-from core.model.hand_columns import HandColumns, detect_hands, hand_layout, name_side, track_layout
-from core.model.hand_model import HandModel, mean_vertex_error, skin_vertices
-from core.model.markers import (
+from handmocap.core.errors import InputError
+from handmocap.core.io.resources import resource_path
+from handmocap.core.model.hand_columns import HandColumns, detect_hands, hand_layout, name_side, track_layout
+from handmocap.core.model.hand_model import HandModel, mean_vertex_error, skin_vertices
+from handmocap.core.model.markers import (
     MarkerLayout,
     MarkerSet,
     MarkerSpec,
@@ -24,9 +24,9 @@ from core.model.markers import (
     resolve_layout,
     save_layout,
 )
-from core.model.skeleton import N_PARAMS, PARAM_NAMES, default_joint_limits
+from handmocap.core.model.skeleton import N_PARAMS, PARAM_NAMES, default_joint_limits
 
-TEMPLATE_PATH = Path(__file__).resolve().parents[2] / "resources" / "template" / "right_hand.npz"
+TEMPLATE_PATH = resource_path("template", "right_hand.npz")
 
 
 @lru_cache(maxsize=4)

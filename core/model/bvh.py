@@ -31,11 +31,11 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError
-from core.io.axes import axes_rotation, check_units
-from core.io.durable import write_text_atomic
-from core.model.kinematics import KinematicChain
-from core.model.skeleton import JOINT_NAMES, JOINT_PARENTS, N_JOINTS, N_PARAMS, Skeleton
+from handmocap.core.errors import InputError
+from handmocap.core.io.axes import axes_rotation, check_units
+from handmocap.core.io.durable import write_text_atomic
+from handmocap.core.model.kinematics import KinematicChain
+from handmocap.core.model.skeleton import JOINT_NAMES, JOINT_PARENTS, N_JOINTS, N_PARAMS, Skeleton
 
 ROOT_CHANNELS = ["Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation"]
 JOINT_CHANNELS = ["Zrotation", "Xrotation", "Yrotation"]

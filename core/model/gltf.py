@@ -43,12 +43,12 @@ from urllib.parse import unquote
 
 import numpy as np
 
-from core.errors import InputError
-from core.io.axes import Y_UP
-from core.io.durable import durable_stream, write_text_atomic
-from core.model.hand_model import MAX_INFLUENCES, HandModel
-from core.model.skeleton import DIGITS, JOINT_NAMES, JOINT_PARENTS, N_JOINTS, Skeleton
-from core.model.template_mesh import LANDMARK_NAMES
+from handmocap.core.errors import InputError
+from handmocap.core.io.axes import Y_UP
+from handmocap.core.io.durable import durable_stream, write_text_atomic
+from handmocap.core.model.hand_model import MAX_INFLUENCES, HandModel
+from handmocap.core.model.skeleton import DIGITS, JOINT_NAMES, JOINT_PARENTS, N_JOINTS, Skeleton
+from handmocap.core.model.template_mesh import LANDMARK_NAMES
 
 _COMPONENTS = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
 _WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
@@ -685,8 +685,8 @@ def _animation_locals(model: HandModel, animation: HandAnimation) -> tuple[np.nd
     """Per frame the wrist node's translation ``(F, 3)`` m and every joint node's local rotation
     ``(F, 16, 4)`` quaternions in the glTF frame (Y up: the lab's Z-up frame turned by
     :data:`core.io.axes.Y_UP`), and the times ``(F,)`` s from the first frame."""
-    from core.model.bvh import _held
-    from core.model.kinematics import KinematicChain
+    from handmocap.core.model.bvh import _held
+    from handmocap.core.model.kinematics import KinematicChain
 
     angles = _held(animation.joint_angles)
     chain = KinematicChain.from_skeleton(model.skeleton)

@@ -23,9 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError
-from core.model.lab_template import LabTemplate, layout_path, load_lab_template
-from core.model.markers import MarkerLayout, layout_names, load_layout
+from handmocap.core.errors import InputError
+from handmocap.core.model.lab_template import LabTemplate, layout_path, load_lab_template
+from handmocap.core.model.markers import MarkerLayout, layout_names, load_layout
 
 SIDES = ("right", "left")
 #: a hand is found when at least this share of its layout's markers are among the names ...

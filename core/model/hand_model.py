@@ -8,11 +8,11 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError
-from core.io.durable import durable_stream, verify_zip
-from core.io.npz import load_npz
-from core.model.kinematics import KinematicChain
-from core.model.skeleton import N_JOINTS, Skeleton
+from handmocap.core.errors import InputError
+from handmocap.core.io.durable import durable_stream, verify_zip
+from handmocap.core.io.npz import load_npz
+from handmocap.core.model.kinematics import KinematicChain
+from handmocap.core.model.skeleton import N_JOINTS, Skeleton
 
 MAX_INFLUENCES = 4
 

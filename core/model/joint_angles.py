@@ -7,10 +7,10 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError
-from core.io.durable import write_atomic
-from core.io.npz import load_npz
-from core.model.skeleton import N_PARAMS, PARAM_NAMES
+from handmocap.core.errors import InputError
+from handmocap.core.io.durable import write_atomic
+from handmocap.core.io.npz import load_npz
+from handmocap.core.model.skeleton import N_PARAMS, PARAM_NAMES
 
 
 def write_joint_angles_csv(path: str | os.PathLike[str], hands: list[tuple[str, np.ndarray]], first_frame: int,

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from core.model.skeleton import JOINT_PARENTS, N_JOINTS, N_PARAMS, PARAM_JOINT, Skeleton
+from handmocap.core.model.skeleton import JOINT_PARENTS, N_JOINTS, N_PARAMS, PARAM_JOINT, Skeleton
 
 
 @njit(cache=True)

@@ -36,12 +36,12 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError
-from core.io.documents import read_document
-from core.io.durable import write_text_atomic
-from core.io.input_schemas import LAYOUT
-from core.model.markers import MAX_LAYOUT_BYTES, MarkerLayout, layout_folders, load_layout
-from core.model.objects import ObjectSpec, check_unique_names, object_from_json
+from handmocap.core.errors import InputError
+from handmocap.core.io.documents import read_document
+from handmocap.core.io.durable import write_text_atomic
+from handmocap.core.io.input_schemas import LAYOUT
+from handmocap.core.model.markers import MAX_LAYOUT_BYTES, MarkerLayout, layout_folders, load_layout
+from handmocap.core.model.objects import ObjectSpec, check_unique_names, object_from_json
 
 TEMPLATE_VERSION = 1
 SIDES = ("right", "left")

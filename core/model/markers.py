@@ -21,15 +21,16 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError
-from core.io.documents import read_document
-from core.io.durable import write_text_atomic
-from core.io.input_schemas import LAYOUT
-from core.model.hand_model import HandModel
-from core.model.kinematics import ANCESTOR, points_and_jacobian_kernel, skinned_points_kernel
-from core.model.skeleton import DIGITS, JOINT_NAMES
+from handmocap.core.errors import InputError
+from handmocap.core.io.documents import read_document
+from handmocap.core.io.durable import write_text_atomic
+from handmocap.core.io.input_schemas import LAYOUT
+from handmocap.core.io.resources import resource_path
+from handmocap.core.model.hand_model import HandModel
+from handmocap.core.model.kinematics import ANCESTOR, points_and_jacobian_kernel, skinned_points_kernel
+from handmocap.core.model.skeleton import DIGITS, JOINT_NAMES
 
-LAYOUT_DIR = Path(__file__).resolve().parents[2] / "resources" / "layouts"
+LAYOUT_DIR = resource_path("layouts")
 #: largest layout or lab template file (bytes; a two-hand template with its statistics is about 100 kB)
 MAX_LAYOUT_BYTES = 16_000_000
 

@@ -32,10 +32,10 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError
-from core.io.documents import read_document
-from core.io.durable import write_text_atomic
-from core.io.input_schemas import SCENE_SPEC
+from handmocap.core.errors import InputError
+from handmocap.core.io.documents import read_document
+from handmocap.core.io.durable import write_text_atomic
+from handmocap.core.io.input_schemas import SCENE_SPEC
 
 OBJECT_TYPES = ("box", "sphere", "cylinder", "rigid")
 #: largest distance (mm) of a primitive's marker centre from its surface (marker radius + base + slack)

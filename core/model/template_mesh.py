@@ -32,10 +32,11 @@ import numpy as np
 if TYPE_CHECKING:   # scipy.sparse and scikit-image are imported when a template is built, not at start-up
     from scipy import sparse
 
-from core.model.hand_model import MAX_INFLUENCES, HandModel, mesh_vertex_normals
-from core.model.skeleton import JOINT_PARENTS, N_JOINTS, HandProportions, Skeleton, build_skeleton
+from handmocap.core.io.resources import resource_path
+from handmocap.core.model.hand_model import MAX_INFLUENCES, HandModel, mesh_vertex_normals
+from handmocap.core.model.skeleton import JOINT_PARENTS, N_JOINTS, HandProportions, Skeleton, build_skeleton
 
-DEFAULT_TEMPLATE_PATH = Path(__file__).resolve().parents[2] / "resources" / "template" / "right_hand.npz"
+DEFAULT_TEMPLATE_PATH = resource_path("template", "right_hand.npz")
 
 LANDMARK_NAMES: tuple[str, ...] = (
     "thumb_tip", "thumb_ip", "thumb_mcp",

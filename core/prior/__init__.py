@@ -1,13 +1,13 @@
 """Posture prior: authored canonical postures and the PCA prior over the 20 finger angles."""
 
-from core.prior.canonical_postures import (
+from handmocap.core.prior.canonical_postures import (
     HELDOUT_GRASPS,
     canonical_postures,
     heldout_grasp_postures,
     prior_grasp_postures,
     prior_postures,
 )
-from core.prior.pca_prior import (
+from handmocap.core.prior.pca_prior import (
     DEFAULT_PRIOR_PATH,
     PosturePrior,
     build_default_prior,

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.model.skeleton import N_POSTURE
+from handmocap.core.model.skeleton import N_POSTURE
 
 Digit = tuple[float, float, float, float]
 #: (thumb, index, middle, ring, little), each (abduction, base flexion, middle flexion, distal flexion)

@@ -14,14 +14,15 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError
-from core.io.durable import durable_stream, verify_zip
-from core.io.npz import load_npz
-from core.model.joint_angles import read_result_joint_angles
-from core.model.skeleton import N_GLOBAL, N_POSTURE, default_joint_limits
-from core.prior.canonical_postures import prior_postures
+from handmocap.core.errors import InputError
+from handmocap.core.io.durable import durable_stream, verify_zip
+from handmocap.core.io.npz import load_npz
+from handmocap.core.io.resources import resource_path
+from handmocap.core.model.joint_angles import read_result_joint_angles
+from handmocap.core.model.skeleton import N_GLOBAL, N_POSTURE, default_joint_limits
+from handmocap.core.prior.canonical_postures import prior_postures
 
-DEFAULT_PRIOR_PATH = Path(__file__).resolve().parents[2] / "resources" / "priors" / "default_prior.npz"
+DEFAULT_PRIOR_PATH = resource_path("priors", "default_prior.npz")
 
 #: the training angle range is widened by this margin (rad, 5°) before clipping to the default limits
 ANGLE_RANGE_MARGIN = np.radians(5.0)

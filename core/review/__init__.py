@@ -6,8 +6,8 @@
 * :mod:`core.review.export` — labelled C3D, joint-angle CSV and BVH exports of a review, and the way back.
 """
 
-from core.model.provenance import FILL_CODES, MEASURED, MISSING, PROVENANCE_NAMES
-from core.review.commands import (
+from handmocap.core.model.provenance import FILL_CODES, MEASURED, MISSING, PROVENANCE_NAMES
+from handmocap.core.review.commands import (
     SCOPES,
     AcceptFills,
     AddEvent,
@@ -30,14 +30,14 @@ from core.review.commands import (
     command_from_json,
     resolve_track,
 )
-from core.review.events import Change, ReviewChanged
-from core.review.export import (
+from handmocap.core.review.events import Change, ReviewChanged
+from handmocap.core.review.export import (
     export_bvh,
     export_joint_angles_csv,
     export_labelled_c3d,
     review_from_labelled_c3d,
 )
-from core.review.take import (
+from handmocap.core.review.take import (
     LANE_EDITED,
     LANE_FILLED,
     LANE_GAP,

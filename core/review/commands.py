@@ -38,10 +38,10 @@ from typing import Any, ClassVar, NamedTuple, Protocol
 
 import numpy as np
 
-from core.errors import InputError
-from core.model.provenance import FILL_CODES, MEASURED, MISSING
-from core.review.events import Change, ReviewChanged
-from core.review.take import (
+from handmocap.core.errors import InputError
+from handmocap.core.model.provenance import FILL_CODES, MEASURED, MISSING
+from handmocap.core.review.events import Change, ReviewChanged
+from handmocap.core.review.take import (
     ReviewTake,
     copy_health,
     copy_rigid_bodies,
@@ -665,7 +665,7 @@ class ApplyLabelling(Command):
 
     @classmethod
     def _from_params(cls, params: dict[str, Any], blobs: BlobStore | None) -> Command:
-        from core.review.take import HandTrack
+        from handmocap.core.review.take import HandTrack
 
         try:
             hands = [HandTrack(str(h["name"]), str(h["side"]), h.get("layout"), np.asarray(h["labels"], np.int64),
@@ -721,7 +721,7 @@ class DefineHand(Command):
         return f"define the {self.name} hand ({len(self.labels)} labels)"
 
     def _apply(self, review: ReviewTake) -> None:
-        from core.review.take import HandTrack
+        from handmocap.core.review.take import HandTrack
 
         track = HandTrack(self.name, self.side, self.layout, self._indices, np.full((review.n_frames, 26), np.nan))
         number = replaced_hand(review.hands, self.name, self._indices)
@@ -798,7 +798,7 @@ class AddEvent(_TimelineCommand):
         return f"add event '{self.name}' at frame {self.frame_number}"
 
     def _apply(self, review: ReviewTake) -> None:
-        from core.io.c3d_events import TakeEvent
+        from handmocap.core.io.c3d_events import TakeEvent
 
         review.events = sorted([*(review.events or []), TakeEvent(self.name, self.frame_number, self.context,
                                                                   self.description)],

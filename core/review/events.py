@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from core.review.commands import FrameSpan
+    from handmocap.core.review.commands import FrameSpan
 
 OPERATIONS = ("do", "attach", "undo", "redo", "clean")
 

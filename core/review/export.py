@@ -18,12 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError
-from core.io import Take
-from core.io.c3d_events import GROUP as EVENT_GROUP
-from core.io.c3d_events import event_group
-from core.io.csv_file import write_csv
-from core.io.labelled_c3d import (
+from handmocap.core.errors import InputError
+from handmocap.core.io import Take
+from handmocap.core.io.c3d_events import GROUP as EVENT_GROUP
+from handmocap.core.io.c3d_events import event_group
+from handmocap.core.io.csv_file import write_csv
+from handmocap.core.io.labelled_c3d import (
     GROUP,
     SUBJECT_GROUP,
     UNLABELLED_PREFIX,
@@ -32,13 +32,13 @@ from core.io.labelled_c3d import (
     subject_group,
     write_labelled_c3d,
 )
-from core.io.trc import write_trc
-from core.model import HandModel
-from core.model.bvh import write_bvh
-from core.model.gltf import HandAnimation, save_gltf_hands
-from core.model.joint_angles import write_joint_angles_csv
-from core.model.provenance import MEASURED, MISSING
-from core.review.take import HandTrack, ReviewTake, detected_hands
+from handmocap.core.io.trc import write_trc
+from handmocap.core.model import HandModel
+from handmocap.core.model.bvh import write_bvh
+from handmocap.core.model.gltf import HandAnimation, save_gltf_hands
+from handmocap.core.model.joint_angles import write_joint_angles_csv
+from handmocap.core.model.provenance import MEASURED, MISSING
+from handmocap.core.review.take import HandTrack, ReviewTake, detected_hands
 
 UNLABELLED_CHOICES = ("all", "non-ghost", "none")
 HAND_PREFIXES = {"right": "R_", "left": "L_"}

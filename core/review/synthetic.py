@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.io import Take
+from handmocap.core.io import Take
 
 
 @dataclass

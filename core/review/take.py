@@ -36,12 +36,12 @@ from typing import Any
 
 import numpy as np
 
-from core.errors import InputError
-from core.io import Take
-from core.io.c3d_events import TakeEvent, read_events
-from core.labelling.health import WARNING_KINDS, HealthWarning
-from core.model.hand_columns import detect_hands
-from core.model.provenance import MEASURED, MISSING
+from handmocap.core.errors import InputError
+from handmocap.core.io import Take
+from handmocap.core.io.c3d_events import TakeEvent, read_events
+from handmocap.core.labelling.health import WARNING_KINDS, HealthWarning
+from handmocap.core.model.hand_columns import detect_hands
+from handmocap.core.model.provenance import MEASURED, MISSING
 
 # Timeline lane states (``lane_states``), in increasing priority within a sample.
 LANE_NONE = 0            #: before the label's first or after its last sample: nothing to show

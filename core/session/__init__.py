@@ -7,7 +7,7 @@
 The review model itself (what an edit changes) is :mod:`core.review`.
 """
 
-from core.session.journal import Journal
-from core.session.session import TAKE_STATES, OpenTake, Session, SubjectEntry, TakeEntry
+from handmocap.core.session.journal import Journal
+from handmocap.core.session.session import TAKE_STATES, OpenTake, Session, SubjectEntry, TakeEntry
 
 __all__ = ["TAKE_STATES", "Journal", "OpenTake", "Session", "SubjectEntry", "TakeEntry"]

@@ -19,12 +19,12 @@ import os
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from core.camera.files import MAX_FILE_BYTES, camera_from_json, camera_to_json
-from core.camera.model import Camera
-from core.errors import InputError
-from core.io.documents import parse_document
-from core.session.files import make_folder, read_bytes, write_file
-from core.session.session import Session, _relative, _safe_name
+from handmocap.core.camera.files import MAX_FILE_BYTES, camera_from_json, camera_to_json
+from handmocap.core.camera.model import Camera
+from handmocap.core.errors import InputError
+from handmocap.core.io.documents import parse_document
+from handmocap.core.session.files import make_folder, read_bytes, write_file
+from handmocap.core.session.session import Session, _relative, _safe_name
 
 
 @dataclass(frozen=True)

@@ -32,10 +32,10 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
-from core.errors import InputError
-from core.io.durable import fsync_folder
-from core.review.commands import Command, UndoStack, command_from_json
-from core.session.files import (
+from handmocap.core.errors import InputError
+from handmocap.core.io.durable import fsync_folder
+from handmocap.core.review.commands import Command, UndoStack, command_from_json
+from handmocap.core.session.files import (
     make_folder,
     open_append,
     read_bytes,
@@ -45,7 +45,7 @@ from core.session.files import (
     truncate,
     write_file,
 )
-from core.session.storage import MALFORMED, check_npy, strict_json
+from handmocap.core.session.storage import MALFORMED, check_npy, strict_json
 
 _log = logging.getLogger(__name__)
 

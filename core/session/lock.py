@@ -21,8 +21,8 @@ import socket
 import time
 from pathlib import Path
 
-from core.errors import InputError
-from core.session.files import open_lock_file, read_bytes
+from handmocap.core.errors import InputError
+from handmocap.core.session.files import open_lock_file, read_bytes
 
 SESSION_LOCK_NAME = "session.lock"
 TAKE_LOCK_NAME = "lock"

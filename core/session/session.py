@@ -57,13 +57,13 @@ from typing import Any
 
 import numpy as np
 
-from core.errors import InputError
-from core.io import Take, load_take, looks_unlabelled
-from core.model import HandModel, MarkerLayout, best_layout_for, detect_hands
-from core.model.lab_template import LabTemplate, save_lab_template
-from core.review.commands import Command, FrameSpan, UndoStack
-from core.review.take import HandTrack, ReviewTake
-from core.session.files import (
+from handmocap.core.errors import InputError
+from handmocap.core.io import Take, load_take, looks_unlabelled
+from handmocap.core.model import HandModel, MarkerLayout, best_layout_for, detect_hands
+from handmocap.core.model.lab_template import LabTemplate, save_lab_template
+from handmocap.core.review.commands import Command, FrameSpan, UndoStack
+from handmocap.core.review.take import HandTrack, ReviewTake
+from handmocap.core.session.files import (
     make_folder,
     read_bytes,
     refuse_links,
@@ -72,9 +72,9 @@ from core.session.files import (
     remove_file,
     write_file,
 )
-from core.session.journal import BLOB_FOLDER, Journal
-from core.session.lock import SESSION_LOCK_NAME, TAKE_LOCK_NAME, FileLock, manifest_lock
-from core.session.storage import (
+from handmocap.core.session.journal import BLOB_FOLDER, Journal
+from handmocap.core.session.lock import SESSION_LOCK_NAME, TAKE_LOCK_NAME, FileLock, manifest_lock
+from handmocap.core.session.storage import (
     SNAPSHOT_NAME,
     SnapshotMismatch,
     keep_older,
@@ -530,7 +530,7 @@ class Session:
     def save_layout(self, layout: MarkerLayout | LabTemplate) -> Path:
         """Store ``layout`` (a marker layout or a lab's labelling template, which is a layout file too) as
         ``layouts/<name>.json`` (replacing one of the same name)."""
-        from core.model import save_layout
+        from handmocap.core.model import save_layout
 
         self._check_writable_session()
         folder = self.folder / "layouts"

@@ -28,14 +28,21 @@ from typing import Any
 
 import numpy as np
 
-from core.errors import InputError
-from core.io import Take
-from core.io.c3d_events import TakeEvent
-from core.io.durable import write_atomic
-from core.model import MarkerSet
-from core.review.commands import Command, CompoundCommand, FrameSpan, UndoStack, command_from_json
-from core.review.take import FRAME_ARRAYS, HandTrack, ReviewSettings, ReviewTake, copy_health, copy_rigid_bodies
-from core.session.files import read_bytes, refuse_links, regular_files, remove_file
+from handmocap.core.errors import InputError
+from handmocap.core.io import Take
+from handmocap.core.io.c3d_events import TakeEvent
+from handmocap.core.io.durable import write_atomic
+from handmocap.core.model import MarkerSet
+from handmocap.core.review.commands import Command, CompoundCommand, FrameSpan, UndoStack, command_from_json
+from handmocap.core.review.take import (
+    FRAME_ARRAYS,
+    HandTrack,
+    ReviewSettings,
+    ReviewTake,
+    copy_health,
+    copy_rigid_bodies,
+)
+from handmocap.core.session.files import read_bytes, refuse_links, regular_files, remove_file
 
 SNAPSHOT_FORMAT = "handmocap-review"
 SNAPSHOT_VERSION = 1

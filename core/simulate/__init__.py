@@ -1,6 +1,6 @@
 """Synthetic hand motion and takes with ground truth, for tests, benchmarks and the demo."""
 
-from core.simulate.motion import (
+from handmocap.core.simulate.motion import (
     MOTIONS,
     WORKSPACE_CENTRE,
     global_motion,
@@ -11,8 +11,8 @@ from core.simulate.motion import (
     prior_motion,
     simulate_joint_angles,
 )
-from core.simulate.scene import SimulatedScene, scene_objects, simulate_scene
-from core.simulate.take import CAMERA_POSITIONS, SimulatedTake, load_truth, save_truth, simulate_take
+from handmocap.core.simulate.scene import SimulatedScene, scene_objects, simulate_scene
+from handmocap.core.simulate.take import CAMERA_POSITIONS, SimulatedTake, load_truth, save_truth, simulate_take
 
 __all__ = [
     "CAMERA_POSITIONS",

@@ -18,13 +18,13 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from core.camera.intrinsics import BoardSpec, board_image
-from core.camera.model import Camera, CameraClock
-from core.camera.render import distort_image, render_mesh, shade
-from core.errors import InputError
-from core.model import load_template, skin_vertices
-from core.simulate.motion import WORKSPACE_CENTRE
-from core.simulate.take import SimulatedTake, simulate_take
+from handmocap.core.camera.intrinsics import BoardSpec, board_image
+from handmocap.core.camera.model import Camera, CameraClock
+from handmocap.core.camera.render import distort_image, render_mesh, shade
+from handmocap.core.errors import InputError
+from handmocap.core.model import load_template, skin_vertices
+from handmocap.core.simulate.motion import WORKSPACE_CENTRE
+from handmocap.core.simulate.take import SimulatedTake, simulate_take
 
 SKIN_BGR = (150.0, 175.0, 225.0)
 MARKER_BGR = (252.0, 252.0, 252.0)

@@ -14,10 +14,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from core.errors import InputError
-from core.model.skeleton import N_GLOBAL, N_PARAMS, N_POSTURE, default_joint_limits
-from core.prior.canonical_postures import canonical_postures, heldout_grasp_postures, prior_grasp_postures
-from core.prior.pca_prior import PosturePrior, load_default_prior
+from handmocap.core.errors import InputError
+from handmocap.core.model.skeleton import N_GLOBAL, N_PARAMS, N_POSTURE, default_joint_limits
+from handmocap.core.prior.canonical_postures import canonical_postures, heldout_grasp_postures, prior_grasp_postures
+from handmocap.core.prior.pca_prior import PosturePrior, load_default_prior
 
 DEFAULT_FRAME_RATE = 100.0
 #: centre of the capture workspace (mm, world frame, Z up): a hand over a table about 1 m high

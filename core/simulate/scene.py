@@ -19,13 +19,13 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from core.errors import InputError
-from core.io import Take
-from core.model import MarkerLayout, load_layout, load_template, marker_positions_batch, resolve_layout
-from core.model.objects import ObjectSpec, object_from_json
-from core.model.skeleton import HandProportions
-from core.simulate.motion import DEFAULT_FRAME_RATE, WORKSPACE_CENTRE, simulate_joint_angles
-from core.simulate.take import _ghosts, _shuffled_points, _visibility
+from handmocap.core.errors import InputError
+from handmocap.core.io import Take
+from handmocap.core.model import MarkerLayout, load_layout, load_template, marker_positions_batch, resolve_layout
+from handmocap.core.model.objects import ObjectSpec, object_from_json
+from handmocap.core.model.skeleton import HandProportions
+from handmocap.core.simulate.motion import DEFAULT_FRAME_RATE, WORKSPACE_CENTRE, simulate_joint_angles
+from handmocap.core.simulate.take import _ghosts, _shuffled_points, _visibility
 
 SIDE_OFFSET_MM = 400.0
 OBJECT_ROW_Y_MM = 520.0

@@ -25,11 +25,11 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from core.errors import InputError
-from core.io import Take
-from core.io.durable import durable_stream, verify_zip
-from core.io.npz import load_npz
-from core.model import (
+from handmocap.core.errors import InputError
+from handmocap.core.io import Take
+from handmocap.core.io.durable import durable_stream, verify_zip
+from handmocap.core.io.npz import load_npz
+from handmocap.core.model import (
     HandModel,
     MarkerLayout,
     MarkerSet,
@@ -38,10 +38,10 @@ from core.model import (
     marker_positions_batch,
     resolve_layout,
 )
-from core.model.hand_model import MAX_INFLUENCES
-from core.model.skeleton import HandProportions
-from core.model.template_mesh import build_template
-from core.simulate.motion import DEFAULT_FRAME_RATE, WORKSPACE_CENTRE, simulate_joint_angles
+from handmocap.core.model.hand_model import MAX_INFLUENCES
+from handmocap.core.model.skeleton import HandProportions
+from handmocap.core.model.template_mesh import build_template
+from handmocap.core.simulate.motion import DEFAULT_FRAME_RATE, WORKSPACE_CENTRE, simulate_joint_angles
 
 #: eight cameras (mm, world frame, Z up): a ring of radius 1.8 m around the workspace centre, at
 #: alternating heights 0.5 m and 1.4 m above it

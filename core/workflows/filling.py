@@ -17,14 +17,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from core.errors import CancelledError, InputError
-from core.gaps import FILL_METHODS, FillCheck, Gap, ModelContext, check_gap, fill_gap, find_gaps
-from core.gaps.check import FillChooser
-from core.gaps.fills import fill_pattern
-from core.io import Take
-from core.model import HandModel, MarkerSet, detect_hands, load_template, track_layout
-from core.review import PROVENANCE_NAMES, AcceptFills, GapFill, ReviewTake
-from core.workflows.resolve import subject_markers
+from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.gaps import FILL_METHODS, FillCheck, Gap, ModelContext, check_gap, fill_gap, find_gaps
+from handmocap.core.gaps.check import FillChooser
+from handmocap.core.gaps.fills import fill_pattern
+from handmocap.core.io import Take
+from handmocap.core.model import HandModel, MarkerSet, detect_hands, load_template, track_layout
+from handmocap.core.review import PROVENANCE_NAMES, AcceptFills, GapFill, ReviewTake
+from handmocap.core.workflows.resolve import subject_markers
 
 
 @dataclass(eq=False)

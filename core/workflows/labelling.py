@@ -23,16 +23,16 @@ from pathlib import Path
 
 import numpy as np
 
-from core.calibration.subject import calibrated_model
-from core.errors import InputError
-from core.io import Take, is_marker_label
-from core.io.labelled_c3d import SubjectCalibration
-from core.labelling.health import HealthWarning
-from core.labelling.scene import HAND_PREFIX, SceneLabelling, label_scene
-from core.model import HandModel, MarkerLayout, MarkerSet, load_layout, load_template, resolve_layout
-from core.model.lab_template import LabTemplate, load_lab_template
-from core.model.objects import ObjectSpec, load_scene_spec
-from core.review import ApplyLabelling, HandTrack, LabellingArrays
+from handmocap.core.calibration.subject import calibrated_model
+from handmocap.core.errors import InputError
+from handmocap.core.io import Take, is_marker_label
+from handmocap.core.io.labelled_c3d import SubjectCalibration
+from handmocap.core.labelling.health import HealthWarning
+from handmocap.core.labelling.scene import HAND_PREFIX, SceneLabelling, label_scene
+from handmocap.core.model import HandModel, MarkerLayout, MarkerSet, load_layout, load_template, resolve_layout
+from handmocap.core.model.lab_template import LabTemplate, load_lab_template
+from handmocap.core.model.objects import ObjectSpec, load_scene_spec
+from handmocap.core.review import ApplyLabelling, HandTrack, LabellingArrays
 
 #: a hand model is "found" when it labels at least half of its markers in this share of the frames
 HAND_FOUND_SHARE = 0.05

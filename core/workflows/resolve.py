@@ -7,10 +7,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from core.errors import InputError
-from core.ik import IKResult, IKSettings, solve_positions
-from core.io import Take
-from core.model import (
+from handmocap.core.errors import InputError
+from handmocap.core.ik import IKResult, IKSettings, solve_positions
+from handmocap.core.io import Take
+from handmocap.core.model import (
     HandColumns,
     HandModel,
     MarkerLayout,
@@ -20,8 +20,8 @@ from core.model import (
     resolve_layout,
     track_layout,
 )
-from core.prior import PosturePrior
-from core.review import FrameSpan, ReviewTake, SetSolve
+from handmocap.core.prior import PosturePrior
+from handmocap.core.review import FrameSpan, ReviewTake, SetSolve
 
 #: frames solved on each side of an edited span, so the warm start settles before the edit
 RESOLVE_PAD = 10

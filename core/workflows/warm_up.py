@@ -4,7 +4,7 @@ The kernels are compiled with ``cache=True``: the machine code is written next t
 (``__pycache__/*.nbc``) and loaded by every later process. Each kernel is compiled for the argument
 types it is called with, so the warm-up runs the real workflows on small simulated takes: labelling
 of one hand and of a scene with an object, IK, a model-based gap fill, the layout energy and the
-placement-sheet raster. Run it with ``python -m core.workflows.warm_up`` (the set-up script does).
+placement-sheet raster. Run it with ``python -m handmocap.core.workflows.warm_up`` (the set-up script does).
 """
 
 from __future__ import annotations
@@ -14,14 +14,14 @@ from collections.abc import Callable
 
 import numpy as np
 
-from core.ik import solve_take
-from core.labelling import label_scene
-from core.layout.objective import build_problem, default_subspace_dims, layout_energies
-from core.layout.placement_sheet import placement_sheet, rasterise_view
-from core.model import load_layout, load_template
-from core.review import ReviewTake
-from core.simulate import simulate_scene, simulate_take
-from core.workflows.filling import fill_review_gaps, gap_groups
+from handmocap.core.ik import solve_take
+from handmocap.core.labelling import label_scene
+from handmocap.core.layout.objective import build_problem, default_subspace_dims, layout_energies
+from handmocap.core.layout.placement_sheet import placement_sheet, rasterise_view
+from handmocap.core.model import load_layout, load_template
+from handmocap.core.review import ReviewTake
+from handmocap.core.simulate import simulate_scene, simulate_take
+from handmocap.core.workflows.filling import fill_review_gaps, gap_groups
 
 FRAMES = 80  #: frames of the warm-up takes: enough for every code path, short enough to run in seconds
 

@@ -27,13 +27,13 @@ chmod +x "$bin/handmocap"
 mkdir -p "$data/applications"
 sed -e "s|^Exec=handmocap |Exec=$bin/handmocap |" -e "s|^TryExec=handmocap\$|TryExec=$bin/handmocap|" \
   "$here/handmocap.desktop" > "$data/applications/handmocap.desktop"
-for png in "$opt"/_internal/resources/icons/handmocap-*.png; do
+for png in "$opt"/_internal/handmocap/resources/icons/handmocap-*.png; do
   size="$(basename "$png" .png)"; size="${size#handmocap-}"
   mkdir -p "$data/icons/hicolor/${size}x${size}/apps"
   cp "$png" "$data/icons/hicolor/${size}x${size}/apps/handmocap.png"
 done
 mkdir -p "$data/icons/hicolor/scalable/apps"
-cp "$opt/_internal/resources/icons/handmocap.svg" "$data/icons/hicolor/scalable/apps/handmocap.svg"
+cp "$opt/_internal/handmocap/resources/icons/handmocap.svg" "$data/icons/hicolor/scalable/apps/handmocap.svg"
 
 mkdir -p "$data/mime/packages"
 cp "$here/handmocap-mime.xml" "$data/mime/packages/handmocap.xml"

@@ -3,9 +3,9 @@ occlusion, unlabelled points) in a session."""
 
 from __future__ import annotations
 
-from core.io import save_take
-from core.session.session import Session
-from core.simulate import simulate_take
+from handmocap.core.io import save_take
+from handmocap.core.session.session import Session
+from handmocap.core.simulate import simulate_take
 
 FRAMES = 200
 

@@ -12,13 +12,13 @@ import os
 import pytest
 from batch_study import make_study
 
-from app.cli.main import main
-from core.batch.pipeline import pipeline_from_dict
-from core.batch.runner import plan_batch, run_batch
-from core.batch.scheduler import check_scheduler_address
-from core.batch.state import read_state
-from core.errors import InputError
-from core.session.session import Session
+from handmocap.app.cli.main import main
+from handmocap.core.batch.pipeline import pipeline_from_dict
+from handmocap.core.batch.runner import plan_batch, run_batch
+from handmocap.core.batch.scheduler import check_scheduler_address
+from handmocap.core.batch.state import read_state
+from handmocap.core.errors import InputError
+from handmocap.core.session.session import Session
 
 LABEL_ONLY = {"steps": ["label", "export"], "layout": "glove-13", "hands": "right", "exports": ["c3d"]}
 

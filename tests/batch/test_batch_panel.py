@@ -14,10 +14,10 @@ pytest.importorskip("pytestqt")
 
 from batch_study import make_study  # noqa: E402
 
-from app.gui.application import Application, SessionFolderChanged, SessionPart  # noqa: E402
-from app.gui.batch_panel import BatchPanel  # noqa: E402
-from core.batch.pipeline import load_pipeline  # noqa: E402
-from core.session.session import Session  # noqa: E402
+from handmocap.app.gui.application import Application, SessionFolderChanged, SessionPart  # noqa: E402
+from handmocap.app.gui.batch_panel import BatchPanel  # noqa: E402
+from handmocap.core.batch.pipeline import load_pipeline  # noqa: E402
+from handmocap.core.session.session import Session  # noqa: E402
 
 
 def test_panel_runs_the_batch_and_the_browser_hears_it(tmp_path, qtbot):
@@ -34,7 +34,7 @@ def test_panel_runs_the_batch_and_the_browser_hears_it(tmp_path, qtbot):
     panel.workers.setValue(1)
     pipeline = panel.pipeline()
     panel.set_pipeline(pipeline)
-    from core.batch.pipeline import save_pipeline
+    from handmocap.core.batch.pipeline import save_pipeline
 
     save_pipeline(panel.pipeline(), tmp_path / "saved.toml")
     assert load_pipeline(tmp_path / "saved.toml") == pipeline and pipeline.steps == ("label",)

@@ -6,9 +6,16 @@ import json
 
 import pytest
 
-from core.batch.pipeline import STEPS, Pipeline, load_pipeline, pipeline_from_dict, pipeline_toml, save_pipeline
-from core.batch.report import study_report_html
-from core.errors import InputError
+from handmocap.core.batch.pipeline import (
+    STEPS,
+    Pipeline,
+    load_pipeline,
+    pipeline_from_dict,
+    pipeline_toml,
+    save_pipeline,
+)
+from handmocap.core.batch.report import study_report_html
+from handmocap.core.errors import InputError
 
 
 def test_defaults_and_relative_paths(tmp_path):

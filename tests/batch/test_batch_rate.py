@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from core.batch.pipeline import Pipeline, load_pipeline, pipeline_from_dict, save_pipeline
-from core.batch.runner import open_study
-from core.errors import InputError
+from handmocap.core.batch.pipeline import Pipeline, load_pipeline, pipeline_from_dict, save_pipeline
+from handmocap.core.batch.runner import open_study
+from handmocap.core.errors import InputError
 
 NOKOV = Path(__file__).resolve().parents[1] / "io" / "fixtures" / "nokov.csv"
 

@@ -14,13 +14,13 @@ import numpy as np
 import pytest
 from batch_study import make_study
 
-from app.cli.main import main
-from core.batch.pipeline import pipeline_from_dict
-from core.batch.runner import open_study, plan_batch, run_batch
-from core.batch.state import read_state
-from core.batch.task import process_take
-from core.io import load_take
-from core.session.session import Session
+from handmocap.app.cli.main import main
+from handmocap.core.batch.pipeline import pipeline_from_dict
+from handmocap.core.batch.runner import open_study, plan_batch, run_batch
+from handmocap.core.batch.state import read_state
+from handmocap.core.batch.task import process_take
+from handmocap.core.io import load_take
+from handmocap.core.session.session import Session
 
 LABEL_ONLY = {"steps": ["label", "export"], "layout": "glove-13", "hands": "right", "exports": ["c3d"]}
 FULL = {"steps": ["label", "calibrate", "fill", "solve", "export"], "layout": "glove-13", "hands": "right",

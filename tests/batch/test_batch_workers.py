@@ -13,9 +13,9 @@ import sys
 import dask
 import pytest
 
-from core.batch import worker as batch_worker
-from core.batch.runner import _local_cluster
-from core.batch.worker import TRIM, local_worker_settings, user_trim_threshold, worker_environment
+from handmocap.core.batch import worker as batch_worker
+from handmocap.core.batch.runner import _local_cluster
+from handmocap.core.batch.worker import TRIM, local_worker_settings, user_trim_threshold, worker_environment
 
 pytest.importorskip("distributed")
 
@@ -23,8 +23,8 @@ NANNY_WRITES = (TRIM, "OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREAD
 
 
 def _worker_state() -> dict:
-    return {"trim": os.environ.get(TRIM), "warm": "core.batch.task" in sys.modules
-            and "core.labelling.scene" in sys.modules,
+    return {"trim": os.environ.get(TRIM), "warm": "handmocap.core.batch.task" in sys.modules
+            and "handmocap.core.labelling.scene" in sys.modules,
             "profile": dask.config.get("distributed.worker.profile.enabled")}
 
 

@@ -47,8 +47,8 @@ SETTINGS = {"steps": ["label", "calibrate", "fill", "solve", "export"], "hands":
 
 def make_study(folder: Path, takes: int, frames: int) -> list[Path]:
     """``takes`` raw C3D files in ``folder`` (alternating layouts; seeded, so the same every time)."""
-    from core.io import save_take
-    from core.simulate import simulate_take
+    from handmocap.core.io import save_take
+    from handmocap.core.simulate import simulate_take
 
     folder.mkdir(parents=True, exist_ok=True)
     paths = []
@@ -64,7 +64,7 @@ def make_study(folder: Path, takes: int, frames: int) -> list[Path]:
 
 def make_sessions(root: Path, paths: list[Path]):
     """One session per layout (the pipeline names one layout), holding that layout's takes."""
-    from core.session.session import Session
+    from handmocap.core.session.session import Session
 
     sessions = {}
     for layout in LAYOUTS:
@@ -82,11 +82,11 @@ def baselines(paths: list[Path], root: Path) -> dict[str, float]:
     (session take opened, one review step pushed and saved, batch state written) in this process, no
     Dask; ``cli``: ``handmocap label``, ``fill`` and ``solve`` as three calls. ``paths[0]`` warms this
     process up and is not counted."""
-    from core.batch.pipeline import pipeline_from_dict
-    from core.batch.steps import export_take, output_paths, run_steps
-    from core.batch.task import process_take
-    from core.io import load_take
-    from core.review import ReviewTake
+    from handmocap.core.batch.pipeline import pipeline_from_dict
+    from handmocap.core.batch.steps import export_take, output_paths, run_steps
+    from handmocap.core.batch.task import process_take
+    from handmocap.core.io import load_take
+    from handmocap.core.review import ReviewTake
 
     out = root / "baseline"
     out.mkdir(parents=True, exist_ok=True)
@@ -137,9 +137,9 @@ def batch_run(root: Path, paths: list[Path], workers: int, dask_defaults: bool =
 
     from distributed import Client, LocalCluster
 
-    from core.batch.pipeline import pipeline_from_dict
-    from core.batch.runner import _local_cluster, plan_batch, run_batch
-    from core.batch.worker import local_worker_settings
+    from handmocap.core.batch.pipeline import pipeline_from_dict
+    from handmocap.core.batch.runner import _local_cluster, plan_batch, run_batch
+    from handmocap.core.batch.worker import local_worker_settings
 
     folder = root / f"run-{workers}{'-dask-defaults' if dask_defaults else ''}"
     sessions = make_sessions(folder, paths)

@@ -9,12 +9,8 @@ joint_error_mm, alignment_gain_mm and the per-subject breakdown.
 
 import argparse
 import json
-import sys
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-
-from core.evaluation.calibration import SUBJECTS, bench_calibrate, evaluate_subject  # noqa: E402
+from handmocap.core.evaluation.calibration import SUBJECTS, bench_calibrate, evaluate_subject
 
 
 def main() -> None:

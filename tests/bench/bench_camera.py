@@ -11,10 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
-from core.camera.frames import VideoFrames
-from core.camera.overlay import draw_overlay, project_take
-from core.camera.writers import write_video
-from core.simulate.camera import simulate_camera_take
+from handmocap.core.camera.frames import VideoFrames
+from handmocap.core.camera.overlay import draw_overlay, project_take
+from handmocap.core.camera.writers import write_video
+from handmocap.core.simulate.camera import simulate_camera_take
 
 
 def main() -> int:

@@ -19,20 +19,19 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen" if not os.environ.get("DISPLAY") else "xcb")
 
-import numpy as np  # noqa: E402
-from PySide6.QtCore import Qt  # noqa: E402
-from PySide6.QtGui import QImage  # noqa: E402
-from PySide6.QtWidgets import QApplication  # noqa: E402
+import numpy as np
+from PySide6.QtCore import Qt
+from PySide6.QtGui import QImage
+from PySide6.QtWidgets import QApplication
 
-from app.gui.main_window import MainWindow  # noqa: E402
-from core.camera.writers import write_video  # noqa: E402
-from core.io import save_take  # noqa: E402
-from core.session import Session  # noqa: E402
-from core.session.cameras import add_camera  # noqa: E402
-from core.simulate.camera import random_camera, simulate_camera_take  # noqa: E402
+from handmocap.app.gui.main_window import MainWindow
+from handmocap.core.camera.writers import write_video
+from handmocap.core.io import save_take
+from handmocap.core.session import Session
+from handmocap.core.session.cameras import add_camera
+from handmocap.core.simulate.camera import random_camera, simulate_camera_take
 
 MOCAP_FRAMES = int(os.environ.get("BENCH_MOCAP_FRAMES", "400"))
 RANDOM_JUMPS = 60

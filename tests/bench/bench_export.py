@@ -36,9 +36,9 @@ def _child(case: str, n_frames: int, n_points: int, n_labels: int, out: str) -> 
     labelled positions already computed (as in the application, which draws them); "plain": ``save_take``."""
     import numpy as np
 
-    from core.io import Take, save_take
-    from core.review import ReviewTake, export_labelled_c3d
-    from core.review.take import MEASURED
+    from handmocap.core.io import Take, save_take
+    from handmocap.core.review import ReviewTake, export_labelled_c3d
+    from handmocap.core.review.take import MEASURED
 
     rng = np.random.default_rng(0)
     positions = rng.uniform(-1000.0, 1000.0, (n_frames, n_points, 3))

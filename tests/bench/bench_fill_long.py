@@ -19,18 +19,14 @@ Run: OPENBLAS_NUM_THREADS=1 taskset -c 0 python tests/bench/bench_fill_long.py [
 import argparse
 import json
 import os
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-
-from core.io import Take  # noqa: E402
-from core.review import ReviewTake  # noqa: E402
-from core.simulate import simulate_scene, simulate_take  # noqa: E402
-from core.workflows import fill_gaps, fill_review_gaps, gap_groups, short_open_gaps  # noqa: E402
+from handmocap.core.io import Take
+from handmocap.core.review import ReviewTake
+from handmocap.core.simulate import simulate_scene, simulate_take
+from handmocap.core.workflows import fill_gaps, fill_review_gaps, gap_groups, short_open_gaps
 
 MAX_GAP = 80
 BASE_FRAMES = 2000

@@ -12,12 +12,12 @@ from dataclasses import replace
 
 import numpy as np
 
-from core.evaluation.fusion import occluded_take, rgbd_frames
-from core.fusion import FusionSettings, fuse_take
-from core.fusion.energy import FrameEnergy
-from core.fusion.hand_render import HandRenderer
-from core.fusion.observation import ideal_image, observe
-from core.model import load_layout, load_template, resolve_layout
+from handmocap.core.evaluation.fusion import occluded_take, rgbd_frames
+from handmocap.core.fusion import FusionSettings, fuse_take
+from handmocap.core.fusion.energy import FrameEnergy
+from handmocap.core.fusion.hand_render import HandRenderer
+from handmocap.core.fusion.observation import ideal_image, observe
+from handmocap.core.model import load_layout, load_template, resolve_layout
 
 
 def main() -> int:

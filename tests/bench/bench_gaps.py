@@ -7,15 +7,12 @@ Run: python tests/bench/bench_gaps.py [frames ...]   (default 2 000, 20 000 and 
 import json
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-
-from core.gaps import Gap, check_gap, fill_pca  # noqa: E402
-from core.io import Take  # noqa: E402
-from core.simulate import simulate_take  # noqa: E402
+from handmocap.core.gaps import Gap, check_gap, fill_pca
+from handmocap.core.io import Take
+from handmocap.core.simulate import simulate_take
 
 GAP_LENGTH = 40
 REPEATS = 20

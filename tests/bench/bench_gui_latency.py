@@ -9,19 +9,17 @@ import json
 import os
 import sys
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen" if not os.environ.get("DISPLAY") else "xcb")
 
-import numpy as np  # noqa: E402
-from PySide6.QtCore import QElapsedTimer, QTimer  # noqa: E402
-from PySide6.QtWidgets import QApplication  # noqa: E402
+import numpy as np
+from PySide6.QtCore import QElapsedTimer, QTimer
+from PySide6.QtWidgets import QApplication
 
-from app.gui.document import TakeDocument  # noqa: E402
-from app.gui.main_window import MainWindow  # noqa: E402
-from app.gui.workers import GUI_SWITCH_INTERVAL_S  # noqa: E402
-from core.simulate import simulate_take  # noqa: E402
+from handmocap.app.gui.document import TakeDocument
+from handmocap.app.gui.main_window import MainWindow
+from handmocap.app.gui.workers import GUI_SWITCH_INTERVAL_S
+from handmocap.core.simulate import simulate_take
 
 TICK_MS = 10
 MEASURE_S = 2.0

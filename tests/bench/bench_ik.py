@@ -6,11 +6,8 @@ Run: taskset -c 0 python tests/bench/bench_ik.py [frames]
 
 import json
 import sys
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-
-from core.evaluation.ik import bench_ik  # noqa: E402
+from handmocap.core.evaluation.ik import bench_ik
 
 
 def main() -> None:

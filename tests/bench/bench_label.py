@@ -6,11 +6,8 @@ Run: taskset -c 0 python tests/bench/bench_label.py [frames]
 
 import json
 import sys
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-
-from core.evaluation.labelling_bench import bench_label  # noqa: E402
+from handmocap.core.evaluation.labelling_bench import bench_label
 
 
 def main() -> None:

@@ -33,7 +33,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 REAL = ROOT.parent / "shared" / "data" / "real" / "dfki_glove_right_hand_frames_0001_3000.tsv"
-CLI = [sys.executable, "-m", "app.cli.main"]
+CLI = [sys.executable, "-m", "handmocap.app.cli.main"]
 
 
 def free_port() -> int:
@@ -72,9 +72,9 @@ def run_case(name: str, take_path: Path, rate: float, layout: str, hands: str, o
 
 def agreement(out: Path, session: Path, take_id: str, layout: str, hands: str, objects: Path | None) -> dict:
     """Live labels (the session take's first review step) against the same take labelled offline, online mode."""
-    from core.io import load_take
-    from core.labelling.scene import label_scene
-    from core.session.session import Session
+    from handmocap.core.io import load_take
+    from handmocap.core.labelling.scene import label_scene
+    from handmocap.core.session.session import Session
 
     take = load_take(out)
     offline = label_scene(take, hands=hands, layout=layout, objects=str(objects) if objects else None, online=True)
@@ -96,8 +96,8 @@ def agreement(out: Path, session: Path, take_id: str, layout: str, hands: str, o
 def real_truth(out: Path, session: Path, take_id: str) -> dict:
     """On the replayed real recording: the hand labels the live labeller gave, against the recording's own labels
     (a point is matched to the file's marker at the same coordinates)."""
-    from core.io import load_take
-    from core.session.session import Session
+    from handmocap.core.io import load_take
+    from handmocap.core.session.session import Session
 
     truth = load_take(REAL)
     recorded = load_take(out)
@@ -136,11 +136,11 @@ def window_case(seconds: float, protocol: str, pin: bool) -> dict:
     docstring); the figures and the load average before and after."""
     from PySide6.QtWidgets import QApplication
 
-    from app.gui.live_window import DRAW_HZ, LiveWindow
-    from core.io import save_take
-    from core.live.capture import LiveCapture
-    from core.live.systems import make_source
-    from core.simulate.take import simulate_take
+    from handmocap.app.gui.live_window import DRAW_HZ, LiveWindow
+    from handmocap.core.io import save_take
+    from handmocap.core.live.capture import LiveCapture
+    from handmocap.core.live.systems import make_source
+    from handmocap.core.simulate.take import simulate_take
 
     if pin and hasattr(os, "sched_setaffinity") and (os.cpu_count() or 1) > 1:
         os.sched_setaffinity(0, {0})
@@ -243,10 +243,10 @@ def main() -> int:
             print(f"{name}: " + json.dumps(figures), flush=True)
         print(json.dumps(results))
         return 0
-    from core.io import save_take
-    from core.model.objects import save_scene_spec
-    from core.simulate.scene import simulate_scene
-    from core.simulate.take import simulate_take
+    from handmocap.core.io import save_take
+    from handmocap.core.model.objects import save_scene_spec
+    from handmocap.core.simulate.scene import simulate_scene
+    from handmocap.core.simulate.take import simulate_take
 
     protocols = [args.protocol] if args.protocol else ["qtm", "natnet"]
     results = {}

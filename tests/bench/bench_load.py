@@ -5,11 +5,8 @@ Run: python tests/bench/bench_load.py [n_frames] [n_markers]
 
 import json
 import sys
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-
-from core.io.generate import bench_load  # noqa: E402
+from handmocap.core.io.generate import bench_load
 
 
 def main() -> None:

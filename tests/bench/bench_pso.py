@@ -10,14 +10,10 @@ counts, the seed spread and the extras.
 
 import argparse
 import json
-import sys
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-
-from core.layout import default_subspace_dims, reconstruction_error  # noqa: E402
-from core.layout.workflow import bench_pso, optimise_layout  # noqa: E402
-from core.model import load_template  # noqa: E402
+from handmocap.core.layout import default_subspace_dims, reconstruction_error
+from handmocap.core.layout.workflow import bench_pso, optimise_layout
+from handmocap.core.model import load_template
 
 
 def main() -> None:

@@ -12,20 +12,18 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from core.io import save_take  # noqa: E402
-from core.review import (
+from handmocap.core.io import save_take
+from handmocap.core.review import (
     ApplyLabelling,
     AssignLabel,
     SwapLabels,
     export_labelled_c3d,
     review_from_labelled_c3d,
 )
-from core.review.synthetic import synthetic_labelling  # noqa: E402
-from core.session import Session
+from handmocap.core.review.synthetic import synthetic_labelling
+from handmocap.core.session import Session
 
 
 def timed(figures: dict, name: str, operation):

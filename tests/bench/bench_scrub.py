@@ -21,14 +21,12 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+import numpy as np
+from PySide6.QtCore import QEventLoop, QTimer
+from PySide6.QtWidgets import QApplication
 
-import numpy as np  # noqa: E402
-from PySide6.QtCore import QEventLoop, QTimer  # noqa: E402
-from PySide6.QtWidgets import QApplication  # noqa: E402
-
-from app.gui.main_window import MainWindow  # noqa: E402
-from app.gui.review_controller import AutoLabelSettings  # noqa: E402
+from handmocap.app.gui.main_window import MainWindow
+from handmocap.app.gui.review_controller import AutoLabelSettings
 
 REAL = (Path(__file__).resolve().parents[3] / "shared" / "data" / "real"
         / "dfki_glove_right_hand_frames_0001_3000.tsv")

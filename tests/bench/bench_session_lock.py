@@ -24,13 +24,11 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-
-from core.errors import InputError  # noqa: E402
-from core.io import save_take  # noqa: E402
-from core.review import Unlabel  # noqa: E402
-from core.review.synthetic import synthetic_labelling  # noqa: E402
-from core.session import Session  # noqa: E402
+from handmocap.core.errors import InputError
+from handmocap.core.io import save_take
+from handmocap.core.review import Unlabel
+from handmocap.core.review.synthetic import synthetic_labelling
+from handmocap.core.session import Session
 
 NAMES = ["thumb_tip", "index_tip", "middle_tip", "ring_tip", "little_tip"]
 WAIT_S = 120.0  # a barrier not reached in this time means a worker hung: the run fails instead of hanging

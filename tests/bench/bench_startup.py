@@ -30,8 +30,8 @@ CHILD = """
 import sys
 from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import QApplication
-from app.gui.main_window import MainWindow
-from app.gui.palette import apply_dark_palette
+from handmocap.app.gui.main_window import MainWindow
+from handmocap.app.gui.palette import apply_dark_palette
 
 app = QApplication(sys.argv[:1])
 app.setStyle("Fusion")

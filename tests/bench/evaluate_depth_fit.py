@@ -12,12 +12,12 @@ import time
 import cv2
 import numpy as np
 
-from core.evaluation.data import RGBD_FRAMES
-from core.evaluation.depth_distractors import body_nearer, chair_nearer
-from core.fusion.depth_fit import DepthFitter
-from core.fusion.depth_overlay import draw_depth_fit
-from core.fusion.depth_track import parse_intrinsics, read_depth_image
-from core.fusion.hand_segment import find_hands
+from handmocap.core.evaluation.data import RGBD_FRAMES
+from handmocap.core.evaluation.depth_distractors import body_nearer, chair_nearer
+from handmocap.core.fusion.depth_fit import DepthFitter
+from handmocap.core.fusion.depth_overlay import draw_depth_fit
+from handmocap.core.fusion.depth_track import parse_intrinsics, read_depth_image
+from handmocap.core.fusion.hand_segment import find_hands
 
 FOLDER = RGBD_FRAMES / "sr305_open_right_hand"
 INTRINSICS = "476.007,476.007,313.683,242.755"

@@ -6,11 +6,8 @@ Run: python tests/bench/evaluate_ik.py [frames]
 
 import json
 import sys
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-
-from core.evaluation.ik import evaluate_ik  # noqa: E402
+from handmocap.core.evaluation.ik import evaluate_ik
 
 
 def main() -> None:

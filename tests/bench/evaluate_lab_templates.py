@@ -21,11 +21,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from core.evaluation.data import SHARED_DATA
-from core.evaluation.take_labelling import evaluate_take_labelling
-from core.io import Take, load_take
-from core.model import MarkerLayout, load_layout
-from core.simulate.scene import simulate_scene
+from handmocap.core.evaluation.data import SHARED_DATA
+from handmocap.core.evaluation.take_labelling import evaluate_take_labelling
+from handmocap.core.io import Take, load_take
+from handmocap.core.model import MarkerLayout, load_layout
+from handmocap.core.simulate.scene import simulate_scene
 
 SUBSET = ("A1", "A2", "B1", "B2", "C1", "C2", "D1", "D2", "E1", "E2", "Wan-1", "Wan-2", "Wan-3", "Wan-wai")
 

@@ -31,11 +31,9 @@ import zipfile
 import zlib
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from core.evaluation.data import SHARED_DATA  # noqa: E402
+from handmocap.core.evaluation.data import SHARED_DATA
 
 FORMATS = ("c3d", "tsv", "trc", "csv", "ply", "obj", "gltf", "glb", "npz")
 #: the inputs of issue 22 (each read by its own reader; see :func:`read_input`)
@@ -92,15 +90,15 @@ def c3d_bytes(labels: list[str], n_frames: int, label_dims: tuple[int, ...] | No
 
 def write_seeds(folder: Path) -> dict[str, list[Path]]:
     """Seed files of every format in ``folder`` (vendor C3D and the shared glTF hands when present)."""
-    from core.calibration.scan import Scan, save_ply
-    from core.io.c3d_writer import write_c3d
-    from core.io.csv_file import write_csv
-    from core.io.take import Take
-    from core.io.trc import write_trc
-    from core.model.gltf import load_gltf_hand, save_gltf_hand
-    from core.model.hand_model import HandModel
-    from core.prior.pca_prior import PosturePrior
-    from core.simulate.take import save_truth
+    from handmocap.core.calibration.scan import Scan, save_ply
+    from handmocap.core.io.c3d_writer import write_c3d
+    from handmocap.core.io.csv_file import write_csv
+    from handmocap.core.io.take import Take
+    from handmocap.core.io.trc import write_trc
+    from handmocap.core.model.gltf import load_gltf_hand, save_gltf_hand
+    from handmocap.core.model.hand_model import HandModel
+    from handmocap.core.prior.pca_prior import PosturePrior
+    from handmocap.core.simulate.take import save_truth
 
     rng = np.random.default_rng(0)
     names = ["thumb_tip", "index_tip", "wrist", "Unlabeled 1"]
@@ -380,19 +378,19 @@ def write_input_seeds(folder: Path) -> dict[str, list[Path]]:
     """Seeds of :data:`INPUT_FORMATS` in ``folder``: files, or folders (frames, depth, sessions)."""
     import cv2
 
-    from core.batch.pipeline import Pipeline, save_pipeline
-    from core.batch.state import write_state
-    from core.calibration.landmarks import save_landmarks
-    from core.camera.files import save_camera
-    from core.camera.writers import write_depth_frames, write_video
-    from core.io import save_take
-    from core.model import load_layout
-    from core.model.objects import object_from_json, save_scene_spec
-    from core.model.template_mesh import LANDMARK_NAMES
-    from core.session.cameras import add_camera
-    from core.session.session import Session
-    from core.simulate.camera import random_camera
-    from core.simulate.take import simulate_take
+    from handmocap.core.batch.pipeline import Pipeline, save_pipeline
+    from handmocap.core.batch.state import write_state
+    from handmocap.core.calibration.landmarks import save_landmarks
+    from handmocap.core.camera.files import save_camera
+    from handmocap.core.camera.writers import write_depth_frames, write_video
+    from handmocap.core.io import save_take
+    from handmocap.core.model import load_layout
+    from handmocap.core.model.objects import object_from_json, save_scene_spec
+    from handmocap.core.model.template_mesh import LANDMARK_NAMES
+    from handmocap.core.session.cameras import add_camera
+    from handmocap.core.session.session import Session
+    from handmocap.core.simulate.camera import random_camera
+    from handmocap.core.simulate.take import simulate_take
 
     seeds: dict[str, list[Path]] = {fmt: [] for fmt in INPUT_FORMATS}
     rng = np.random.default_rng(22)
@@ -548,16 +546,16 @@ def make_input_case(fmt: str, seeds: list[Path], seed: int, index: int, folder: 
 
 def read_input(fmt: str, path: Path) -> None:
     """Read an input case of ``fmt`` the way the program does."""
-    from core.batch.pipeline import load_pipeline
-    from core.batch.state import read_state
-    from core.calibration.landmarks import load_landmarks
-    from core.camera.files import load_camera
-    from core.camera.frames import open_frames
-    from core.model import load_layout
-    from core.model.lab_template import load_lab_template
-    from core.model.objects import load_scene_spec
-    from core.session.cameras import take_cameras
-    from core.session.session import Session
+    from handmocap.core.batch.pipeline import load_pipeline
+    from handmocap.core.batch.state import read_state
+    from handmocap.core.calibration.landmarks import load_landmarks
+    from handmocap.core.camera.files import load_camera
+    from handmocap.core.camera.frames import open_frames
+    from handmocap.core.model import load_layout
+    from handmocap.core.model.lab_template import load_lab_template
+    from handmocap.core.model.objects import load_scene_spec
+    from handmocap.core.session.cameras import take_cameras
+    from handmocap.core.session.session import Session
 
     if fmt.startswith("camera"):
         load_camera(path)
@@ -628,13 +626,13 @@ def read_case(path: Path, fmt: str = "") -> None:
     if fmt in INPUT_FORMATS:
         read_input(fmt, path)
         return
-    from core.calibration.scan import load_scan
-    from core.io.loader import load_take
-    from core.model.gltf import load_gltf_hand
-    from core.model.hand_model import HandModel
-    from core.model.joint_angles import read_result_joint_angles
-    from core.prior.pca_prior import PosturePrior
-    from core.simulate.take import load_truth
+    from handmocap.core.calibration.scan import load_scan
+    from handmocap.core.io.loader import load_take
+    from handmocap.core.model.gltf import load_gltf_hand
+    from handmocap.core.model.hand_model import HandModel
+    from handmocap.core.model.joint_angles import read_result_joint_angles
+    from handmocap.core.prior.pca_prior import PosturePrior
+    from handmocap.core.simulate.take import load_truth
 
     suffix = path.suffix.lower()
     if suffix in (".c3d", ".tsv", ".trc", ".csv", ".txt"):
@@ -658,7 +656,7 @@ def worker(seed_folder: Path, seed: int, memory_bytes: int) -> None:
     import logging
     import warnings
 
-    from core.errors import InputError
+    from handmocap.core.errors import InputError
 
     resource.setrlimit(resource.RLIMIT_AS, (memory_bytes, memory_bytes))
     logging.disable(logging.WARNING)
@@ -666,12 +664,12 @@ def worker(seed_folder: Path, seed: int, memory_bytes: int) -> None:
     seeds = json.loads((seed_folder / "seeds.json").read_text())
     seeds = {fmt: [Path(p) for p in paths] for fmt, paths in seeds.items()}
     if set(seeds) & set(INPUT_FORMATS):   # the readers' imports are not the first case's time
-        import core.batch.pipeline
-        import core.calibration.landmarks
-        import core.camera.files
-        import core.camera.frames
-        import core.model.lab_template
-        import core.session.cameras  # noqa: F401
+        import handmocap.core.batch.pipeline
+        import handmocap.core.calibration.landmarks
+        import handmocap.core.camera.files
+        import handmocap.core.camera.frames
+        import handmocap.core.model.lab_template
+        import handmocap.core.session.cameras  # noqa: F401
     for fmt, index in json.loads((seed_folder / "cases.json").read_text()):
         print(json.dumps(["start", fmt, index]), flush=True)
         with tempfile.TemporaryDirectory() as folder:

@@ -5,24 +5,24 @@ import json
 import numpy as np
 import pytest
 
-from core.calibration.landmarks import landmarks_from_truth, save_landmarks
-from core.calibration.mean_value import mean_value_coordinates
-from core.calibration.nonrigid import FitSchedule, best_rotations, cotangent_laplacian, fit_nonrigid
-from core.calibration.pipeline import (
+from handmocap.core.calibration.landmarks import landmarks_from_truth, save_landmarks
+from handmocap.core.calibration.mean_value import mean_value_coordinates
+from handmocap.core.calibration.nonrigid import FitSchedule, best_rotations, cotangent_laplacian, fit_nonrigid
+from handmocap.core.calibration.pipeline import (
     CalibrationResult,
     calibrate_scan,
     check_landmarks,
     prepare_scan,
     unpose_vertices,
 )
-from core.calibration.report import closest_points_on_triangles, find_swapped_pairs, point_to_mesh_distances
-from core.calibration.scan import Scan, save_ply
-from core.calibration.synthetic_scan import synthetic_scan
-from core.errors import CancelledError, InputError
-from core.model import HandModel, load_template, skin_vertices
-from core.model.kinematics import rotation_from_vector
-from core.model.skeleton import N_PARAMS
-from core.model.template_mesh import LANDMARK_NAMES
+from handmocap.core.calibration.report import closest_points_on_triangles, find_swapped_pairs, point_to_mesh_distances
+from handmocap.core.calibration.scan import Scan, save_ply
+from handmocap.core.calibration.synthetic_scan import synthetic_scan
+from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.model import HandModel, load_template, skin_vertices
+from handmocap.core.model.kinematics import rotation_from_vector
+from handmocap.core.model.skeleton import N_PARAMS
+from handmocap.core.model.template_mesh import LANDMARK_NAMES
 
 FAST = FitSchedule(reg_factor=0.1, inner_iterations=2)
 
@@ -135,7 +135,7 @@ def test_nonrigid_fit_puts_a_point_inside_a_triangle_onto_its_landmark():
 
 
 def test_anatomical_landmarks_refine_the_template_vertices():
-    from core.calibration.align import LANDMARK_REFINE_MM, anatomical_landmarks, anatomical_ray
+    from handmocap.core.calibration.align import LANDMARK_REFINE_MM, anatomical_landmarks, anatomical_ray
 
     template = load_template()
     corners, weights = anatomical_landmarks(template, LANDMARK_NAMES)
@@ -334,8 +334,8 @@ def test_calibrate_from_files(tmp_path, moved_scan):
 
 
 def test_marker_alignment_error_sees_a_wrong_hand_size():
-    from core.calibration.align import scaled_model
-    from core.evaluation.calibration import marker_alignment_error
+    from handmocap.core.calibration.align import scaled_model
+    from handmocap.core.evaluation.calibration import marker_alignment_error
 
     template = load_template()
     subject = scaled_model(template, 1.12)

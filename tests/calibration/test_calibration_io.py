@@ -6,17 +6,17 @@ import json
 import numpy as np
 import pytest
 
-from app.cli import calibrate as calibrate_commands
-from core.calibration.landmarks import landmarks_from_truth, save_landmarks
-from core.calibration.pipeline import calibrate_scan, load_template_file
-from core.calibration.scan import save_ply
-from core.calibration.synthetic_scan import synthetic_scan
-from core.errors import HandMocapError, InputError
-from core.evaluation.data import GLTF_TEMPLATES
-from core.model import HandModel, load_layout, load_template, resolve_layout, skin_vertices
-from core.model.gltf import classify_joint_name, load_gltf_hand, save_gltf_hand
-from core.model.skeleton import N_PARAMS
-from core.model.template_mesh import LANDMARK_NAMES
+from handmocap.app.cli import calibrate as calibrate_commands
+from handmocap.core.calibration.landmarks import landmarks_from_truth, save_landmarks
+from handmocap.core.calibration.pipeline import calibrate_scan, load_template_file
+from handmocap.core.calibration.scan import save_ply
+from handmocap.core.calibration.synthetic_scan import synthetic_scan
+from handmocap.core.errors import HandMocapError, InputError
+from handmocap.core.evaluation.data import GLTF_TEMPLATES
+from handmocap.core.model import HandModel, load_layout, load_template, resolve_layout, skin_vertices
+from handmocap.core.model.gltf import classify_joint_name, load_gltf_hand, save_gltf_hand
+from handmocap.core.model.skeleton import N_PARAMS
+from handmocap.core.model.template_mesh import LANDMARK_NAMES
 
 WEBXR = {side: GLTF_TEMPLATES / f"webxr_generic_hand_{side}.glb" for side in ("right", "left")}
 needs_webxr = pytest.mark.skipif(not all(path.exists() for path in WEBXR.values()),

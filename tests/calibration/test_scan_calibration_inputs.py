@@ -6,16 +6,16 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from core.calibration.cleaning import clean_scan, skin_mask, statistical_outlier_mask
-from core.calibration.landmarks import landmarks_from_truth, load_landmarks, save_landmarks
-from core.calibration.rigid import rigid_icp, similarity_transform
-from core.calibration.scan import Scan, load_scan, save_ply
-from core.calibration.synthetic_scan import BACKGROUND, HAND, OUTLIER, synthetic_scan
-from core.errors import InputError
-from core.model import load_template
-from core.model.kinematics import rotation_from_vector
-from core.model.skeleton import N_PARAMS, HandProportions
-from core.model.template_mesh import LANDMARK_NAMES
+from handmocap.core.calibration.cleaning import clean_scan, skin_mask, statistical_outlier_mask
+from handmocap.core.calibration.landmarks import landmarks_from_truth, load_landmarks, save_landmarks
+from handmocap.core.calibration.rigid import rigid_icp, similarity_transform
+from handmocap.core.calibration.scan import Scan, load_scan, save_ply
+from handmocap.core.calibration.synthetic_scan import BACKGROUND, HAND, OUTLIER, synthetic_scan
+from handmocap.core.errors import InputError
+from handmocap.core.model import load_template
+from handmocap.core.model.kinematics import rotation_from_vector
+from handmocap.core.model.skeleton import N_PARAMS, HandProportions
+from handmocap.core.model.template_mesh import LANDMARK_NAMES
 
 SKIN = [[224, 172, 140], [198, 134, 66], [141, 85, 36], [255, 219, 172]]
 NOT_SKIN = [[128, 128, 128], [40, 40, 40], [230, 230, 230], [40, 70, 150], [60, 180, 75], [90, 60, 20]]

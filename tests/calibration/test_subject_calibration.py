@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from core.calibration.subject import calibrate_subject, calibrated_model
-from core.errors import InputError
-from core.ik import solve_positions
-from core.model import load_layout, load_template, marker_positions, marker_positions_batch, resolve_layout
-from core.simulate import simulate_joint_angles
+from handmocap.core.calibration.subject import calibrate_subject, calibrated_model
+from handmocap.core.errors import InputError
+from handmocap.core.ik import solve_positions
+from handmocap.core.model import load_layout, load_template, marker_positions, marker_positions_batch, resolve_layout
+from handmocap.core.simulate import simulate_joint_angles
 
 
 @pytest.fixture(scope="module")

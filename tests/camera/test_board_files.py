@@ -6,8 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-from core.camera.intrinsics import BoardSpec, board_image, detect_board_in_files
-from core.errors import InputError
+from handmocap.core.camera.intrinsics import BoardSpec, board_image, detect_board_in_files
+from handmocap.core.errors import InputError
 
 
 def _write(path, image):

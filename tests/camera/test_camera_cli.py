@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 
-from app.cli.main import main
+from handmocap.app.cli.main import main
 
 
 def test_camera_commands_end_to_end(tmp_path, capsys):
@@ -28,7 +28,7 @@ def test_camera_commands_end_to_end(tmp_path, capsys):
     overlay = tmp_path / "overlay.avi"
     assert main(["camera", "overlay", str(folder / "take.c3d"), str(folder / "video.avi"),
                  "--camera", str(registered), "--out", str(overlay)]) == 0
-    from core.camera.frames import VideoFrames
+    from handmocap.core.camera.frames import VideoFrames
 
     with VideoFrames(overlay) as video:
         assert video.count > 30 and np.asarray(video.frame(5)).shape == (480, 640, 3)

@@ -8,15 +8,15 @@ import cv2
 import numpy as np
 import pytest
 
-from core.camera.extrinsics import MarkerFrame, detect_blobs, register_from_markers
-from core.camera.files import load_camera, save_camera
-from core.camera.frames import DepthFolderFrames, ImageFolderFrames, VideoFrames
-from core.camera.intrinsics import BoardSpec, calibrate_intrinsics, detect_board
-from core.camera.model import Camera, CameraClock, rotation_angle_deg
-from core.camera.sync import sync_markers
-from core.errors import InputError
-from core.evaluation.data import RGBD_FRAMES
-from core.simulate.camera import (
+from handmocap.core.camera.extrinsics import MarkerFrame, detect_blobs, register_from_markers
+from handmocap.core.camera.files import load_camera, save_camera
+from handmocap.core.camera.frames import DepthFolderFrames, ImageFolderFrames, VideoFrames
+from handmocap.core.camera.intrinsics import BoardSpec, calibrate_intrinsics, detect_board
+from handmocap.core.camera.model import Camera, CameraClock, rotation_angle_deg
+from handmocap.core.camera.sync import sync_markers
+from handmocap.core.errors import InputError
+from handmocap.core.evaluation.data import RGBD_FRAMES
+from handmocap.core.simulate.camera import (
     MARKER_RADIUS,
     OBJECT_MARKER_RADIUS,
     board_views,
@@ -83,7 +83,7 @@ def test_hostile_and_undecodable_frames_give_one_line(tmp_path):
 
 
 def test_video_random_access_matches_sequential_decode(tmp_path):
-    from core.camera.writers import write_video
+    from handmocap.core.camera.writers import write_video
 
     frames = [np.full((48, 64, 3), 10 * k, np.uint8) for k in range(20)]
     write_video(tmp_path / "v.avi", frames, 30.0, (64, 48))

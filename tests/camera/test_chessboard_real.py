@@ -11,8 +11,8 @@ import cv2
 import numpy as np
 import pytest
 
-from app.cli.main import main
-from core.camera.intrinsics import (
+from handmocap.app.cli.main import main
+from handmocap.core.camera.intrinsics import (
     _CHESSBOARD_FLAGS,
     _SUBPIX_CRITERIA,
     BoardSpec,
@@ -20,7 +20,7 @@ from core.camera.intrinsics import (
     calibrate_views,
     smallest_square_px,
 )
-from core.evaluation.data import SHARED_DATA
+from handmocap.core.evaluation.data import SHARED_DATA
 
 FOLDER = SHARED_DATA / "chessboard"
 pytestmark = pytest.mark.skipif(not FOLDER.is_dir(), reason="the chessboard photographs are not in ../shared/data")

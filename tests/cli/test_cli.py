@@ -8,12 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.cli.main import build_parser, main
-from core.evaluation.data import REAL_RECORDING
+from handmocap.app.cli.main import build_parser, main
+from handmocap.core.evaluation.data import REAL_RECORDING
 
 
 def run(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "app.cli.main", *args], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "handmocap.app.cli.main", *args], capture_output=True, text=True,
                           timeout=600, cwd=Path(__file__).resolve().parents[2])
 
 

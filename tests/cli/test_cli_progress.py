@@ -11,11 +11,11 @@ import sys
 
 from rich.console import Console
 
-from app.cli.common import OVERWRITE_HELP
-from app.cli.main import build_parser
-from app.cli.progress import ProgressLine
+from handmocap.app.cli.common import OVERWRITE_HELP
+from handmocap.app.cli.main import build_parser
+from handmocap.app.cli.progress import ProgressLine
 
-HANDMOCAP = [sys.executable, "-m", "app.cli.main"]
+HANDMOCAP = [sys.executable, "-m", "handmocap.app.cli.main"]
 
 
 def _arguments(parser: argparse.ArgumentParser, path: tuple[str, ...] = ("handmocap",)):

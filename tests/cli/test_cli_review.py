@@ -7,9 +7,9 @@ import ezc3d
 import numpy as np
 import pytest
 
-from app.cli.main import main
-from core.io import load_take, save_take
-from core.simulate import simulate_take
+from handmocap.app.cli.main import main
+from handmocap.core.io import load_take, save_take
+from handmocap.core.simulate import simulate_take
 
 
 @pytest.fixture(scope="module")
@@ -60,7 +60,7 @@ def test_label_bad_input_is_one_line(tmp_path, capsys):
 
 
 def test_label_take_with_no_points(tmp_path, capsys):
-    from core.io import Take
+    from handmocap.core.io import Take
 
     empty = Take(marker_names=["p1", "p2"], marker_positions=np.full((50, 2, 3), np.nan), frame_rate=100.0)
     path = tmp_path / "empty.trc"

@@ -10,15 +10,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.cli.main import main
-from core.io import load_take, save_take
-from core.io.axes import Y_UP
-from core.io.labelled_c3d import read_labelled_c3d
-from core.model.bvh import read_bvh
-from core.model.gltf import load_gltf_hand
-from core.review import AcceptFills, GapFill, export_labelled_c3d, review_from_labelled_c3d
-from core.session import Session
-from core.simulate import simulate_take
+from handmocap.app.cli.main import main
+from handmocap.core.io import load_take, save_take
+from handmocap.core.io.axes import Y_UP
+from handmocap.core.io.labelled_c3d import read_labelled_c3d
+from handmocap.core.model.bvh import read_bvh
+from handmocap.core.model.gltf import load_gltf_hand
+from handmocap.core.review import AcceptFills, GapFill, export_labelled_c3d, review_from_labelled_c3d
+from handmocap.core.session import Session
+from handmocap.core.simulate import simulate_take
 
 FRAMES = 150
 

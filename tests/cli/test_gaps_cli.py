@@ -5,10 +5,10 @@ import json
 import numpy as np
 import pytest
 
-from app.cli.main import main
-from core.evaluation.data import REAL_RECORDING
-from core.io import Take, load_take, save_take
-from core.simulate import simulate_take
+from handmocap.app.cli.main import main
+from handmocap.core.evaluation.data import REAL_RECORDING
+from handmocap.core.io import Take, load_take, save_take
+from handmocap.core.simulate import simulate_take
 
 
 @pytest.fixture(scope="module")
@@ -65,9 +65,9 @@ def test_evaluate_gaps_prints_every_method_and_auto_against_pca(capsys):
 
 def test_fill_of_an_auto_labelled_take_uses_the_subjects_calibrated_hand(tmp_path):
     """`handmocap label` stores the subject calibration in the labelled C3D; `fill` gives it to the model fill."""
-    from app.cli.review import _load_review, _subject_hands
-    from core.model import load_layout, load_template, resolve_layout
-    from core.workflows import gap_groups
+    from handmocap.app.cli.review import _load_review, _subject_hands
+    from handmocap.core.model import load_layout, load_template, resolve_layout
+    from handmocap.core.workflows import gap_groups
 
     raw = tmp_path / "raw.c3d"
     simulated = simulate_take(layout="glove-13", n_frames=300, seed=5, noise_mm=0.3, occlusion=True, unlabelled=True)

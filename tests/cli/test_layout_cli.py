@@ -2,7 +2,7 @@
 
 import json
 
-from app.cli.main import main
+from handmocap.app.cli.main import main
 
 
 def test_layout_sheet_writes_png_and_pdf(tmp_path, capsys):

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from app.cli.main import build_parser, main
+from handmocap.app.cli.main import build_parser, main
 
 #: options that name a file a command writes
 OUTPUT_OPTIONS = {"out", "report", "csv", "truth", "gltf", "screenshot"}

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from app.cli.main import build_parser, main
+from handmocap.app.cli.main import build_parser, main
 
 NOKOV = Path(__file__).resolve().parents[1] / "io" / "fixtures" / "nokov.csv"
 

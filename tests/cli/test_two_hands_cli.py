@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 from two_hand_takes import STYLES, named_take, write_lab_template
 
-from app.cli.main import main
-from core.io import save_take
-from core.io.labelled_c3d import read_labelled_c3d
-from core.model import add_layout_folder, remove_layout_folder
-from core.model.bvh import read_bvh
-from core.model.provenance import FILL_CODES
+from handmocap.app.cli.main import main
+from handmocap.core.io import save_take
+from handmocap.core.io.labelled_c3d import read_labelled_c3d
+from handmocap.core.model import add_layout_folder, remove_layout_folder
+from handmocap.core.model.bvh import read_bvh
+from handmocap.core.model.provenance import FILL_CODES
 
 
 @pytest.fixture(scope="module")

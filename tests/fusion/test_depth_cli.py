@@ -9,9 +9,9 @@ import cv2
 import numpy as np
 import pytest
 
-from app.cli.main import main
-from core.evaluation.data import RGBD_FRAMES
-from core.fusion.depth_track import DepthTracker, parse_intrinsics, read_depth_image
+from handmocap.app.cli.main import main
+from handmocap.core.evaluation.data import RGBD_FRAMES
+from handmocap.core.fusion.depth_track import DepthTracker, parse_intrinsics, read_depth_image
 
 FOLDER = RGBD_FRAMES / "sr305_open_right_hand"
 INTRINSICS = "476.007,476.007,313.683,242.755"

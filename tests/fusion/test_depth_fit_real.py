@@ -7,12 +7,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core.evaluation.data import RGBD_FRAMES
-from core.evaluation.depth_distractors import body_nearer, chair_nearer
-from core.fusion.depth_fit import DepthFitter
-from core.fusion.depth_track import parse_intrinsics, read_depth_image
-from core.fusion.hand_segment import find_hands
-from core.fusion.pose import digit_points
+from handmocap.core.evaluation.data import RGBD_FRAMES
+from handmocap.core.evaluation.depth_distractors import body_nearer, chair_nearer
+from handmocap.core.fusion.depth_fit import DepthFitter
+from handmocap.core.fusion.depth_track import parse_intrinsics, read_depth_image
+from handmocap.core.fusion.hand_segment import find_hands
+from handmocap.core.fusion.pose import digit_points
 
 FOLDER = RGBD_FRAMES / "sr305_open_right_hand"
 #: the SR305 intrinsics and depth unit of the data's README

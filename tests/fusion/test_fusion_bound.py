@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.evaluation.fusion import _bound, evaluate_seed
+from handmocap.core.evaluation.fusion import _bound, evaluate_seed
 
 
 def test_bound_counts_only_the_frames_the_camera_cannot_see():

@@ -5,11 +5,11 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from app.cli.main import main
-from core.camera.files import save_camera
-from core.camera.writers import write_depth_frames
-from core.evaluation.fusion import occluded_take, rgbd_frames
-from core.io import save_take
+from handmocap.app.cli.main import main
+from handmocap.core.camera.files import save_camera
+from handmocap.core.camera.writers import write_depth_frames
+from handmocap.core.evaluation.fusion import occluded_take, rgbd_frames
+from handmocap.core.io import save_take
 
 
 def test_fusion_cli_fuse_writes_result_and_refuses_to_overwrite(tmp_path, capsys):
@@ -45,7 +45,7 @@ def test_fusion_cli_fuse_writes_result_and_refuses_to_overwrite(tmp_path, capsys
 def test_fusion_cli_evaluate_prints_the_figures(monkeypatch, capsys):
     import json
 
-    import core.evaluation.fusion as evaluation
+    import handmocap.core.evaluation.fusion as evaluation
 
     def quick(seeds, settings, swarm):
         return {"occluded_joint_error_mm_markers_only": 2.0, "occluded_joint_error_mm_fused": 1.0,

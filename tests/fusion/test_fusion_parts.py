@@ -5,19 +5,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core.camera.model import Camera
-from core.camera.render import render_mesh
-from core.fusion.energy import TERMS, EnergyWeights, FrameEnergy
-from core.fusion.hand_render import HandRenderer, crop_around, distance_to, edge_map
-from core.fusion.lifting import interpolate_poses, lift
-from core.fusion.observation import ideal_image, observe
-from core.fusion.pso import SwarmSettings, particle_swarm
-from core.fusion.silhouette import cut_at_wrist, depth_silhouette, grabcut, wristband_line
-from core.fusion.subspace import AdaptiveSubspace
-from core.model import load_layout, load_template, marker_positions, resolve_layout
-from core.model.skeleton import default_joint_limits
-from core.prior import load_default_prior
-from core.simulate.camera import render_scene, simulate_camera_take
+from handmocap.core.camera.model import Camera
+from handmocap.core.camera.render import render_mesh
+from handmocap.core.fusion.energy import TERMS, EnergyWeights, FrameEnergy
+from handmocap.core.fusion.hand_render import HandRenderer, crop_around, distance_to, edge_map
+from handmocap.core.fusion.lifting import interpolate_poses, lift
+from handmocap.core.fusion.observation import ideal_image, observe
+from handmocap.core.fusion.pso import SwarmSettings, particle_swarm
+from handmocap.core.fusion.silhouette import cut_at_wrist, depth_silhouette, grabcut, wristband_line
+from handmocap.core.fusion.subspace import AdaptiveSubspace
+from handmocap.core.model import load_layout, load_template, marker_positions, resolve_layout
+from handmocap.core.model.skeleton import default_joint_limits
+from handmocap.core.prior import load_default_prior
+from handmocap.core.simulate.camera import render_scene, simulate_camera_take
 
 
 @pytest.fixture(scope="module")

@@ -8,10 +8,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from core.errors import CancelledError, InputError
-from core.evaluation.fusion import OCCLUDED_DIGITS, VISIBLE_DIGITS, joint_errors, occluded_take, rgbd_frames
-from core.fusion import FusionSettings, fuse_take
-from core.fusion.icp import ICPSettings
+from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.evaluation.fusion import OCCLUDED_DIGITS, VISIBLE_DIGITS, joint_errors, occluded_take, rgbd_frames
+from handmocap.core.fusion import FusionSettings, fuse_take
+from handmocap.core.fusion.icp import ICPSettings
 
 FAST = FusionSettings(icp=ICPSettings(iterations=4, depth_points=200), max_side=72)
 

@@ -6,14 +6,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.camera.model import Camera
-from core.fusion.depth_fit import DepthFitter, palm_centre, scaled_model
-from core.fusion.hand_render import Crop
-from core.fusion.hand_segment import find_hands
-from core.fusion.icp import ArticulatedICP, FitExtras, ICPSettings
-from core.fusion.kinematic_terms import CollisionTerm, chain_points, temporal_rows, wrist_rows
-from core.prior import load_default_prior
-from core.prior.pca_prior import soft_prior_matrix
+from handmocap.core.camera.model import Camera
+from handmocap.core.fusion.depth_fit import DepthFitter, palm_centre, scaled_model
+from handmocap.core.fusion.hand_render import Crop
+from handmocap.core.fusion.hand_segment import find_hands
+from handmocap.core.fusion.icp import ArticulatedICP, FitExtras, ICPSettings
+from handmocap.core.fusion.kinematic_terms import CollisionTerm, chain_points, temporal_rows, wrist_rows
+from handmocap.core.prior import load_default_prior
+from handmocap.core.prior.pca_prior import soft_prior_matrix
 
 CAMERA = Camera(np.array([[476.0, 0.0, 320.0], [0.0, 476.0, 240.0], [0.0, 0.0, 1.0]]), np.zeros(5), (640, 480),
                 registered=True)

@@ -5,15 +5,15 @@ import numpy as np
 import pytest
 from scipy.interpolate import CubicSpline
 
-from core.errors import InputError
-from core.gaps import ModelContext, check_gap, fill_gap, find_gaps
-from core.gaps.check import FALLBACK_ORDER, IK_PAD, _test_stretches, fill_order
-from core.gaps.fills import MODEL_FIT, SPLINE_CONTEXT, fill_linear, fill_model, fill_pattern, fill_spline
-from core.io import Take
-from core.model import load_layout, load_template
-from core.review import ReviewTake
-from core.simulate import simulate_take
-from core.workflows import fill_gaps, gap_groups, short_open_gaps
+from handmocap.core.errors import InputError
+from handmocap.core.gaps import ModelContext, check_gap, fill_gap, find_gaps
+from handmocap.core.gaps.check import FALLBACK_ORDER, IK_PAD, _test_stretches, fill_order
+from handmocap.core.gaps.fills import MODEL_FIT, SPLINE_CONTEXT, fill_linear, fill_model, fill_pattern, fill_spline
+from handmocap.core.io import Take
+from handmocap.core.model import load_layout, load_template
+from handmocap.core.review import ReviewTake
+from handmocap.core.simulate import simulate_take
+from handmocap.core.workflows import fill_gaps, gap_groups, short_open_gaps
 
 BASE_FRAMES = 2000
 
@@ -211,7 +211,7 @@ def test_auto_learns_when_pca_wins_and_checks_as_the_full_check_does_until_then(
     method of its full check (the model fill, checked on fewer gaps, never displaced PCA here); a method that has
     not displaced PCA on WARM_CHECKS checks in a row is checked on fewer gaps; a gap longer than the local horizon
     goes to PCA without a check."""
-    from core.gaps import check as check_module
+    from handmocap.core.gaps import check as check_module
 
     context = ModelContext.for_take(short_take.marker_names, load_template(), load_layout("dense"))
     gaps = [gap for gap in find_gaps(short_take) if not gap.open and gap.length <= 80]
@@ -244,7 +244,7 @@ def test_auto_learns_when_pca_wins_and_checks_as_the_full_check_does_until_then(
 
 
 def test_pca_pose_kernel_equals_kabsch_by_svd():
-    from core.gaps.pca_kernel import poses_kernel
+    from handmocap.core.gaps.pca_kernel import poses_kernel
 
     rng = np.random.default_rng(3)
     for trial in range(60):

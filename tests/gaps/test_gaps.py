@@ -4,10 +4,10 @@
 import numpy as np
 import pytest
 
-from core.errors import InputError
-from core.evaluation.data import REAL_RECORDING
-from core.evaluation.gaps import evaluate_gap_fill
-from core.gaps import (
+from handmocap.core.errors import InputError
+from handmocap.core.evaluation.data import REAL_RECORDING
+from handmocap.core.evaluation.gaps import evaluate_gap_fill
+from handmocap.core.gaps import (
     FILL_METHODS,
     METHOD_CODES,
     ModelContext,
@@ -23,10 +23,10 @@ from core.gaps import (
     minimum_acceleration_interpolation,
     recommend,
 )
-from core.io import Take
-from core.model import load_layout, load_template
-from core.model.kinematics import rotation_from_vector
-from core.simulate import simulate_take
+from handmocap.core.io import Take
+from handmocap.core.model import load_layout, load_template
+from handmocap.core.model.kinematics import rotation_from_vector
+from handmocap.core.simulate import simulate_take
 
 needs_real = pytest.mark.skipif(not REAL_RECORDING.exists(), reason="shared data absent")
 

@@ -5,14 +5,14 @@ evaluation of many gaps hidden at once through the fill of the command line."""
 import numpy as np
 import pytest
 
-from core.errors import InputError
-from core.evaluation.data import REAL_RECORDING
-from core.evaluation.gaps import evaluate_hidden_gaps, hide_gaps
-from core.gaps import FillCheck, Gap, fill_gap, fill_linear, fill_pca, fill_spline
-from core.gaps.check import LOCAL_HORIZON_S
-from core.io import Take
-from core.model import load_layout
-from core.simulate import simulate_take
+from handmocap.core.errors import InputError
+from handmocap.core.evaluation.data import REAL_RECORDING
+from handmocap.core.evaluation.gaps import evaluate_hidden_gaps, hide_gaps
+from handmocap.core.gaps import FillCheck, Gap, fill_gap, fill_linear, fill_pca, fill_spline
+from handmocap.core.gaps.check import LOCAL_HORIZON_S
+from handmocap.core.io import Take
+from handmocap.core.model import load_layout
+from handmocap.core.simulate import simulate_take
 
 needs_real = pytest.mark.skipif(not REAL_RECORDING.exists(), reason="shared data absent")
 FINGERS = ("thumb_tip", "thumb_middle", "index_tip", "index_middle", "middle_tip", "middle_middle", "ring_tip",

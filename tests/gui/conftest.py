@@ -41,7 +41,7 @@ def window(qtbot, monkeypatch):
     """A main window with message boxes captured instead of shown."""
     from PySide6.QtWidgets import QMessageBox
 
-    from app.gui.main_window import MainWindow
+    from handmocap.app.gui.main_window import MainWindow
 
     messages: list[str] = []
     monkeypatch.setattr(QMessageBox, "warning", lambda parent, title, text: messages.append(text))

@@ -8,13 +8,13 @@ import pytest
 from PySide6.QtCore import Qt, QTimer
 from PySide6.QtWidgets import QApplication, QDialogButtonBox
 
-from app.gui.review_controller import AutoLabelDialog, AutoLabelSettings
-from core.evaluation.data import REAL_RECORDING
-from core.io import load_take, save_take
-from core.io.labelled_c3d import subject_calibrations
-from core.review import MEASURED
-from core.session import Session
-from core.simulate import simulate_take
+from handmocap.app.gui.review_controller import AutoLabelDialog, AutoLabelSettings
+from handmocap.core.evaluation.data import REAL_RECORDING
+from handmocap.core.io import load_take, save_take
+from handmocap.core.io.labelled_c3d import subject_calibrations
+from handmocap.core.review import MEASURED
+from handmocap.core.session import Session
+from handmocap.core.simulate import simulate_take
 
 pytestmark = pytest.mark.gui
 

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 from conftest import release
 
-from core.calibration.landmarks import landmarks_from_truth, save_landmarks
-from core.calibration.scan import save_ply
-from core.calibration.synthetic_scan import synthetic_scan
-from core.model import HandModel
+from handmocap.core.calibration.landmarks import landmarks_from_truth, save_landmarks
+from handmocap.core.calibration.scan import save_ply
+from handmocap.core.calibration.synthetic_scan import synthetic_scan
+from handmocap.core.model import HandModel
 
 pytestmark = pytest.mark.gui
 
@@ -22,7 +22,7 @@ def scan_files(tmp_path_factory):
 
 
 def test_wizard_calibrates_a_scan(qtbot, scan_files, tmp_path):
-    from app.gui.calibration_wizard import open_calibration_wizard
+    from handmocap.app.gui.calibration_wizard import open_calibration_wizard
 
     wizard = open_calibration_wizard(None)
     qtbot.addWidget(wizard)
@@ -78,7 +78,7 @@ def test_wizard_calibrates_a_scan(qtbot, scan_files, tmp_path):
 
 
 def test_wizard_shows_bad_scan_and_keeps_landmarks_after_a_failed_alignment(qtbot, scan_files, tmp_path):
-    from app.gui.calibration_wizard import open_calibration_wizard
+    from handmocap.app.gui.calibration_wizard import open_calibration_wizard
 
     wizard = open_calibration_wizard(None)
     qtbot.addWidget(wizard)
@@ -104,8 +104,8 @@ def test_wizard_shows_bad_scan_and_keeps_landmarks_after_a_failed_alignment(qtbo
 
 
 def test_a_scan_without_colours_skips_the_clean_page(qtbot, tmp_path):
-    from app.gui.calibration_wizard import open_calibration_wizard
-    from core.calibration.scan import Scan
+    from handmocap.app.gui.calibration_wizard import open_calibration_wizard
+    from handmocap.core.calibration.scan import Scan
 
     scan, _ = synthetic_scan(n_points=8000, background_points=0, outlier_share=0.0, seed=1)
     save_ply(Scan(scan.points, scan.normals), tmp_path / "grey.ply")

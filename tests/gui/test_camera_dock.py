@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 from PySide6.QtCore import QPoint, Qt
 
-from core.camera.files import save_camera
-from core.camera.frames import VideoFrames
-from core.camera.intrinsics import BoardSpec
-from core.camera.writers import write_video
-from core.io import save_take
-from core.session import Session
-from core.session.cameras import add_camera, take_cameras
-from core.simulate.camera import board_views, random_camera, simulate_camera_take
+from handmocap.core.camera.files import save_camera
+from handmocap.core.camera.frames import VideoFrames
+from handmocap.core.camera.intrinsics import BoardSpec
+from handmocap.core.camera.writers import write_video
+from handmocap.core.io import save_take
+from handmocap.core.session import Session
+from handmocap.core.session.cameras import add_camera, take_cameras
+from handmocap.core.simulate.camera import board_views, random_camera, simulate_camera_take
 
 pytestmark = pytest.mark.gui
 
@@ -143,7 +143,7 @@ def board_images(tmp_path_factory):
 
 
 def test_wizard_calibrates_intrinsics_on_a_worker_and_can_be_cancelled(window, qtbot, board_images, tmp_path):
-    from app.gui.camera_wizard import CameraWizard
+    from handmocap.app.gui.camera_wizard import CameraWizard
 
     truth, paths = board_images
     wizard = CameraWizard(window, window.cameras)
@@ -164,7 +164,7 @@ def test_wizard_calibrates_intrinsics_on_a_worker_and_can_be_cancelled(window, q
     assert not [cell for cell in cells if "nan" in cell.lower()], cells     # a left-out view shows its error
     assert wizard.progress_bar.value() == 100                               # done: the bar is full, not back at 0
     assert wizard.save(tmp_path / "calibrated.json")
-    from core.camera.files import load_camera
+    from handmocap.core.camera.files import load_camera
 
     np.testing.assert_allclose(load_camera(tmp_path / "calibrated.json").matrix, wizard.camera.matrix)
     wizard.close()
@@ -190,7 +190,7 @@ def test_playback_keeps_the_video_in_step_with_the_take(window, qtbot, filmed, t
 
 
 def test_rgbd_camera_toggles_between_colour_and_depth(window, qtbot, filmed, tmp_path):
-    from core.camera.writers import write_depth_frames
+    from handmocap.core.camera.writers import write_depth_frames
 
     files, simulated = filmed
     depth = tmp_path / "depth"
@@ -214,8 +214,8 @@ def test_rgbd_camera_toggles_between_colour_and_depth(window, qtbot, filmed, tmp
 
 
 def test_wizard_estimates_the_offset_of_a_registered_camera(window, qtbot, filmed, tmp_path):
-    from app.gui.camera_wizard import CameraWizard
-    from core.camera.model import CameraClock
+    from handmocap.app.gui.camera_wizard import CameraWizard
+    from handmocap.core.camera.model import CameraClock
 
     files, simulated = filmed
     folder = session_with_camera(filmed, tmp_path / "session", with_camera=False)
@@ -235,7 +235,7 @@ def test_wizard_estimates_the_offset_of_a_registered_camera(window, qtbot, filme
 
 
 def test_demo_session_has_a_take_filmed_by_a_calibrated_camera(tmp_path):
-    from app.gui.demo import CAMERA_OFFSET_S, prepare_demo_session
+    from handmocap.app.gui.demo import CAMERA_OFFSET_S, prepare_demo_session
 
     session = Session.open(prepare_demo_session(tmp_path / "demo"))
     [entry] = [entry for entry in session.takes if entry.cameras]
@@ -248,8 +248,8 @@ def test_demo_session_has_a_take_filmed_by_a_calibrated_camera(tmp_path):
 
 
 def test_wizard_registers_an_unregistered_camera_from_the_takes_markers(window, qtbot, filmed, tmp_path):
-    from app.gui.camera_wizard import CameraWizard
-    from core.camera.model import Camera, rotation_angle_deg
+    from handmocap.app.gui.camera_wizard import CameraWizard
+    from handmocap.core.camera.model import Camera, rotation_angle_deg
 
     files, simulated = filmed
     truth = simulated.camera
@@ -277,9 +277,9 @@ def test_wizard_registers_an_unregistered_camera_from_the_takes_markers(window, 
 def test_wizard_registers_from_a_marked_board_filmed_in_the_video(window, qtbot, tmp_path):
     import json
 
-    from app.gui.camera_wizard import CameraWizard
-    from core.camera.model import Camera, rotation_angle_deg
-    from core.io import Take
+    from handmocap.app.gui.camera_wizard import CameraWizard
+    from handmocap.core.camera.model import Camera, rotation_angle_deg
+    from handmocap.core.io import Take
 
     truth = random_camera(31)                           # clock offset 0: camera frame k at mocap time k / 30 s
     views = board_views(truth, BoardSpec(), 8, seed=31)

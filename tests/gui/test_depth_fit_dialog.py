@@ -12,7 +12,7 @@ import sys
 
 import pytest
 
-from core.evaluation.data import RGBD_FRAMES
+from handmocap.core.evaluation.data import RGBD_FRAMES
 
 FRAME = RGBD_FRAMES / "sr305_open_right_hand" / "130.png"
 pytestmark = [pytest.mark.gui,
@@ -20,7 +20,7 @@ pytestmark = [pytest.mark.gui,
 
 
 def _fitted_dialog(qtbot, frame=FRAME):
-    from app.gui.depth_fit_dialog import DepthFitDialog
+    from handmocap.app.gui.depth_fit_dialog import DepthFitDialog
 
     dialog = DepthFitDialog(None, str(frame))
     qtbot.addWidget(dialog)
@@ -54,7 +54,7 @@ def test_depth_fit_dialog_bad_frame_is_one_line(qtbot, tmp_path):
 if __name__ == "__main__":  # pragma: no cover - the README's screenshot
     from PySide6.QtWidgets import QApplication
 
-    from app.gui.depth_fit_dialog import DepthFitDialog
+    from handmocap.app.gui.depth_fit_dialog import DepthFitDialog
 
     application = QApplication.instance() or QApplication(sys.argv)
     shown = DepthFitDialog(None, str(FRAME))

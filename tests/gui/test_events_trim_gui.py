@@ -8,10 +8,10 @@ import pytest
 from PySide6.QtCore import Qt, QTimer
 from PySide6.QtWidgets import QApplication
 
-from app.gui.document import TakeDocument
-from app.gui.review_controller import EventDialog
-from core.review import review_from_labelled_c3d
-from core.simulate import simulate_take
+from handmocap.app.gui.document import TakeDocument
+from handmocap.app.gui.review_controller import EventDialog
+from handmocap.core.review import review_from_labelled_c3d
+from handmocap.core.simulate import simulate_take
 
 pytestmark = pytest.mark.gui
 FRAMES = 300

@@ -9,16 +9,16 @@ import numpy as np
 import pytest
 from PySide6.QtWidgets import QMessageBox
 
-from app.gui.export_dialog import ExportDialog
-from core.io import load_take
-from core.io.axes import Y_UP
-from core.io.labelled_c3d import read_labelled_c3d
-from core.model import load_template
-from core.model.bvh import read_bvh
-from core.model.gltf import load_gltf_hand
-from core.review import ReviewTake
-from core.review.synthetic import synthetic_labelling
-from core.simulate.motion import simulate_joint_angles
+from handmocap.app.gui.export_dialog import ExportDialog
+from handmocap.core.io import load_take
+from handmocap.core.io.axes import Y_UP
+from handmocap.core.io.labelled_c3d import read_labelled_c3d
+from handmocap.core.model import load_template
+from handmocap.core.model.bvh import read_bvh
+from handmocap.core.model.gltf import load_gltf_hand
+from handmocap.core.review import ReviewTake
+from handmocap.core.review.synthetic import synthetic_labelling
+from handmocap.core.simulate.motion import simulate_joint_angles
 
 FRAMES = 40
 

@@ -6,9 +6,9 @@ import pytest
 from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import QApplication, QDialog
 
-from core.session import Session
-from core.simulate import simulate_take
-from widgets.frame_rate_dialog import DEFAULT_FRAME_RATE_HZ, FrameRateDialog, FrameRatePrompt
+from handmocap.core.session import Session
+from handmocap.core.simulate import simulate_take
+from handmocap.widgets.frame_rate_dialog import DEFAULT_FRAME_RATE_HZ, FrameRateDialog, FrameRatePrompt
 
 pytestmark = pytest.mark.gui
 

@@ -8,15 +8,15 @@ import json
 import numpy as np
 import pytest
 
-from core.camera.files import save_camera
-from core.camera.writers import write_depth_frames, write_video
-from core.fusion import FusionSettings
-from core.fusion.icp import ICPSettings
-from core.io import save_take
-from core.review import command_from_json
-from core.session import Session
-from core.session.cameras import add_camera
-from core.simulate.camera import random_camera, simulate_camera_take
+from handmocap.core.camera.files import save_camera
+from handmocap.core.camera.writers import write_depth_frames, write_video
+from handmocap.core.fusion import FusionSettings
+from handmocap.core.fusion.icp import ICPSettings
+from handmocap.core.io import save_take
+from handmocap.core.review import command_from_json
+from handmocap.core.session import Session
+from handmocap.core.session.cameras import add_camera
+from handmocap.core.simulate.camera import random_camera, simulate_camera_take
 
 pytestmark = pytest.mark.gui
 
@@ -138,9 +138,9 @@ def test_fusion_needs_depth_frames(window, qtbot, filmed, tmp_path):
 
 
 def test_demo_camera_is_an_rgbd_camera(tmp_path):
-    from app.gui.demo import _add_camera_take
-    from core.camera.frames import open_frames
-    from core.session.cameras import take_cameras
+    from handmocap.app.gui.demo import _add_camera_take
+    from handmocap.core.camera.frames import open_frames
+    from handmocap.core.session.cameras import take_cameras
 
     session = Session.create(tmp_path / "demo")
     (tmp_path / "demo" / "files").mkdir()

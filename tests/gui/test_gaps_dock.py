@@ -4,12 +4,12 @@ marker lanes colour and name its filled samples."""
 import numpy as np
 import pytest
 
-from core.gaps import METHOD_CODES, check_gap, fill_gap, find_gaps
-from core.io import Take
-from core.simulate import simulate_take
-from widgets.fill_preview import FillPreview
-from widgets.gap_list import METHOD_TITLES, GapList, gap_rows
-from widgets.marker_lanes import METHOD_COLOURS, STATE_COLOURS, STATE_NAMES, STATE_RANKS, lane_states
+from handmocap.core.gaps import METHOD_CODES, check_gap, fill_gap, find_gaps
+from handmocap.core.io import Take
+from handmocap.core.simulate import simulate_take
+from handmocap.widgets.fill_preview import FillPreview
+from handmocap.widgets.gap_list import METHOD_TITLES, GapList, gap_rows
+from handmocap.widgets.marker_lanes import METHOD_COLOURS, STATE_COLOURS, STATE_NAMES, STATE_RANKS, lane_states
 
 pytestmark = pytest.mark.gui
 

@@ -6,9 +6,9 @@ import pytest
 from conftest import release
 from PySide6.QtWidgets import QMessageBox
 
-import app.gui.layout_view as layout_view_module
-from app.gui.layout_view import open_layout_view
-from core.model import load_layout
+import handmocap.app.gui.layout_view as layout_view_module
+from handmocap.app.gui.layout_view import open_layout_view
+from handmocap.core.model import load_layout
 
 
 @pytest.fixture

@@ -13,15 +13,15 @@ import pytest
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QMessageBox
 
-from app.gui.document import TakeDocument
-from app.gui.learn_template import LearnTemplateDialog, TakeSource, where_it_sits
-from app.gui.review_controller import AutoLabelDialog, AutoLabelSettings
-from core.evaluation.data import SHARED_DATA
-from core.io import Take
-from core.model import MarkerLayout, layout_names, load_layout
-from core.model.lab_template import load_lab_template
-from core.simulate import simulate_scene
-from widgets.frame_rate_dialog import FrameRatePrompt
+from handmocap.app.gui.document import TakeDocument
+from handmocap.app.gui.learn_template import LearnTemplateDialog, TakeSource, where_it_sits
+from handmocap.app.gui.review_controller import AutoLabelDialog, AutoLabelSettings
+from handmocap.core.evaluation.data import SHARED_DATA
+from handmocap.core.io import Take
+from handmocap.core.model import MarkerLayout, layout_names, load_layout
+from handmocap.core.model.lab_template import load_lab_template
+from handmocap.core.simulate import simulate_scene
+from handmocap.widgets.frame_rate_dialog import FrameRatePrompt
 
 FRAMES = 300            # shorter simulated takes sometimes get the digit order wrong (core)
 GUITAR = SHARED_DATA / "guitar" / "nokov_guitarist_arpeggio.csv"

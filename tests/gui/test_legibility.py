@@ -9,13 +9,13 @@ import warnings
 import pytest
 from PySide6.QtCore import QPoint
 
-from app.gui.document import TakeDocument
-from app.gui.launch import window_size
-from core.errors import InputError
-from core.evaluation.data import REAL_RECORDING
-from core.simulate import simulate_take
-from widgets.gap_list import COLUMNS as GAP_COLUMNS
-from widgets.review_table import COLUMNS as TABLE_COLUMNS
+from handmocap.app.gui.document import TakeDocument
+from handmocap.app.gui.launch import window_size
+from handmocap.core.errors import InputError
+from handmocap.core.evaluation.data import REAL_RECORDING
+from handmocap.core.simulate import simulate_take
+from handmocap.widgets.gap_list import COLUMNS as GAP_COLUMNS
+from handmocap.widgets.review_table import COLUMNS as TABLE_COLUMNS
 
 pytestmark = pytest.mark.gui
 
@@ -80,8 +80,8 @@ def test_take_names_are_elided_in_the_middle_with_the_full_name_as_tooltip(small
 
 def test_warnings_land_in_the_message_panel(small, qtbot, capsys):
     panel = small.message_panel
-    logging.getLogger("core.io.c3d_file").warning("take.c3d: POINT:UNITS is missing")
-    worker = threading.Thread(target=lambda: logging.getLogger("core.io.trc").warning("from a worker"))
+    logging.getLogger("handmocap.core.io.c3d_file").warning("take.c3d: POINT:UNITS is missing")
+    worker = threading.Thread(target=lambda: logging.getLogger("handmocap.core.io.trc").warning("from a worker"))
     worker.start()
     worker.join()
     with warnings.catch_warnings():

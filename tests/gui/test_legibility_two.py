@@ -9,9 +9,9 @@ import pytest
 from PySide6.QtGui import QFont, QFontMetrics, QPalette
 from PySide6.QtWidgets import QApplication
 
-from app.gui.document import TakeDocument
-from core.simulate import simulate_take
-from widgets.session_browser import distinct_elided
+from handmocap.app.gui.document import TakeDocument
+from handmocap.core.simulate import simulate_take
+from handmocap.widgets.session_browser import distinct_elided
 
 pytestmark = pytest.mark.gui
 
@@ -53,8 +53,8 @@ def test_the_gaps_dock_at_1366x768_shows_its_buttons_and_whole_headers(window, q
 
 
 def test_layout_list_tick_boxes_show_on_the_dark_theme(qtbot):
-    from app.gui.layout_view import LayoutWindow
-    from app.gui.palette import apply_dark_palette
+    from handmocap.app.gui.layout_view import LayoutWindow
+    from handmocap.app.gui.palette import apply_dark_palette
 
     app = QApplication.instance()
     before = app.palette()
@@ -75,14 +75,14 @@ def test_camera_sync_buttons_and_table_headers_speak_plainly(window):
     buttons = window.cameras.view.nudge_buttons
     assert [buttons[step].text() for step in ((-1, 0), (0, -1), (0, 1), (1, 0))] == ["◀◀", "◀", "▶", "▶▶"]
     assert "Ctrl+Alt+Left" in buttons[(-1, 0)].toolTip() and "clock offset" in buttons[(-1, 0)].toolTip()
-    from widgets.layout_plots import METRIC_ROWS, METRIC_TIPS
+    from handmocap.widgets.layout_plots import METRIC_ROWS, METRIC_TIPS
 
     assert not any("κ" in name for name, _ in METRIC_ROWS) and "κ(JᵀJ)" in METRIC_TIPS[1]
 
 
 def test_the_batch_report_names_the_takes_on_its_axis(qtbot):
     pytest.importorskip("matplotlib")
-    from core.batch.report import COLUMNS, study_report_html
+    from handmocap.core.batch.report import COLUMNS, study_report_html
 
     rows = [{"take": f"t{index:04d}", "name": name, "status": "done", "labelled_share": 0.9, "longest_gap": 12,
              "mean_residual_mm": 0.5, "seconds": 1.0} for index, name in enumerate(["trial01", "trial02"])]

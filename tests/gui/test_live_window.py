@@ -14,10 +14,10 @@ pytestmark = pytest.mark.gui
 
 
 def _start(tmp_path: Path, hands: str = "both", objects: int = 1):
-    from core.live.capture import LiveCapture
-    from core.live.server import StandInServer, make_replay
-    from core.live.systems import make_source
-    from core.simulate.scene import simulate_scene
+    from handmocap.core.live.capture import LiveCapture
+    from handmocap.core.live.server import StandInServer, make_replay
+    from handmocap.core.live.systems import make_source
+    from handmocap.core.simulate.scene import simulate_scene
 
     scene = simulate_scene("glove-13", n_frames=1500, seed=5, hands=hands, n_objects=objects, frame_rate=100.0)
     server = StandInServer(make_replay(scene.take, 100, unlabelled=True), "qtm", 0).start()
@@ -28,7 +28,7 @@ def _start(tmp_path: Path, hands: str = "both", objects: int = 1):
 
 
 def test_live_window_draws_at_its_own_pace(qtbot, tmp_path):
-    from app.gui.live_window import LiveWindow
+    from handmocap.app.gui.live_window import LiveWindow
 
     # one hand and an object: what is under test is the window's pace, not the labeller's throughput on a loaded
     # test machine (that is measured by tests/bench/bench_live.py)
@@ -65,12 +65,12 @@ def test_qtm_control_buttons_drive_the_server_and_the_recording_follows(qtbot, t
     from PySide6.QtCore import Qt
     from PySide6.QtWidgets import QMessageBox
 
-    from app.gui.live_window import LiveWindow
-    from core.live.capture import LiveCapture
-    from core.live.server import StandInServer, make_replay
-    from core.live.systems import make_source
-    from core.session.session import Session
-    from core.simulate.take import simulate_take
+    from handmocap.app.gui.live_window import LiveWindow
+    from handmocap.core.live.capture import LiveCapture
+    from handmocap.core.live.server import StandInServer, make_replay
+    from handmocap.core.live.systems import make_source
+    from handmocap.core.session.session import Session
+    from handmocap.core.simulate.take import simulate_take
 
     refusals: list[str] = []
     monkeypatch.setattr(QMessageBox, "warning", lambda _parent, _title, text: refusals.append(text))
@@ -138,7 +138,7 @@ def main(out: str) -> int:
 
     from PySide6.QtWidgets import QApplication
 
-    from app.gui.live_window import LiveWindow
+    from handmocap.app.gui.live_window import LiveWindow
 
     app = QApplication.instance() or QApplication(sys.argv)
     with tempfile.TemporaryDirectory() as tmp:

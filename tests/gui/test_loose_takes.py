@@ -10,11 +10,11 @@ import shiboken6
 from conftest import release
 from PySide6.QtWidgets import QMessageBox
 
-from app.gui.loose_takes import LOOSE_FOLDER, loose_folder
-from app.gui.main_window import MainWindow
-from app.gui.review_controller import AutoLabelSettings
-from core.io import save_take
-from core.simulate import simulate_take
+from handmocap.app.gui.loose_takes import LOOSE_FOLDER, loose_folder
+from handmocap.app.gui.main_window import MainWindow
+from handmocap.app.gui.review_controller import AutoLabelSettings
+from handmocap.core.io import save_take
+from handmocap.core.simulate import simulate_take
 
 pytestmark = pytest.mark.gui
 

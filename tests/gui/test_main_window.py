@@ -5,9 +5,9 @@ import pytest
 from conftest import release
 from PySide6.QtCore import Qt
 
-from app.gui.document import TakeDocument
-from core.io import Take, save_take
-from core.simulate import simulate_take
+from handmocap.app.gui.document import TakeDocument
+from handmocap.core.io import Take, save_take
+from handmocap.core.simulate import simulate_take
 
 pytestmark = pytest.mark.gui
 
@@ -127,7 +127,7 @@ def test_solve_on_worker_then_hand_follows_the_scrubbing(window, qtbot, take_fil
 
 
 def test_left_hand_take_is_solved_and_drawn_with_the_mirrored_model(window, qtbot, tmp_path):
-    from core.model import load_template, skin_vertices
+    from handmocap.core.model import load_template, skin_vertices
 
     simulated = simulate_take(layout="dense", n_frames=60, seed=4)
     mirrored = simulated.take.marker_positions * np.array([-1.0, 1.0, 1.0])
@@ -192,7 +192,7 @@ def test_take_without_layout_markers_reports_instead_of_crashing(window, qtbot):
 
 
 def test_closing_while_solving_stops_the_worker(qtbot, long_take):
-    from app.gui.main_window import MainWindow
+    from handmocap.app.gui.main_window import MainWindow
 
     window = MainWindow()
     window.show()

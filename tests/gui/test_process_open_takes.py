@@ -17,11 +17,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "batch"))
 
 from batch_study import make_study  # noqa: E402
 
-from app.gui.application import Application  # noqa: E402
-from app.gui.batch_panel import BatchPanel  # noqa: E402
-from app.gui.document import TakeDocument  # noqa: E402
-from core.batch.state import read_state  # noqa: E402
-from core.session.session import Session  # noqa: E402
+from handmocap.app.gui.application import Application  # noqa: E402
+from handmocap.app.gui.batch_panel import BatchPanel  # noqa: E402
+from handmocap.app.gui.document import TakeDocument  # noqa: E402
+from handmocap.core.batch.state import read_state  # noqa: E402
+from handmocap.core.session.session import Session  # noqa: E402
 
 
 def _open(app: Application, take_id: str) -> TakeDocument:

@@ -6,9 +6,9 @@ or all when asked."""
 import numpy as np
 import pytest
 
-from app.gui.document import TakeDocument
-from core.simulate import simulate_take
-from widgets.viewport import IDLE_MS
+from handmocap.app.gui.document import TakeDocument
+from handmocap.core.simulate import simulate_take
+from handmocap.widgets.viewport import IDLE_MS
 
 pytestmark = pytest.mark.gui
 

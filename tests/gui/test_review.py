@@ -4,9 +4,9 @@ jump to problems, export a labelled C3D."""
 import numpy as np
 import pytest
 
-from app.gui.review_controller import AutoLabelSettings
-from core.io import save_take
-from core.simulate import simulate_take
+from handmocap.app.gui.review_controller import AutoLabelSettings
+from handmocap.core.io import save_take
+from handmocap.core.simulate import simulate_take
 
 pytestmark = pytest.mark.gui
 
@@ -159,7 +159,7 @@ def test_gap_fill_accept_fill_all_and_problems(window, qtbot, raw_take, tmp_path
 
 
 def test_two_hands_and_a_rigid_body_from_selected_points(window, qtbot, tmp_path):
-    from core.simulate.scene import simulate_scene
+    from handmocap.core.simulate.scene import simulate_scene
 
     scene = simulate_scene(layout="glove-13", n_frames=150, seed=2, hands="both", n_objects=1)
     path = tmp_path / "scene.c3d"

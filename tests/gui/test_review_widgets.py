@@ -7,9 +7,9 @@ from PySide6.QtCore import QMimeData, QPoint, QPointF, Qt, QUrl
 from PySide6.QtGui import QDropEvent
 from PySide6.QtWidgets import QFileDialog
 
-from core.gaps import METHOD_CODES, check_gap, fill_gap, find_gaps
-from core.io import Take
-from core.review import (
+from handmocap.core.gaps import METHOD_CODES, check_gap, fill_gap, find_gaps
+from handmocap.core.io import Take
+from handmocap.core.review import (
     LANE_EDITED,
     LANE_FILLED,
     LANE_GAP,
@@ -19,10 +19,10 @@ from core.review import (
     MarkerStats,
     ReviewTake,
 )
-from widgets.fill_preview import FillPreview
-from widgets.gap_list import AUTO_DONOR, GapList, GapRow, gap_rows, with_state
-from widgets.gap_list import COLUMNS as GAP_COLUMNS
-from widgets.marker_lanes import (
+from handmocap.widgets.fill_preview import FillPreview
+from handmocap.widgets.gap_list import AUTO_DONOR, GapList, GapRow, gap_rows, with_state
+from handmocap.widgets.gap_list import COLUMNS as GAP_COLUMNS
+from handmocap.widgets.marker_lanes import (
     EDITED,
     GAP,
     LOW_CONFIDENCE,
@@ -35,9 +35,9 @@ from widgets.marker_lanes import (
     lanes_from_review,
     state_ranks,
 )
-from widgets.review_table import COLUMNS as TABLE_COLUMNS
-from widgets.review_table import ReviewTable
-from widgets.session_browser import SessionBrowser, TakeRow
+from handmocap.widgets.review_table import COLUMNS as TABLE_COLUMNS
+from handmocap.widgets.review_table import ReviewTable
+from handmocap.widgets.session_browser import SessionBrowser, TakeRow
 
 pytestmark = pytest.mark.gui
 
@@ -192,7 +192,7 @@ def test_x_range_sync_and_cursor(lanes, qtbot):
 
 
 def test_lanes_follow_the_timeline_when_linked(lanes, qtbot):
-    from widgets.timeline import TimelineWidget
+    from handmocap.widgets.timeline import TimelineWidget
 
     timeline = TimelineWidget()
     qtbot.addWidget(timeline)

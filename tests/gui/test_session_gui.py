@@ -4,10 +4,10 @@ crash (the journal is replayed); a damaged manifest gives a message and is left 
 import numpy as np
 import pytest
 
-from app.gui.review_controller import AutoLabelSettings
-from core.io import save_take
-from core.session import Session
-from core.simulate import simulate_take
+from handmocap.app.gui.review_controller import AutoLabelSettings
+from handmocap.core.io import save_take
+from handmocap.core.session import Session
+from handmocap.core.simulate import simulate_take
 
 pytestmark = pytest.mark.gui
 

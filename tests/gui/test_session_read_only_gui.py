@@ -9,16 +9,16 @@ from pathlib import Path
 
 import pytest
 
-from core.io import save_take
-from core.review import Unlabel
-from core.review.synthetic import synthetic_labelling
-from core.session import Session
+from handmocap.core.io import save_take
+from handmocap.core.review import Unlabel
+from handmocap.core.review.synthetic import synthetic_labelling
+from handmocap.core.session import Session
 
 pytestmark = pytest.mark.gui
 ROOT = Path(__file__).resolve().parents[2]
 HOLD_TAKE = textwrap.dedent("""
     import sys, time
-    from core.session import Session
+    from handmocap.core.session import Session
     opened = Session.open(sys.argv[1]).open_take("t0001")
     print("held", flush=True)
     time.sleep(120)

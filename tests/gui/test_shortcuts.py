@@ -10,11 +10,11 @@ from PySide6.QtCore import Qt, QTimer
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import QApplication
 
-from app.gui.document import TakeDocument
-from core.simulate import simulate_take
-from widgets.label_picker import LabelPicker
-from widgets.shortcuts import SECTIONS, SHORTCUTS, key_text, rows
-from widgets.shortcuts_dialog import ShortcutsDialog
+from handmocap.app.gui.document import TakeDocument
+from handmocap.core.simulate import simulate_take
+from handmocap.widgets.label_picker import LabelPicker
+from handmocap.widgets.shortcuts import SECTIONS, SHORTCUTS, key_text, rows
+from handmocap.widgets.shortcuts_dialog import ShortcutsDialog
 
 pytestmark = pytest.mark.gui
 
@@ -96,7 +96,7 @@ def test_w_then_typing_swaps_with_the_label_found(window, qtbot):
 
 
 def test_ctrl_z_in_the_calibration_wizard_undoes_the_last_landmark(qtbot):
-    from app.gui.calibration_wizard import open_calibration_wizard
+    from handmocap.app.gui.calibration_wizard import open_calibration_wizard
 
     wizard = open_calibration_wizard(None)
     qtbot.addWidget(wizard)

@@ -5,12 +5,12 @@ import numpy as np
 import pytest
 from PySide6.QtCore import QPoint, QPointF, Qt
 
-from app.gui.document import TakeDocument
-from core.io import Take
-from core.review import AcceptFills, GapFill, Unlabel
-from core.simulate import simulate_take
-from widgets.marker_lanes import GAP_COLOUR, METHOD_COLOURS
-from widgets.trajectory_plots import acceleration_spikes, kinematics
+from handmocap.app.gui.document import TakeDocument
+from handmocap.core.io import Take
+from handmocap.core.review import AcceptFills, GapFill, Unlabel
+from handmocap.core.simulate import simulate_take
+from handmocap.widgets.marker_lanes import GAP_COLOUR, METHOD_COLOURS
+from handmocap.widgets.trajectory_plots import acceleration_spikes, kinematics
 
 pytestmark = pytest.mark.gui
 

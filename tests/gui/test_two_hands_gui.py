@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from two_hand_takes import LAYOUT, named_take, write_lab_template
 
-from core.io import save_take
-from core.model import add_layout_folder, remove_layout_folder
-from core.model.provenance import FILL_CODES
+from handmocap.core.io import save_take
+from handmocap.core.model import add_layout_folder, remove_layout_folder
+from handmocap.core.model.provenance import FILL_CODES
 
 pytestmark = pytest.mark.gui
 
@@ -99,10 +99,10 @@ def test_the_gap_dock_fills_either_hand_with_the_model(window, qtbot, tmp_path):
 
 
 def test_the_export_dialog_writes_a_bvh_per_hand_and_one_gltf(qtbot, tmp_path):
-    from app.gui.export_dialog import ExportDialog
-    from core.model import load_template
-    from core.model.bvh import read_bvh
-    from core.review import ReviewTake
+    from handmocap.app.gui.export_dialog import ExportDialog
+    from handmocap.core.model import load_template
+    from handmocap.core.model.bvh import read_bvh
+    from handmocap.core.review import ReviewTake
 
     review = ReviewTake.from_labelled_take(named_take("label", frames=30))
     for number, hand in enumerate(review.hands):

@@ -10,8 +10,8 @@ import pytest
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QApplication
 
-from core.io import save_take
-from core.simulate import simulate_take
+from handmocap.core.io import save_take
+from handmocap.core.simulate import simulate_take
 
 pytestmark = pytest.mark.gui
 FRAMES = 20_000

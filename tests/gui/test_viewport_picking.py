@@ -7,7 +7,7 @@ pytestmark = pytest.mark.gui
 
 
 def test_marker_at_finds_the_clicked_marker(qtbot):
-    from widgets.viewport import HandViewport
+    from handmocap.widgets.viewport import HandViewport
 
     view = HandViewport()
     qtbot.addWidget(view)
@@ -31,7 +31,7 @@ def test_a_click_picks_a_drag_does_not_and_keys_stay_away_from_vtk(qtbot):
     from PySide6.QtCore import QEvent, QPointF, Qt
     from PySide6.QtGui import QKeyEvent, QMouseEvent
 
-    from widgets.viewport import HandViewport
+    from handmocap.widgets.viewport import HandViewport
 
     view = HandViewport()
     qtbot.addWidget(view)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from PySide6.QtWidgets import QApplication
 
-from app.gui.application import (
+from handmocap.app.gui.application import (
     Application,
     CurrentDocumentChanged,
     DocumentClosed,
@@ -19,14 +19,14 @@ from app.gui.application import (
     SessionFolderChanged,
     SessionPart,
 )
-from app.gui.document import TakeDocument
-from core.io import save_take
-from core.review import AcceptFills, GapFill, Unlabel
-from core.review.events import Change, ReviewChanged
-from core.session import Session
-from core.simulate import simulate_take
-from widgets.marker_lanes import EDITED
-from widgets.review_table import OBSERVED_COLUMN
+from handmocap.app.gui.document import TakeDocument
+from handmocap.core.io import save_take
+from handmocap.core.review import AcceptFills, GapFill, Unlabel
+from handmocap.core.review.events import Change, ReviewChanged
+from handmocap.core.session import Session
+from handmocap.core.simulate import simulate_take
+from handmocap.widgets.marker_lanes import EDITED
+from handmocap.widgets.review_table import OBSERVED_COLUMN
 
 pytestmark = pytest.mark.gui
 
@@ -157,8 +157,8 @@ def test_the_application_object_and_the_events_need_no_qt():
     import sys
     from pathlib import Path
 
-    code = ("import sys, app.gui.application, core.review.events; "
-            "bad = [m for m in ('PySide6', 'pyvista', 'pyqtgraph', 'widgets') if m in sys.modules]; "
+    code = ("import sys, handmocap.app.gui.application, handmocap.core.review.events; "
+            "bad = [m for m in ('PySide6', 'pyvista', 'pyqtgraph', 'handmocap.widgets') if m in sys.modules]; "
             "print(bad); sys.exit(1 if bad else 0)")
     root = Path(__file__).resolve().parents[2]
     completed = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True, text=True, timeout=120)

@@ -3,13 +3,13 @@
 import numpy as np
 import pytest
 
-from core.errors import CancelledError, InputError
-from core.ik import IKSettings, solve_positions, solve_take
-from core.io import Take
-from core.model import load_layout, load_template, marker_positions_batch, resolve_layout
-from core.model.skeleton import default_joint_limits
-from core.prior import load_default_prior
-from core.simulate import simulate_take
+from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.ik import IKSettings, solve_positions, solve_take
+from handmocap.core.io import Take
+from handmocap.core.model import load_layout, load_template, marker_positions_batch, resolve_layout
+from handmocap.core.model.skeleton import default_joint_limits
+from handmocap.core.prior import load_default_prior
+from handmocap.core.simulate import simulate_take
 
 
 @pytest.fixture(scope="module")
@@ -104,7 +104,7 @@ def test_solve_take_matches_names_and_rejects_foreign_takes(model, dense_take, t
 
 
 def test_layered_beats_standard_ik_on_held_out_grasps_with_four_markers():
-    from core.evaluation.ik import evaluate_ik
+    from handmocap.core.evaluation.ik import evaluate_ik
 
     figures = evaluate_ik()
     assert figures["grasp4_layered_mean_mm"] <= 0.6 * figures["grasp4_standard_mean_mm"]

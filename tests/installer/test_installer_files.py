@@ -55,8 +55,8 @@ def big16_magic(element: ElementTree.Element) -> bytes:
 
 
 def test_c3d_magic_matches_the_files_we_write_and_the_vendors(tmp_path):
-    from core.io import save_take
-    from core.simulate import simulate_take
+    from handmocap.core.io import save_take
+    from handmocap.core.simulate import simulate_take
 
     c3d = mime_types()["application/x-c3d"]
     assert [glob.get("pattern") for glob in c3d.findall(f"{MIME_NS}glob")] == ["*.c3d"]
@@ -67,8 +67,8 @@ def test_c3d_magic_matches_the_files_we_write_and_the_vendors(tmp_path):
 
 
 def test_session_magic_is_in_the_manifests_we_write(tmp_path):
-    from core.session import Session
-    from core.session.session import MANIFEST_NAME
+    from handmocap.core.session import Session
+    from handmocap.core.session.session import MANIFEST_NAME
 
     session = mime_types()["application/x-handmocap-session"]
     assert [glob.get("pattern") for glob in session.findall(f"{MIME_NS}glob")] == [MANIFEST_NAME]
@@ -89,7 +89,7 @@ def test_spec_is_python_portable_and_ships_the_resources():
         assert f'"{folder}"' in text and (ROOT / "resources" / folder).is_dir()
     for unused in ("QtWebEngineCore", "Qt3DCore", "QtQuick", "QtQml", "QtMultimedia"):
         assert f'"{unused}"' in text
-    assert '"core": "py"' in text   # numba's cache needs the kernels' source files in the bundle
+    assert '"handmocap.core": "py"' in text   # numba's cache needs the kernels' source files in the bundle
 
 
 def test_shell_scripts_parse():
@@ -100,7 +100,7 @@ def test_shell_scripts_parse():
 
 def test_install_and_uninstall_under_a_home_folder(tmp_path):
     unpacked = tmp_path / "handmocap-0-linux-x86_64"
-    icons = unpacked / "handmocap" / "_internal" / "resources" / "icons"
+    icons = unpacked / "handmocap" / "_internal" / "handmocap" / "resources" / "icons"
     shutil.copytree(ROOT / "resources" / "icons", icons)
     executable = unpacked / "handmocap" / "handmocap"
     executable.write_text('#!/bin/sh\necho "handmocap $*"\n')
@@ -136,8 +136,8 @@ def test_install_and_uninstall_under_a_home_folder(tmp_path):
 
 def test_a_session_folder_or_its_manifest_opens_the_session(tmp_path):
     """What the file manager hands over ("Open with" on session.json or the folder) opens the session."""
-    from app.gui.launch import session_folder
-    from core.session import Session
+    from handmocap.app.gui.launch import session_folder
+    from handmocap.core.session import Session
 
     Session.create(tmp_path / "session", name="x").close()
     take = tmp_path / "take.c3d"

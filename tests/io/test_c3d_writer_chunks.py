@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.io import Take, c3d_writer, load_take
-from core.io.c3d_writer import write_c3d, write_c3d_points
-from core.io.errors import TakeFormatError
+from handmocap.core.io import Take, c3d_writer, load_take
+from handmocap.core.io.c3d_writer import write_c3d, write_c3d_points
+from handmocap.core.io.errors import TakeFormatError
 
 
 def _positions(frames: int, points: int) -> np.ndarray:

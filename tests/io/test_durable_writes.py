@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.errors import InputError
-from core.io.durable import WriteError, durable_path, durable_stream, write_atomic
+from handmocap.core.errors import InputError
+from handmocap.core.io.durable import WriteError, durable_path, durable_stream, write_atomic
 
 ROOT = Path(__file__).resolve().parents[2]
 LIMIT_BYTES = 2048  # every case below writes more than this
@@ -36,11 +36,11 @@ except Exception as error:
     print(json.dumps(kind | {"message": str(error)}))
 else:
     print(json.dumps({"type": None}))
-""".replace("import numpy as np", "import numpy as np\nfrom core.errors import InputError")
+""".replace("import numpy as np", "import numpy as np\nfrom handmocap.core.errors import InputError")
 
 
 def _take(frames: int = 400, points: int = 6):
-    from core.io import Take
+    from handmocap.core.io import Take
 
     rng = np.random.default_rng(3)
     positions = rng.uniform(-500.0, 500.0, (frames, points, 3))
@@ -50,50 +50,50 @@ def _take(frames: int = 400, points: int = 6):
 
 def writer(case: str):
     """A function ``write(path)`` that writes one file of format ``case`` (data built here, before the limit)."""
-    from core.model import load_template
+    from handmocap.core.model import load_template
 
     angles = np.zeros((300, 26))
     angles[:, 6:] = np.linspace(0.0, 0.5, 300)[:, None]
     if case in ("c3d", "trc", "csv"):
-        from core.io import save_take
+        from handmocap.core.io import save_take
 
         take = _take()
         return lambda path: save_take(take, path)
     if case == "labelled_c3d":
-        from core.io.labelled_c3d import write_labelled_c3d
+        from handmocap.core.io.labelled_c3d import write_labelled_c3d
 
         take = _take()
         provenance = np.where(np.isfinite(take.marker_positions).all(axis=2), 0, -1)
         return lambda path: write_labelled_c3d(path, take.marker_names, take.marker_positions, provenance, 100.0,
                                                unlabelled=take.marker_positions[:, :2], ghost=provenance[:, :2] == 0)
     if case == "bvh":
-        from core.model.bvh import write_bvh
+        from handmocap.core.model.bvh import write_bvh
 
         skeleton = load_template().skeleton
         return lambda path: write_bvh(path, skeleton, angles, 100.0)
     if case == "angles_csv":
-        from core.model.joint_angles import write_joint_angles_csv
+        from handmocap.core.model.joint_angles import write_joint_angles_csv
 
         return lambda path: write_joint_angles_csv(path, [("", angles)], 1, 100.0)
     if case in ("glb", "gltf"):
-        from core.model.gltf import save_gltf_hand
+        from handmocap.core.model.gltf import save_gltf_hand
 
         model = load_template()
         return lambda path: save_gltf_hand(model, path)
     if case == "result_npz":
-        from core.ik import IKResult
+        from handmocap.core.ik import IKResult
 
         result = IKResult(angles, np.ones((300, 4)), np.ones((300, 4, 3)), ["a", "b", "c", "d"], "layered")
         return result.save
     if case == "model_npz":
         return load_template().save
     if case == "truth_npz":
-        from core.simulate import save_truth
+        from handmocap.core.simulate import save_truth
 
         truth = {"joint_angles": angles}
         return lambda path: save_truth(truth, path)
     if case == "layout_json":
-        from core.model import load_layout, save_layout
+        from handmocap.core.model import load_layout, save_layout
 
         layout = load_layout("dense")
         return lambda path: save_layout(layout, path)

@@ -17,20 +17,20 @@ import ezc3d
 import numpy as np
 import pytest
 
-from core.errors import InputError
-from core.io import Take, load_take
-from core.io.axes import Y_UP
-from core.io.c3d_writer import write_c3d_points
-from core.io.labelled_c3d import read_labelled_c3d, write_labelled_c3d
-from core.io.trc import read_trc, write_trc
-from core.model import load_template
-from core.model.bvh import _axis_rotation, read_bvh, write_bvh
-from core.model.gltf import HandAnimation, save_gltf_hand
-from core.model.hand_model import skin_vertices
-from core.review import AcceptFills, GapFill, ReviewTake
-from core.review.export import export_points_csv, export_review
-from core.review.synthetic import synthetic_labelling
-from core.simulate.motion import simulate_joint_angles
+from handmocap.core.errors import InputError
+from handmocap.core.io import Take, load_take
+from handmocap.core.io.axes import Y_UP
+from handmocap.core.io.c3d_writer import write_c3d_points
+from handmocap.core.io.labelled_c3d import read_labelled_c3d, write_labelled_c3d
+from handmocap.core.io.trc import read_trc, write_trc
+from handmocap.core.model import load_template
+from handmocap.core.model.bvh import _axis_rotation, read_bvh, write_bvh
+from handmocap.core.model.gltf import HandAnimation, save_gltf_hand
+from handmocap.core.model.hand_model import skin_vertices
+from handmocap.core.review import AcceptFills, GapFill, ReviewTake
+from handmocap.core.review.export import export_points_csv, export_review
+from handmocap.core.review.synthetic import synthetic_labelling
+from handmocap.core.simulate.motion import simulate_joint_angles
 
 FRAMES = 60
 OPENSIM_KEYS = ["DataRate", "CameraRate", "NumFrames", "NumMarkers", "Units", "OrigDataRate", "OrigDataStartFrame",

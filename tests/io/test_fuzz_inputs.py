@@ -20,17 +20,19 @@ import cv2
 import numpy as np
 import pytest
 
-from core.batch.pipeline import load_pipeline
-from core.calibration.landmarks import load_landmarks
-from core.camera.files import load_camera, save_camera
-from core.camera.frames import ImageFolderFrames, open_frames
-from core.camera.model import CameraClock
-from core.camera.opencv_storage import MAX_MATRIX_VALUES, read_storage
-from core.errors import InputError
-from core.model import load_layout
-from core.model.lab_template import load_lab_template
-from core.model.objects import load_scene_spec
-from core.simulate.camera import random_camera
+from handmocap.core.batch.pipeline import load_pipeline
+from handmocap.core.calibration.landmarks import load_landmarks
+from handmocap.core.camera.files import load_camera, save_camera
+from handmocap.core.camera.frames import ImageFolderFrames, open_frames
+from handmocap.core.camera.model import CameraClock
+from handmocap.core.camera.opencv_storage import MAX_MATRIX_VALUES, read_storage
+from handmocap.core.errors import InputError
+from handmocap.core.model import load_layout
+from handmocap.core.model.lab_template import load_lab_template
+from handmocap.core.model.objects import load_scene_spec
+from handmocap.core.simulate.camera import random_camera
+
+HANDMOCAP = [sys.executable, "-m", "handmocap.app.cli.main"]
 
 _SPEC = importlib.util.spec_from_file_location(
     "fuzz_readers", Path(__file__).resolve().parents[1] / "bench" / "fuzz_readers.py")
@@ -87,7 +89,7 @@ def test_hostile_opencv_camera_files_give_one_line(tmp_path, name, content, expe
 def test_the_unclosed_bracket_file_does_not_kill_the_process(tmp_path):
     path = tmp_path / "camera.yaml"
     path.write_bytes(b"x: " + b"[" * 50_000)
-    result = subprocess.run([sys.executable, "-m", "app.cli.main", "camera", "overlay", "take.c3d", "video.avi",
+    result = subprocess.run(HANDMOCAP + ["camera", "overlay", "take.c3d", "video.avi",
                              "--camera", str(path), "--out", str(tmp_path / "o.avi")], cwd=ROOT,
                             capture_output=True, text=True, timeout=120)
     assert result.returncode == 2 and result.stderr.count("\n") == 1 and "nested deeper" in result.stderr
@@ -243,9 +245,9 @@ def test_the_cache_keeps_frames_within_its_budget(tmp_path):
 
 def test_memory_bomb_of_frames_with_a_matching_camera_is_one_line_within_memory(tmp_path):
     """3.8 MB of 16384x16384 PNG frames and a camera of that size: 2.9 GB and a cv2.error before."""
-    from core.camera.model import Camera
-    from core.io import save_take
-    from core.simulate import simulate_take
+    from handmocap.core.camera.model import Camera
+    from handmocap.core.io import save_take
+    from handmocap.core.simulate import simulate_take
 
     _huge_png_folder(tmp_path / "rgbd", 8)
     camera = Camera(np.array([[9000.0, 0, 8192], [0, 9000.0, 8192], [0, 0, 1]]), np.zeros(5), (16384, 16384),
@@ -256,7 +258,7 @@ def test_memory_bomb_of_frames_with_a_matching_camera_is_one_line_within_memory(
     def limit() -> None:
         resource.setrlimit(resource.RLIMIT_AS, (4 * 2 ** 30, 4 * 2 ** 30))
 
-    result = subprocess.run([sys.executable, "-m", "app.cli.main", "fuse", str(tmp_path / "take.c3d"), "--camera",
+    result = subprocess.run(HANDMOCAP + ["fuse", str(tmp_path / "take.c3d"), "--camera",
                              str(tmp_path / "camera.json"), "--rgbd", str(tmp_path / "rgbd"), "--out",
                              str(tmp_path / "fused.npz")], cwd=ROOT, capture_output=True, text=True, timeout=300,
                             preexec_fn=limit)

@@ -16,11 +16,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.calibration.scan import load_scan
-from core.errors import InputError
-from core.io.loader import load_take
-from core.model.gltf import load_gltf_hand
-from core.model.joint_angles import read_result_joint_angles
+from handmocap.core.calibration.scan import load_scan
+from handmocap.core.errors import InputError
+from handmocap.core.io.loader import load_take
+from handmocap.core.model.gltf import load_gltf_hand
+from handmocap.core.model.joint_angles import read_result_joint_angles
 
 _SPEC = importlib.util.spec_from_file_location(
     "fuzz_readers", Path(__file__).resolve().parents[1] / "bench" / "fuzz_readers.py")
@@ -40,8 +40,8 @@ def test_fuzzed_files_of_every_format_load_or_fail_cleanly():
 @pytest.fixture(scope="module")
 def gltf_document(tmp_path_factory) -> tuple[dict, bytes]:
     """The JSON and binary of a glTF hand written by our exporter."""
-    from core.model.gltf import save_gltf_hand
-    from core.model.hand_model import HandModel
+    from handmocap.core.model.gltf import save_gltf_hand
+    from handmocap.core.model.hand_model import HandModel
 
     folder = tmp_path_factory.mktemp("gltf")
     model = HandModel.load(Path(__file__).resolve().parents[2] / "resources" / "template" / "right_hand.npz")

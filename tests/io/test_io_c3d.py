@@ -10,9 +10,9 @@ import ezc3d
 import numpy as np
 import pytest
 
-from core.evaluation.data import VENDOR_C3D
-from core.io import Take, TakeFormatError, load_take, save_take
-from core.io.take import mm_per_unit, unique_marker_names
+from handmocap.core.evaluation.data import VENDOR_C3D
+from handmocap.core.io import Take, TakeFormatError, load_take, save_take
+from handmocap.core.io.take import mm_per_unit, unique_marker_names
 
 C3D_FOLDER = VENDOR_C3D
 SAMPLES = sorted(C3D_FOLDER.glob("*.c3d")) if C3D_FOLDER.is_dir() else []

@@ -5,9 +5,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.errors import InputError
-from core.evaluation.data import REAL_RECORDING
-from core.io import Take, TakeFormatError, load_take, save_take
+from handmocap.core.errors import InputError
+from handmocap.core.evaluation.data import REAL_RECORDING
+from handmocap.core.io import Take, TakeFormatError, load_take, save_take
 
 
 def _take(

@@ -7,9 +7,9 @@ import zipfile
 import numpy as np
 import pytest
 
-from core.errors import InputError
-from core.io.npz import load_npz
-from core.session.storage import check_npy
+from handmocap.core.errors import InputError
+from handmocap.core.io.npz import load_npz
+from handmocap.core.session.storage import check_npy
 
 
 def _unclosed_header() -> bytes:

@@ -4,12 +4,12 @@
 import numpy as np
 import pytest
 
-from core.calibration.marker_placement import fit_marker_placement
-from core.errors import InputError
-from core.evaluation.data import REAL_RECORDING
-from core.ik import solve_take
-from core.io import Take
-from core.model import MarkerLayout, MarkerSpec, load_layout, load_template
+from handmocap.core.calibration.marker_placement import fit_marker_placement
+from handmocap.core.errors import InputError
+from handmocap.core.evaluation.data import REAL_RECORDING
+from handmocap.core.ik import solve_take
+from handmocap.core.io import Take
+from handmocap.core.model import MarkerLayout, MarkerSpec, load_layout, load_template
 
 pytestmark = pytest.mark.skipif(not REAL_RECORDING.exists(), reason="shared data absent")
 

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.errors import InputError
-from core.io import (
+from handmocap.core.errors import InputError
+from handmocap.core.io import (
     READ_SUFFIXES,
     TAKE_FILE_FILTER,
     TAKE_FORMATS,

@@ -8,7 +8,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from core.labelling.health import assess_labelling
+from handmocap.core.labelling.health import assess_labelling
 
 RATE = 100.0
 FRAMES = 6000

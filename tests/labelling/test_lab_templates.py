@@ -10,15 +10,15 @@ from functools import lru_cache
 import numpy as np
 import pytest
 
-from app.cli.main import main
-from core.errors import InputError
-from core.evaluation.take_labelling import evaluate_take_labelling, stripped_take
-from core.io import Take
-from core.labelling.hypotheses import _apply, _full, check_whole_take, hand_hypotheses
-from core.labelling.scene import label_scene
-from core.labelling.templates import learn_template, name_digit, name_side
-from core.model.lab_template import load_lab_template, save_lab_template
-from core.simulate.scene import simulate_scene
+from handmocap.app.cli.main import main
+from handmocap.core.errors import InputError
+from handmocap.core.evaluation.take_labelling import evaluate_take_labelling, stripped_take
+from handmocap.core.io import Take
+from handmocap.core.labelling.hypotheses import _apply, _full, check_whole_take, hand_hypotheses
+from handmocap.core.labelling.scene import label_scene
+from handmocap.core.labelling.templates import learn_template, name_digit, name_side
+from handmocap.core.model.lab_template import load_lab_template, save_lab_template
+from handmocap.core.simulate.scene import simulate_scene
 
 GUITAR = "guitar/nokov_guitarist_arpeggio.csv"
 
@@ -141,7 +141,7 @@ def test_cli_learn_label_and_evaluate_a_real_lab_take(shared_data, tmp_path, cap
 def test_vendor_body_and_hands_take_learned_from_its_own_labels(shared_data):
     """ART's hand C3D (a body model with fingers, ``Human4:LIFT`` …): learned on its first half, its second
     half relabelled stripped and shuffled."""
-    from core.io import load_take
+    from handmocap.core.io import load_take
 
     path = shared_data / "c3d" / "sample_37__ART-Human_hands_real_no6dof.c3d"
     if not path.is_file():

@@ -5,12 +5,12 @@ from functools import lru_cache
 import numpy as np
 import pytest
 
-from core.errors import CancelledError, InputError
-from core.evaluation.labelling_metrics import labelling_accuracy
-from core.io import Take
-from core.labelling import label_scene
-from core.model import load_layout, load_template, marker_positions, resolve_layout
-from core.simulate import simulate_take
+from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.evaluation.labelling_metrics import labelling_accuracy
+from handmocap.core.io import Take
+from handmocap.core.labelling import label_scene
+from handmocap.core.model import load_layout, load_template, marker_positions, resolve_layout
+from handmocap.core.simulate import simulate_take
 
 
 @lru_cache(maxsize=4)

@@ -5,13 +5,13 @@ import json
 import numpy as np
 import pytest
 
-from core.errors import InputError
-from core.evaluation.labelling_metrics import labelling_accuracy
-from core.io import Take
-from core.labelling import SceneSettings, label_scene
-from core.labelling.models import kabsch_kernel
-from core.model.objects import load_scene_spec, rigid_body_from_points, save_scene_spec
-from core.simulate import scene_objects, simulate_scene
+from handmocap.core.errors import InputError
+from handmocap.core.evaluation.labelling_metrics import labelling_accuracy
+from handmocap.core.io import Take
+from handmocap.core.labelling import SceneSettings, label_scene
+from handmocap.core.labelling.models import kabsch_kernel
+from handmocap.core.model.objects import load_scene_spec, rigid_body_from_points, save_scene_spec
+from handmocap.core.simulate import scene_objects, simulate_scene
 
 
 def test_spec_round_trip_and_shapes(tmp_path):
@@ -134,7 +134,7 @@ def _without_hand(result):
 
 
 def _box_track():
-    from core.labelling.models import RigidTrack
+    from handmocap.core.labelling.models import RigidTrack
     return RigidTrack(scene_objects(1)[0], SceneSettings())
 
 
@@ -160,7 +160,7 @@ def test_two_markers_turn_the_object():
 
 
 def test_lost_object_is_reacquired_from_free_points():
-    from core.labelling.initialise import reacquire_object, rigid_correspondences
+    from handmocap.core.labelling.initialise import reacquire_object, rigid_correspondences
 
     track = _box_track()
     truth = _pose([0.1, -0.2, 0.6], [100.0, 50.0, -20.0])

@@ -4,8 +4,8 @@
 import numpy as np
 import pytest
 
-from core.evaluation.data import REAL_RECORDING
-from core.evaluation.labelling import evaluate_real_recording, unlabelled_real_take
+from handmocap.core.evaluation.data import REAL_RECORDING
+from handmocap.core.evaluation.labelling import evaluate_real_recording, unlabelled_real_take
 
 pytestmark = pytest.mark.skipif(not REAL_RECORDING.exists(), reason="shared data absent")
 

@@ -7,14 +7,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core.errors import InputError
-from core.evaluation.labelling import REAL_RECORDING
-from core.evaluation.labelling_metrics import labelling_accuracy
-from core.evaluation.labelling_robustness import Condition, evaluate_condition, hide_runs
-from core.labelling import SceneSettings, label_scene
-from core.labelling.sides import SIDE_MARGIN
-from core.labelling.take_statistics import TakeStatistics, measure_take
-from core.simulate import simulate_scene
+from handmocap.core.errors import InputError
+from handmocap.core.evaluation.labelling import REAL_RECORDING
+from handmocap.core.evaluation.labelling_metrics import labelling_accuracy
+from handmocap.core.evaluation.labelling_robustness import Condition, evaluate_condition, hide_runs
+from handmocap.core.labelling import SceneSettings, label_scene
+from handmocap.core.labelling.sides import SIDE_MARGIN
+from handmocap.core.labelling.take_statistics import TakeStatistics, measure_take
+from handmocap.core.simulate import simulate_scene
 
 needs_real = pytest.mark.skipif(not REAL_RECORDING.exists(), reason="shared real recording absent")
 
@@ -72,7 +72,7 @@ def test_auto_finds_both_hands_of_a_scene():
 
 def test_auto_says_clearly_when_no_hand_is_there():
     scattered = np.random.default_rng(0).uniform(-3000, 3000, (30, 12, 3))
-    from core.io import Take
+    from handmocap.core.io import Take
 
     with pytest.raises(InputError, match="no frame of the take initialises a hand"):
         label_scene(Take([f"p{i}" for i in range(12)], scattered, 100.0), "auto", "glove-13")
@@ -102,7 +102,7 @@ def test_real_recording_with_two_millimetres_of_noise_and_mirrored():
 @needs_real
 def test_the_whole_real_recording_labels_at_least_as_well_as_its_halves():
     """Subject calibration pooled over windows across the take, refreshed where the markers moved."""
-    from core.evaluation.labelling_robustness import evaluate_long_take
+    from handmocap.core.evaluation.labelling_robustness import evaluate_long_take
 
     figures = evaluate_long_take(seed=0)
     assert figures["whole_at_least_halves"], figures

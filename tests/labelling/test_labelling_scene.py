@@ -5,12 +5,12 @@ from functools import lru_cache
 import numpy as np
 import pytest
 
-from core.errors import CancelledError, InputError
-from core.evaluation.labelling_metrics import labelling_accuracy
-from core.io import Take
-from core.labelling import SceneSettings, label_scene
-from core.labelling.fragments import extend_trajectories, free_fragments
-from core.simulate import simulate_scene, simulate_take
+from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.evaluation.labelling_metrics import labelling_accuracy
+from handmocap.core.io import Take
+from handmocap.core.labelling import SceneSettings, label_scene
+from handmocap.core.labelling.fragments import extend_trajectories, free_fragments
+from handmocap.core.simulate import simulate_scene, simulate_take
 
 
 @lru_cache(maxsize=4)

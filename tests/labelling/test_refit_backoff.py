@@ -3,10 +3,10 @@ each fresh fit the wait doubles (up to MAX_RECHECK_BACKOFF times) until the hand
 
 import numpy as np
 
-import core.labelling.scene as scene_module
-from core.labelling.models import SceneSettings
-from core.labelling.scene import label_scene
-from core.simulate import simulate_take
+import handmocap.core.labelling.scene as scene_module
+from handmocap.core.labelling.models import SceneSettings
+from handmocap.core.labelling.scene import label_scene
+from handmocap.core.simulate import simulate_take
 
 FRAMES = 3000
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from core.errors import CancelledError, InputError
-from core.layout import (
+from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.layout import (
     PSOSettings,
     build_problem,
     evaluate_layout,
@@ -22,9 +22,9 @@ from core.layout import (
     select_subset,
     vertex_layout,
 )
-from core.layout.pso import align_to, project_to_candidates, random_layouts
-from core.layout.workflow import error_against_markers, optimise_layout
-from core.model import load_layout, load_template, resolve_layout
+from handmocap.core.layout.pso import align_to, project_to_candidates, random_layouts
+from handmocap.core.layout.workflow import error_against_markers, optimise_layout
+from handmocap.core.model import load_layout, load_template, resolve_layout
 
 SMALL_SWARM = PSOSettings(particles=200, iterations=30)
 

@@ -2,8 +2,8 @@
 
 import pytest
 
-from app.cli.layout import command_layout_optimise
-from app.cli.main import build_parser
+from handmocap.app.cli.layout import command_layout_optimise
+from handmocap.app.cli.main import build_parser
 
 
 def test_optimise_and_its_american_alias_run_the_same_command(capsys):

@@ -5,9 +5,9 @@ import datetime
 import numpy as np
 import pytest
 
-from core.errors import InputError
-from core.layout.placement_sheet import placement_sheet, rasterise_view, segment_marker_names
-from core.model import MarkerLayout, MarkerSpec, load_layout, load_template
+from handmocap.core.errors import InputError
+from handmocap.core.layout.placement_sheet import placement_sheet, rasterise_view, segment_marker_names
+from handmocap.core.model import MarkerLayout, MarkerSpec, load_layout, load_template
 
 
 @pytest.fixture(scope="module")
@@ -59,7 +59,7 @@ def test_rasterised_skin_covers_the_hand_silhouette(sheet):
 
 def test_segment_names_are_unique_per_segment(model):
     layout = load_layout("glove-13")
-    from core.model import resolve_layout
+    from handmocap.core.model import resolve_layout
 
     vertices = resolve_layout(model, layout).vertex
     names = segment_marker_names(model, np.concatenate([vertices, vertices[:2]]))
@@ -68,7 +68,7 @@ def test_segment_names_are_unique_per_segment(model):
 
 
 def test_png_and_pdf_are_written(tmp_path, sheet):
-    from widgets.placement_sheet import render_sheet_image, save_placement_sheet
+    from handmocap.widgets.placement_sheet import render_sheet_image, save_placement_sheet
 
     png = save_placement_sheet(sheet, tmp_path / "sheet.png", dpi=100)
     pdf = save_placement_sheet(sheet, tmp_path / "sheet.pdf")
@@ -82,7 +82,7 @@ def test_png_and_pdf_are_written(tmp_path, sheet):
 
 
 def test_bad_sheet_paths_are_input_errors(tmp_path, sheet):
-    from widgets.placement_sheet import save_placement_sheet
+    from handmocap.widgets.placement_sheet import save_placement_sheet
 
     with pytest.raises(InputError, match=".png or .pdf"):
         save_placement_sheet(sheet, tmp_path / "sheet.svg")
@@ -91,7 +91,7 @@ def test_bad_sheet_paths_are_input_errors(tmp_path, sheet):
 
 
 def test_a_long_layout_still_fits_the_page(model, tmp_path):
-    from widgets.placement_sheet import save_placement_sheet
+    from handmocap.widgets.placement_sheet import save_placement_sheet
 
     dense = load_layout("dense")
     long = MarkerLayout("long", dense.markers + tuple(MarkerSpec(f"{spec.name}_b", vertex=100 + index)
@@ -106,7 +106,7 @@ def boxes_overlap(a: np.ndarray, b: np.ndarray, half: np.ndarray) -> bool:
 
 
 def test_numbers_overlap_neither_each_other_nor_markers():
-    from core.layout.label_placement import place_labels
+    from handmocap.core.layout.label_placement import place_labels
 
     # the thumb-side view of the dense layout: markers along the finger's edge, 1-3 mm apart
     side = placement_sheet(load_template(), load_layout("dense")).views[1]
@@ -126,7 +126,7 @@ def test_numbers_overlap_neither_each_other_nor_markers():
 
 
 def test_a_lone_marker_is_numbered_straight_outward():
-    from core.layout.label_placement import place_labels
+    from handmocap.core.layout.label_placement import place_labels
 
     labels = place_labels(np.array([[10.0, 0.0]]), np.array([True]), np.zeros(2), (5.0, 4.0), 2.0)
     np.testing.assert_allclose(labels[0], [15.0, 0.0])
@@ -135,7 +135,7 @@ def test_a_lone_marker_is_numbered_straight_outward():
 def test_pdf_adds_the_back_of_the_hand_at_full_scale(tmp_path, sheet):
     import re
 
-    from widgets.placement_sheet import render_sheet_image, save_placement_sheet
+    from handmocap.widgets.placement_sheet import render_sheet_image, save_placement_sheet
 
     pdf = save_placement_sheet(sheet, tmp_path / "sheet.pdf").read_bytes()
     assert len(re.findall(rb"/Type\s*/Page\b(?!s)", pdf)) == 2

@@ -17,19 +17,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.errors import InputError
-from core.io import load_take
-from core.labelling.online import OnlineLabeller
-from core.labelling.scene import label_scene
-from core.live import recorder
-from core.live.capture import LiveCapture
-from core.live.recorder import FrameJournal, read_journal, read_system_labels, system_labels_summary
-from core.live.server import StandInServer, make_replay
-from core.live.sources import SourceError, parse_address
-from core.live.supervision import Supervisor
-from core.live.systems import make_source
-from core.session.session import Session
-from core.simulate.take import simulate_take
+from handmocap.core.errors import InputError
+from handmocap.core.io import load_take
+from handmocap.core.labelling.online import OnlineLabeller
+from handmocap.core.labelling.scene import label_scene
+from handmocap.core.live import recorder
+from handmocap.core.live.capture import LiveCapture
+from handmocap.core.live.recorder import FrameJournal, read_journal, read_system_labels, system_labels_summary
+from handmocap.core.live.server import StandInServer, make_replay
+from handmocap.core.live.sources import SourceError, parse_address
+from handmocap.core.live.supervision import Supervisor
+from handmocap.core.live.systems import make_source
+from handmocap.core.session.session import Session
+from handmocap.core.simulate.take import simulate_take
+
+HANDMOCAP = [sys.executable, "-m", "handmocap.app.cli.main"]
 
 
 @pytest.fixture(scope="module")
@@ -397,7 +399,7 @@ def test_journal_survives_a_killed_process(tmp_path):
     script = f"""
 import os, numpy as np
 from pathlib import Path
-from core.live.recorder import FrameJournal
+from handmocap.core.live.recorder import FrameJournal
 journal = FrameJournal(Path({str(tmp_path)!r}), Path({str(tmp_path / 'live' / 'k.hmlj')!r}), {{"frame_rate": 100}})
 for index in range(250):
     journal.add_frame(index + 1, index / 100, 0.0, np.full((5, 3), float(index)))
@@ -443,16 +445,16 @@ def test_supervision_alarms_and_summary():
 
 
 def test_cli_record_json_last_line(take, tmp_path):
-    from core.io import save_take
+    from handmocap.core.io import save_take
 
     save_take(take, tmp_path / "raw.c3d")
     port = free_port()
-    serve = subprocess.Popen([sys.executable, "-m", "app.cli.main", "live", "serve", str(tmp_path / "raw.c3d"),
+    serve = subprocess.Popen(HANDMOCAP + ["live", "serve", str(tmp_path / "raw.c3d"),
                               "--protocol", "natnet", "--port", str(port), "--unlabelled", "--seconds", "30"],
                              stderr=subprocess.PIPE, text=True)
     try:
         serve.stderr.readline()
-        record = subprocess.run([sys.executable, "-m", "app.cli.main", "live", "record", "--natnet",
+        record = subprocess.run(HANDMOCAP + ["live", "record", "--natnet",
                                  f"127.0.0.1:{port}", "--layout", "glove-13", "--hands", "auto", "--seconds", "3",
                                  "--out", str(tmp_path / "rec.c3d"), "--json", "--quiet"],
                                 capture_output=True, text=True, timeout=60)
@@ -465,7 +467,7 @@ def test_cli_record_json_last_line(take, tmp_path):
         assert key in figures
     assert figures["frames_received"] > 200 and figures["frames_dropped"] == 0
     assert Path(figures["session"]).joinpath("session.json").exists()
-    failed = subprocess.run([sys.executable, "-m", "app.cli.main", "live", "record", "--qtm",
+    failed = subprocess.run(HANDMOCAP + ["live", "record", "--qtm",
                              f"127.0.0.1:{free_port()}", "--seconds", "1", "--out", str(tmp_path / "x.c3d")],
                             capture_output=True, text=True, timeout=60)
     assert failed.returncode == 2 and len(failed.stderr.strip().splitlines()) == 1

@@ -8,10 +8,17 @@ import numpy as np
 import pytest
 from two_hand_takes import LAYOUT, STYLES, marker_name, named_take, write_lab_template
 
-from core.errors import InputError
-from core.model import add_layout_folder, detect_hands, load_layout, name_side, remove_layout_folder, track_layout
-from core.review import ReviewTake
-from core.review.export import labelled_hands
+from handmocap.core.errors import InputError
+from handmocap.core.model import (
+    add_layout_folder,
+    detect_hands,
+    load_layout,
+    name_side,
+    remove_layout_folder,
+    track_layout,
+)
+from handmocap.core.review import ReviewTake
+from handmocap.core.review.export import labelled_hands
 
 GLOVE = load_layout(LAYOUT).names
 
@@ -83,7 +90,7 @@ def test_name_side_reads_the_vendors_side_tokens():
     assert name_side("L-A1") == ("left", "A1")
     assert name_side("LeftHand:IF3") == ("left", "IF3")
     assert name_side("Subject:index_tip") == (None, "index_tip")
-    from core.labelling.templates import name_side as labelling_name_side  # still found where it was
+    from handmocap.core.labelling.templates import name_side as labelling_name_side  # still found where it was
     assert labelling_name_side is name_side
 
 

@@ -3,15 +3,15 @@
 import numpy as np
 import pytest
 
-from core.model.kinematics import (
+from handmocap.core.model.kinematics import (
     ANCESTOR,
     KinematicChain,
     points_and_jacobian_kernel,
     rotation_from_vector,
     vector_from_rotation,
 )
-from core.model.markers import MarkerSet
-from core.model.skeleton import (
+from handmocap.core.model.markers import MarkerSet
+from handmocap.core.model.skeleton import (
     JOINT_NAMES,
     N_PARAMS,
     PARAM_NAMES,

@@ -1,8 +1,8 @@
 """One provenance code table (core.model.provenance): the gap filler, the review and the marker lanes use
 the same codes and names."""
 
-from core import gaps, review
-from core.model.provenance import FILL_CODES, MEASURED, MISSING, PROVENANCE_NAMES
+from handmocap.core import gaps, review
+from handmocap.core.model.provenance import FILL_CODES, MEASURED, MISSING, PROVENANCE_NAMES
 
 
 def test_the_code_table_names_every_code_once():

@@ -7,10 +7,10 @@ import pytest
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
-from core.model import TEMPLATE_PATH, load_template
-from core.model.hand_model import HandModel, mesh_vertex_normals, skin_vertices
-from core.model.skeleton import JOINT_PARENTS, PARAM_NAMES, HandProportions
-from core.model.template_mesh import (
+from handmocap.core.model import TEMPLATE_PATH, load_template
+from handmocap.core.model.hand_model import HandModel, mesh_vertex_normals, skin_vertices
+from handmocap.core.model.skeleton import JOINT_PARENTS, PARAM_NAMES, HandProportions
+from handmocap.core.model.template_mesh import (
     DEFAULT_TEMPLATE_PATH,
     LANDMARK_DESCRIPTIONS,
     LANDMARK_NAMES,

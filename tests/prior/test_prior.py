@@ -5,9 +5,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.errors import InputError
-from core.model.skeleton import N_POSTURE, default_joint_limits
-from core.prior import (
+from handmocap.core.errors import InputError
+from handmocap.core.model.skeleton import N_POSTURE, default_joint_limits
+from handmocap.core.prior import (
     DEFAULT_PRIOR_PATH,
     HELDOUT_GRASPS,
     PosturePrior,
@@ -141,7 +141,7 @@ def test_subspace_dimension_is_checked(prior):
 
 def test_default_prior_file_loads_and_is_up_to_date(prior):
     repo = Path(__file__).resolve().parents[2]
-    assert repo / "resources" / "priors" / "default_prior.npz" == DEFAULT_PRIOR_PATH
+    assert DEFAULT_PRIOR_PATH.resolve() == repo / "resources" / "priors" / "default_prior.npz"
     shipped = load_default_prior()
     assert shipped is load_default_prior()
     assert shipped.cumulative_variance()[5] >= 0.85

@@ -9,10 +9,10 @@ import ezc3d
 import numpy as np
 import pytest
 
-from core.errors import InputError
-from core.io import load_take, save_take
-from core.io.c3d_events import TakeEvent, event_group, read_events
-from core.review import (
+from handmocap.core.errors import InputError
+from handmocap.core.io import load_take, save_take
+from handmocap.core.io.c3d_events import TakeEvent, event_group, read_events
+from handmocap.core.review import (
     AddEvent,
     RemoveEvent,
     ReviewTake,
@@ -24,9 +24,9 @@ from core.review import (
     export_labelled_c3d,
     review_from_labelled_c3d,
 )
-from core.review.export import export_review
-from core.session import Session
-from core.simulate import simulate_take
+from handmocap.core.review.export import export_review
+from handmocap.core.session import Session
+from handmocap.core.simulate import simulate_take
 
 FRAMES = 200
 

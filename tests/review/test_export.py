@@ -7,14 +7,14 @@ import ezc3d
 import numpy as np
 import pytest
 
-from core.errors import InputError
-from core.evaluation.data import REAL_RECORDING, VENDOR_C3D
-from core.io import load_take
-from core.io.errors import TakeFormatError
-from core.io.labelled_c3d import decode_runs, encode_runs, read_labelled_c3d, write_labelled_c3d
-from core.model import load_template
-from core.model.bvh import read_bvh, write_bvh
-from core.review import (
+from handmocap.core.errors import InputError
+from handmocap.core.evaluation.data import REAL_RECORDING, VENDOR_C3D
+from handmocap.core.io import load_take
+from handmocap.core.io.errors import TakeFormatError
+from handmocap.core.io.labelled_c3d import decode_runs, encode_runs, read_labelled_c3d, write_labelled_c3d
+from handmocap.core.model import load_template
+from handmocap.core.model.bvh import read_bvh, write_bvh
+from handmocap.core.review import (
     AcceptFills,
     AssignLabel,
     GapFill,
@@ -27,8 +27,8 @@ from core.review import (
     export_labelled_c3d,
     review_from_labelled_c3d,
 )
-from core.review.synthetic import synthetic_labelling
-from core.simulate.motion import simulate_joint_angles
+from handmocap.core.review.synthetic import synthetic_labelling
+from handmocap.core.simulate.motion import simulate_joint_angles
 
 FRAMES = 90
 
@@ -148,7 +148,7 @@ def test_run_length_coding_round_trips(seed):
 def test_a_foreign_labelled_c3d_reads_as_measured_labels(tmp_path):
     take, _, _ = synthetic_labelling(frames=20, shuffle=False, ghosts=0)
     path = tmp_path / "vendor.c3d"
-    from core.io import save_take
+    from handmocap.core.io import save_take
 
     save_take(take, path)
     back = review_from_labelled_c3d(path)
@@ -261,7 +261,7 @@ def test_vendor_files_export_unchanged_with_their_parameter_groups(tmp_path, nam
 
 
 def test_two_hands_export_prefixed_columns_and_joints(tmp_path, reviewed):
-    from core.review import HandTrack
+    from handmocap.core.review import HandTrack
 
     review, _ = reviewed
     angles = simulate_joint_angles(FRAMES, 2, "mixed", 100.0)

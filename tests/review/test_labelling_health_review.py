@@ -4,13 +4,13 @@ it, journalled, kept in snapshots, listed as problems (F3) and summed up for the
 import numpy as np
 import pytest
 
-from core.io import save_take
-from core.labelling.health import HealthWarning
-from core.labelling.scene import SceneLabelling, SceneModel
-from core.review import ApplyLabelling, LabellingArrays, ReviewTake, UndoStack, command_from_json
-from core.review.synthetic import synthetic_labelling
-from core.session import Session
-from core.workflows.labelling import result_health
+from handmocap.core.io import save_take
+from handmocap.core.labelling.health import HealthWarning
+from handmocap.core.labelling.scene import SceneLabelling, SceneModel
+from handmocap.core.review import ApplyLabelling, LabellingArrays, ReviewTake, UndoStack, command_from_json
+from handmocap.core.review.synthetic import synthetic_labelling
+from handmocap.core.session import Session
+from handmocap.core.workflows.labelling import result_health
 
 FRAMES = 200
 WARNINGS = [HealthWarning("side_uncertain", "right", 0, 0, "the right hand was told from its mirror image by a "

@@ -6,8 +6,8 @@ import json
 import numpy as np
 import pytest
 
-from core.errors import InputError
-from core.review import (
+from handmocap.core.errors import InputError
+from handmocap.core.review import (
     LANE_EDITED,
     LANE_FILLED,
     LANE_GAP,
@@ -28,8 +28,8 @@ from core.review import (
     Unlabel,
     command_from_json,
 )
-from core.review.events import Change, ReviewChanged
-from core.review.synthetic import synthetic_labelling
+from handmocap.core.review.events import Change, ReviewChanged
+from handmocap.core.review.synthetic import synthetic_labelling
 
 FRAMES = 60
 
@@ -444,7 +444,7 @@ def test_undo_keeps_only_what_changed(labelled):
 
 
 def test_define_a_hand_on_a_labelled_take(labelled):
-    from core.review import DefineHand
+    from handmocap.core.review import DefineHand
 
     review, _, _ = labelled
     take = review.labelled_take()

@@ -8,8 +8,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from core.io import load_take
-from core.review import ReviewTake
+from handmocap.core.io import load_take
+from handmocap.core.review import ReviewTake
 
 ART_TAKE = "c3d/sample_37__ART-Human_hands_real_no6dof.c3d"
 

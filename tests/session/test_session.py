@@ -15,10 +15,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.errors import InputError
-from core.io import save_take
-from core.model import load_layout
-from core.review import (
+from handmocap.core.errors import InputError
+from handmocap.core.io import save_take
+from handmocap.core.model import load_layout
+from handmocap.core.review import (
     AcceptFills,
     ApplyLabelling,
     AssignLabel,
@@ -30,9 +30,9 @@ from core.review import (
     UndoStack,
     Unlabel,
 )
-from core.review.synthetic import synthetic_labelling
-from core.session import Session
-from core.session.journal import JOURNAL_NAME
+from handmocap.core.review.synthetic import synthetic_labelling
+from handmocap.core.session import Session
+from handmocap.core.session.journal import JOURNAL_NAME
 
 ROOT = Path(__file__).resolve().parents[2]
 FRAMES = 200
@@ -93,7 +93,7 @@ def test_create_add_and_manifest(tmp_path, raw):
     assert second.id == "t0002" and second.name == "raw_take (2)"
     layout_path = session.save_layout(load_layout("glove-13"))
     assert layout_path.exists() and session.layout_path("glove-13") == layout_path
-    from core.model import load_template
+    from handmocap.core.model import load_template
 
     model_path = session.save_subject_model("S01", load_template())
     assert model_path.exists()
@@ -264,9 +264,9 @@ def test_torn_and_damaged_journal_lines(tmp_path, raw):
 KILL_CHILD = textwrap.dedent("""
     import sys
     import numpy as np
-    from core.review import ApplyLabelling, AssignLabel, SwapLabels, Unlabel, AcceptFills, GapFill
-    from core.session import Session
-    from core.review.synthetic import synthetic_labelling
+    from handmocap.core.review import ApplyLabelling, AssignLabel, SwapLabels, Unlabel, AcceptFills, GapFill
+    from handmocap.core.session import Session
+    from handmocap.core.review.synthetic import synthetic_labelling
 
     def operations(count):
         rng = np.random.default_rng(7)
@@ -308,7 +308,7 @@ KILL_CHILD = textwrap.dedent("""
         session = Session.open(sys.argv[1])
         opened = session.open_take("t0001")
         result = synthetic_labelling(frames=200, labels=5, ghosts=1, seed=1)[1]
-        from core.errors import InputError
+        from handmocap.core.errors import InputError
         for number, op in enumerate(operations(100000)):
             try:
                 apply(opened, op, result)
@@ -477,7 +477,7 @@ def test_journal_write_failure_reverts_the_edit(tmp_path, raw):
 
 HOLD_TAKE = textwrap.dedent("""
     import sys, time
-    from core.session import Session
+    from handmocap.core.session import Session
     opened = Session.open(sys.argv[1]).open_take("t0001")
     print("held", flush=True)
     time.sleep(60)
@@ -511,7 +511,7 @@ def test_a_take_open_in_another_process_opens_read_only(tmp_path, raw):
 
 
 def test_labelled_take_with_a_layout_gets_its_hand_and_names_decide_labelled(tmp_path):
-    from core.simulate.take import simulate_take
+    from handmocap.core.simulate.take import simulate_take
 
     simulated = simulate_take("glove-13", n_frames=20, seed=0)
     path = tmp_path / "glove.c3d"

@@ -6,13 +6,13 @@ import json
 import numpy as np
 import pytest
 
-from core.camera.model import CameraClock
-from core.errors import InputError
-from core.io import save_take
-from core.session import Session
-from core.session.cameras import add_camera, camera_file, save_take_camera, take_cameras
-from core.simulate import simulate_take
-from core.simulate.camera import random_camera
+from handmocap.core.camera.model import CameraClock
+from handmocap.core.errors import InputError
+from handmocap.core.io import save_take
+from handmocap.core.session import Session
+from handmocap.core.session.cameras import add_camera, camera_file, save_take_camera, take_cameras
+from handmocap.core.simulate import simulate_take
+from handmocap.core.simulate.camera import random_camera
 
 
 @pytest.fixture

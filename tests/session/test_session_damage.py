@@ -17,13 +17,13 @@ import zipfile
 import numpy as np
 import pytest
 
-from core.errors import InputError
-from core.io import save_take
-from core.review import ApplyLabelling, SwapLabels, UndoStack, Unlabel
-from core.review.synthetic import synthetic_labelling
-from core.session import Session
-from core.session.journal import JOURNAL_NAME
-from core.session.storage import npz_bytes, read_npz
+from handmocap.core.errors import InputError
+from handmocap.core.io import save_take
+from handmocap.core.review import ApplyLabelling, SwapLabels, UndoStack, Unlabel
+from handmocap.core.review.synthetic import synthetic_labelling
+from handmocap.core.session import Session
+from handmocap.core.session.journal import JOURNAL_NAME
+from handmocap.core.session.storage import npz_bytes, read_npz
 
 FRAMES = 200
 TAKE = "t0001"

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from core.io import FrameRateMissingError
-from core.session import Session
+from handmocap.core.io import FrameRateMissingError
+from handmocap.core.session import Session
 
 NOKOV = Path(__file__).resolve().parents[1] / "io" / "fixtures" / "nokov.csv"
 

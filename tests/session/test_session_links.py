@@ -7,11 +7,11 @@ import time
 
 import pytest
 
-from core.errors import InputError
-from core.io import save_take
-from core.review import ApplyLabelling, Unlabel
-from core.review.synthetic import synthetic_labelling
-from core.session import Session
+from handmocap.core.errors import InputError
+from handmocap.core.io import save_take
+from handmocap.core.review import ApplyLabelling, Unlabel
+from handmocap.core.review.synthetic import synthetic_labelling
+from handmocap.core.session import Session
 
 TAKE = "t0001"
 
@@ -133,7 +133,7 @@ def test_stale_temporaries_are_removed_but_never_through_a_link(session_folder):
 
 
 def test_a_models_folder_made_a_link_after_opening_is_refused_on_save(session_folder):
-    from core.model import load_template
+    from handmocap.core.model import load_template
 
     folder, outside, _ = session_folder
     before = _contents(outside)

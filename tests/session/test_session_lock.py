@@ -9,9 +9,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 
 from bench_session_lock import lock_trials, make_session, manifest_rounds  # noqa: E402
 
-from core.errors import InputError  # noqa: E402
-from core.review import Unlabel  # noqa: E402
-from core.session import Session  # noqa: E402
+from handmocap.core.errors import InputError  # noqa: E402
+from handmocap.core.review import Unlabel  # noqa: E402
+from handmocap.core.session import Session  # noqa: E402
 
 
 def test_simultaneous_opens_give_one_writer_and_lose_no_acknowledged_edit(tmp_path):

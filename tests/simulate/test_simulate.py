@@ -5,11 +5,11 @@ import time
 import numpy as np
 import pytest
 
-from core.errors import InputError
-from core.model import load_layout
-from core.model.skeleton import HandProportions, default_joint_limits
-from core.prior import heldout_grasp_postures
-from core.simulate import (
+from handmocap.core.errors import InputError
+from handmocap.core.model import load_layout
+from handmocap.core.model.skeleton import HandProportions, default_joint_limits
+from handmocap.core.prior import heldout_grasp_postures
+from handmocap.core.simulate import (
     MOTIONS,
     WORKSPACE_CENTRE,
     load_truth,

@@ -4,11 +4,11 @@ their fill check use every labelled marker of the take as donors: an object held
 import numpy as np
 import pytest
 
-from core.errors import InputError
-from core.io import Take
-from core.review import ReviewTake
-from core.simulate import simulate_take
-from core.workflows import check_review_gap, fill_review_gaps, find_review_gaps, gap_groups, preview_fill
+from handmocap.core.errors import InputError
+from handmocap.core.io import Take
+from handmocap.core.review import ReviewTake
+from handmocap.core.simulate import simulate_take
+from handmocap.core.workflows import check_review_gap, fill_review_gaps, find_review_gaps, gap_groups, preview_fill
 
 #: an object held in the fingers: each of its markers follows one fingertip at a fixed offset
 HELD = {"pillow_top": "index_tip", "pillow_left": "thumb_tip", "pillow_right": "middle_tip"}

@@ -7,22 +7,22 @@ import json
 import numpy as np
 import pytest
 
-from app.cli.main import main
-from core.errors import InputError
-from core.evaluation.data import REAL_RECORDING
-from core.io import Take, TakeFormatError, is_marker_label, load_take, save_take
-from core.io.labelled_c3d import (
+from handmocap.app.cli.main import main
+from handmocap.core.errors import InputError
+from handmocap.core.evaluation.data import REAL_RECORDING
+from handmocap.core.io import Take, TakeFormatError, is_marker_label, load_take, save_take
+from handmocap.core.io.labelled_c3d import (
     SUBJECT_GROUP,
     SubjectCalibration,
     read_labelled_c3d,
     subject_calibrations,
     subject_group,
 )
-from core.model import load_layout, load_template, resolve_layout
-from core.review import MEASURED, ReviewTake, export_labelled_c3d
-from core.simulate import simulate_take
-from core.workflows.labelling import auto_label, subject_model
-from core.workflows.resolve import solve_labelled_take
+from handmocap.core.model import load_layout, load_template, resolve_layout
+from handmocap.core.review import MEASURED, ReviewTake, export_labelled_c3d
+from handmocap.core.simulate import simulate_take
+from handmocap.core.workflows.labelling import auto_label, subject_model
+from handmocap.core.workflows.resolve import solve_labelled_take
 
 OTHER = ["right_elbow", "back_top", "back_left", "back_right", "right_shoulder", "pillow_top", "pillow_left",
          "pillow_right"]
@@ -113,7 +113,7 @@ def test_a_take_labelled_for_another_layout_is_refused_unless_relabelled(tmp_pat
 
 
 def test_cli_label_hands_auto_default_relabel_and_solve_with_the_subject(raw_with_body, tmp_path, capsys):
-    from app.cli.main import build_parser
+    from handmocap.app.cli.main import build_parser
 
     args = build_parser().parse_args(["label", "x.c3d", "--layout", "glove-13", "--out", "y.c3d"])
     assert args.hands == "auto" and args.relabel is False
@@ -194,8 +194,8 @@ def test_subject_calibration_round_trips_and_a_damaged_group_is_one_line():
 
 
 def test_cli_label_claims_nothing_when_only_stray_points_fit_a_hand(tmp_path, capsys, monkeypatch):
-    from core.labelling.scene import SceneLabelling, SceneModel
-    from core.workflows import labelling
+    from handmocap.core.labelling.scene import SceneLabelling, SceneModel
+    from handmocap.core.workflows import labelling
 
     rng = np.random.default_rng(2)
     frames, count = 200, 13
