@@ -4,11 +4,33 @@ The repository's folders are its sub-packages: ``handmocap.core`` (the Qt-free c
 ``handmocap.app`` (the command line and the Qt window), ``handmocap.widgets`` and ``handmocap.resources``.
 The wheel places them under ``handmocap/``; a development install (``installer/setup.sh``) links them under
 ``.venv/src/handmocap/``. ``handmocap.__version__`` is the installed distribution's version.
+
+The Python API (:mod:`handmocap.core.api`: ``read_take``, ``label``, ``fill``, ``solve``, ``export``,
+``learn_template``, ``evaluate_labelling``...) is available here, imported on first use so that the
+command line does not pay for it.
 """
 
+from importlib import import_module
 from importlib.metadata import PackageNotFoundError, version
 
 try:
     __version__ = version("handmocap")
 except PackageNotFoundError:  # the sources without an installation (e.g. a frozen bundle's metadata missing)
     __version__ = "0+unknown"
+
+#: the names of the Python API, each read from handmocap.core.api when first asked for
+API = ("CancelledError", "FilledGap", "FillResult", "InputError", "LabTemplate", "LabelResult", "SolvedHand", "Take",
+       "evaluate_labelling", "export", "fill", "label", "learn_template", "read_take", "save_take",
+       "save_template", "simulate_take", "solve")
+__all__ = ["__version__", *API]
+
+
+def __getattr__(name: str) -> object:
+    """The API's names, imported from :mod:`handmocap.core.api` on first use (PEP 562)."""
+    if name in API:
+        return getattr(import_module("handmocap.core.api"), name)
+    raise AttributeError(f"module 'handmocap' has no attribute '{name}'")
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *API])

@@ -58,6 +58,10 @@ if [ "$installed_key" != "$install_key" ] && [ "$installed_key" != "${install_ke
   echo "installing Hand Mocap Studio and its Python packages into .venv/"
   .venv/bin/python -m pip install -q --upgrade pip
   .venv/bin/python -m pip install -q -e ".$extras"
+  # numba's cache of a kernel names the kernel's module: a cache made under another package layout would load
+  # and then fail to import that module, so a new installation compiles every kernel afresh
+  find core -path '*/__pycache__/*' \( -name '*.nbi' -o -name '*.nbc' \) -delete
+  rm -f .venv/.handmocap-kernels
   echo "$install_key" > "$install_stamp"
 fi
 

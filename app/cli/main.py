@@ -118,41 +118,20 @@ def command_solve(args: argparse.Namespace) -> int:
     """``handmocap solve``: write the inverse kinematics of each hand of a labelled take (result, CSV; one file
     per hand when there are two); exit 2 on bad input."""
     from handmocap.core.io import load_take
-    from handmocap.core.io.labelled_c3d import subject_calibrations
-    from handmocap.core.model import detect_hands, hand_layout, load_template, marker_columns
     from handmocap.core.prior import PosturePrior
     from handmocap.core.review.export import per_hand_path
-    from handmocap.core.workflows.labelling import subject_model
-    from handmocap.core.workflows.resolve import hand_marker_set, solve_labelled_take
+    from handmocap.core.workflows.solving import solve_take, take_hands
 
     take = load_take(args.take, frame_rate=args.rate)
-    subjects = {subject.side: subject for subject in subject_calibrations(take.parameters, args.take)}
-    hint = args.side or (next(iter(subjects)) if len(subjects) == 1 else None)
-    hands = detect_hands(take.marker_names, args.layout, hint, required=True)
-    if args.side:
-        chosen = [hand for hand in hands if hand.side == args.side] or [hand for hand in hands
-                                                                         if not hand.side_from_names]
-        if not chosen:
-            raise InputError(f"the take has no {args.side} hand (it has: {', '.join(h.side for h in hands)})")
-        hands = chosen[:1]
+    hands = take_hands(take, args.layout, args.side)
     if len(hands) > 1:  # one file per hand: check them all before any work, as add_outputs does for --out
         for output in [args.out, args.csv] if args.csv else [args.out]:
             for hand in hands:
                 check_output(per_hand_path(output, hand.side), args.overwrite)
     prior = PosturePrior.load(args.prior) if args.prior else None
     progress = progress_printer("solving", take.n_frames * len(hands)) if not args.quiet else None
-    for number, hand in enumerate(hands):
-        subject = subjects.get(hand.side)
-        model, calibrated, what = load_template(hand.side), None, f"the {hand.side} template hand"
-        if subject is not None and not args.template:
-            full = hand_layout(hand.layout_name, hand.side)
-            if (marker_columns(list(subject.marker_names), full.names) >= 0).all():
-                model, calibrated = subject_model(subject, full)
-                what = f"the subject's {hand.side} hand calibrated by auto-label"
-        markers = hand_marker_set(hand, list(take.marker_names), model, calibrated)
-        part = None if progress is None else (
-            lambda fraction, number=number: progress((number + fraction) / len(hands)))
-        result = solve_labelled_take(take, model, markers, prior, args.method, progress=part)
+    for solved in solve_take(take, hands, args.template, prior, args.method, progress):
+        hand, result, what = solved.hand, solved.result, solved.model
         out = Path(args.out) if len(hands) == 1 else per_hand_path(args.out, hand.side)
         result.save(out)
         if args.csv:

@@ -34,24 +34,14 @@ def _load_review(path: str, frame_rate: float | None = None):
 
 
 def _subject_hands(parameters: dict, source: str) -> tuple[dict, dict]:
-    """The subject's hand models and calibrated marker sets per side that auto-label stored in a labelled
-    C3D (its ``HAND_SUBJECT`` group), for the model fill; empty when the take has none."""
-    from handmocap.core.io.labelled_c3d import subject_calibrations
-    from handmocap.core.model import load_layout
-    from handmocap.core.model.lab_template import load_lab_template
-    from handmocap.core.workflows.labelling import subject_model
+    """The subject's hand models and calibrated marker sets per side stored in a labelled take
+    (:func:`core.workflows.labelling.subject_hands`), for the model fill; a calibration not used is noted."""
+    from handmocap.core.workflows.labelling import subject_hands
 
-    models, marker_sets = {}, {}
-    for subject in subject_calibrations(parameters, source):
-        try:
-            template = load_lab_template(subject.layout)
-            layout = template.layout_for(subject.side) if template is not None else load_layout(subject.layout)
-            models[subject.side], marker_sets[subject.side] = subject_model(subject, layout)
-        except InputError as error:
-            # a layout or template not found here: the model fill uses the template hand instead
-            print(f"handmocap: note: the subject calibration of the {subject.side} hand is not used ({error})",
-                  file=sys.stderr)
-    return models, marker_sets
+    found = subject_hands(parameters, source)
+    for note in found.notes:
+        print(f"handmocap: note: {note}", file=sys.stderr)
+    return found.models, found.marker_sets
 
 
 def command_label(args: argparse.Namespace) -> int:

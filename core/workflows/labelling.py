@@ -26,7 +26,7 @@ import numpy as np
 from handmocap.core.calibration.subject import calibrated_model
 from handmocap.core.errors import InputError
 from handmocap.core.io import Take, is_marker_label
-from handmocap.core.io.labelled_c3d import SubjectCalibration
+from handmocap.core.io.labelled_c3d import SubjectCalibration, subject_calibrations
 from handmocap.core.labelling.health import HealthWarning
 from handmocap.core.labelling.scene import HAND_PREFIX, SceneLabelling, label_scene
 from handmocap.core.model import HandModel, MarkerLayout, MarkerSet, load_layout, load_template, resolve_layout
@@ -247,6 +247,30 @@ def subject_model(calibration: SubjectCalibration, layout: MarkerLayout) -> tupl
                          f"'{calibration.layout}', not '{layout.name}'")
     template = load_template(calibration.side)
     return calibrated_model(template, resolve_layout(template, layout), calibration.scales, calibration.offsets_mm)
+
+
+@dataclass(frozen=True)
+class SubjectHands:
+    """The subject's hands a labelled take stores (its ``HAND_SUBJECT`` group), per side: hand models and
+    calibrated marker sets, for the model fill and the solve; ``notes``: one line per calibration not used."""
+
+    models: dict[str, HandModel]
+    marker_sets: dict[str, MarkerSet]
+    notes: list[str]
+
+
+def subject_hands(parameters: dict, source: str | Path | None = None) -> SubjectHands:
+    """The subject hands auto-label stored in a labelled take's ``parameters``; a calibration whose layout or
+    template is not found here is left out with a note (the template hand is used instead)."""
+    models, marker_sets, notes = {}, {}, []
+    for subject in subject_calibrations(parameters, source):
+        try:
+            template = load_lab_template(subject.layout)
+            layout = template.layout_for(subject.side) if template is not None else load_layout(subject.layout)
+            models[subject.side], marker_sets[subject.side] = subject_model(subject, layout)
+        except InputError as error:
+            notes.append(f"the subject calibration of the {subject.side} hand is not used ({error})")
+    return SubjectHands(models, marker_sets, notes)
 
 
 def auto_label(take: Take, layout: str | MarkerLayout | LabTemplate = "dense", hands: str = "auto",

@@ -174,3 +174,17 @@ def resolve_hands(review: ReviewTake, span: FrameSpan | tuple[int, int],
                   marker_sets: dict[str, MarkerSet] | None = None) -> list[SetSolve]:
     """:func:`resolve_jobs` and :func:`run_resolve_jobs` in one call (command line, tests)."""
     return run_resolve_jobs(resolve_jobs(review, span, models, pad, marker_sets), prior, cancelled=cancelled)
+
+
+def solve_unsolved_hands(review: ReviewTake, models: dict[str, HandModel] | None = None,
+                         marker_sets: dict[str, MarkerSet] | None = None,
+                         progress: Callable[[float], None] | None = None,
+                         cancelled: Callable[[], bool] | None = None) -> None:
+    """Solve, in ``review``, every hand that has no solved frame yet (layered IK over the whole take, on the
+    subject's ``models`` and ``marker_sets`` per side when given): what an export of joint angles needs."""
+    if all(np.isfinite(hand.joint_angles).all(axis=1).any() for hand in review.hands):
+        return
+    jobs = [job for job in resolve_jobs(review, (0, review.n_frames), models, pad=0, marker_sets=marker_sets)
+            if not np.isfinite(review.hands[job.hand].joint_angles).all(axis=1).any()]
+    for command in run_resolve_jobs(jobs, progress=progress, cancelled=cancelled):
+        command.do(review)

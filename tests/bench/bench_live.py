@@ -31,8 +31,10 @@ from pathlib import Path
 
 import numpy as np
 
+from handmocap.core.evaluation.data import REAL_RECORDING
+
 ROOT = Path(__file__).resolve().parents[2]
-REAL = ROOT.parent / "shared" / "data" / "real" / "dfki_glove_right_hand_frames_0001_3000.tsv"
+REAL = REAL_RECORDING
 CLI = [sys.executable, "-m", "handmocap.app.cli.main"]
 
 

@@ -13,11 +13,12 @@ from xml.etree import ElementTree
 
 import pytest
 
+from handmocap.core.evaluation.data import VENDOR_C3D
+
 ROOT = Path(__file__).resolve().parents[2]
 INSTALLER = ROOT / "installer"
 LINUX = INSTALLER / "linux"
 MIME_NS = "{http://www.freedesktop.org/standards/shared-mime-info}"
-VENDOR_C3D = ROOT.parent / "shared" / "data" / "c3d"
 
 
 def desktop_entry() -> dict[str, str]:

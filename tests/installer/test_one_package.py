@@ -2,6 +2,7 @@
 ``handmocap`` (and its dist-info) and works from a fresh environment without the sources."""
 
 import ast
+import re
 import subprocess
 import sys
 import venv
@@ -12,6 +13,12 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 FOLDERS = ("app", "core", "widgets", "resources")
+
+
+def readme_api_example() -> str:
+    """The Python script of the README's "Python API" section."""
+    section = (ROOT / "README.md").read_text(encoding="utf-8").split("## Python API", 1)[1]
+    return re.search(r"```python\n(.*?)```", section, flags=re.DOTALL).group(1)
 
 
 def _python_files() -> list[Path]:
@@ -83,3 +90,21 @@ def test_the_wheel_runs_without_the_sources(wheel, tmp_path):
     assert shown.returncode == 0, shown.stderr
     version, where, template = shown.stdout.split()
     assert where.startswith(str(site)) and template == "True" and version != "0+unknown"
+    example = subprocess.run([str(python), "-c", readme_api_example()], cwd=tmp_path, capture_output=True,
+                             text=True, timeout=900)
+    assert example.returncode == 0, example.stderr
+    assert (tmp_path / "take.bvh").is_file() and (tmp_path / "take.c3d").is_file()
+
+
+def test_the_readme_api_example_runs_as_written(tmp_path):
+    completed = subprocess.run([sys.executable, "-c", readme_api_example()], cwd=tmp_path, capture_output=True,
+                               text=True, timeout=600)
+    assert completed.returncode == 0, completed.stderr
+    lines = completed.stdout.splitlines()
+    assert lines[0].startswith("Hand Mocap Studio ") and "labelled" in lines[1]
+    share = float(re.search(r"labelled ([0-9.]+)%", lines[1]).group(1))
+    assert share > 80
+    assert any(line.startswith("right hand on ") for line in lines)
+    correct = float(re.search(r"([0-9.]+) % correct", lines[-1]).group(1))
+    assert correct > 90
+    assert (tmp_path / "take.bvh").stat().st_size > 1000 and (tmp_path / "take.c3d").stat().st_size > 1000

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from handmocap.core.errors import InputError
+from handmocap.core.evaluation.data import SHARED_DATA
 from handmocap.core.io import (
     READ_SUFFIXES,
     TAKE_FILE_FILTER,
@@ -24,7 +25,7 @@ from handmocap.core.io import (
 )
 
 FIXTURES = Path(__file__).parent / "fixtures"
-GUITAR = Path(__file__).resolve().parents[3] / "shared" / "data" / "guitar" / "nokov_guitarist_arpeggio.csv"
+GUITAR = SHARED_DATA / "guitar" / "nokov_guitarist_arpeggio.csv"
 
 
 def _one_line(error: pytest.ExceptionInfo, path: Path) -> str:
