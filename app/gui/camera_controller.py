@@ -41,7 +41,7 @@ from handmocap.app.gui.application import (
     SelectionChanged,
 )
 from handmocap.app.gui.document import TakeDocument
-from handmocap.app.gui.review_controller import point_colours
+from handmocap.app.gui.review.colours import point_colours
 from handmocap.core.camera.files import load_camera
 from handmocap.core.camera.frames import FrameSource, open_frames
 from handmocap.core.camera.model import Camera, CameraClock

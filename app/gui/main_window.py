@@ -52,7 +52,7 @@ from handmocap.app.gui.fusion_controller import FusionController
 from handmocap.app.gui.load_queue import LoadQueue
 from handmocap.app.gui.loose_takes import loose_document, remembered_frame_rate
 from handmocap.app.gui.plots_controller import PlotsController
-from handmocap.app.gui.review_controller import ReviewController
+from handmocap.app.gui.review.controller import ReviewController
 from handmocap.app.gui.session_controller import SessionController
 from handmocap.app.gui.workers import TaskRunner, one_line
 from handmocap.core.errors import CancelledError, HandMocapError, InputError

@@ -22,7 +22,7 @@ from handmocap.app.gui.application import (
     SelectionChanged,
 )
 from handmocap.app.gui.document import TakeDocument
-from handmocap.app.gui.review_controller import label_colours
+from handmocap.app.gui.review.colours import label_colours
 from handmocap.core.review.events import Change, ReviewChanged
 from handmocap.widgets.trajectory_plots import Trace, TrajectoryPlots, make_trace
 

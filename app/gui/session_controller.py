@@ -35,7 +35,7 @@ from handmocap.app.gui.application import (
 )
 from handmocap.app.gui.document import TakeDocument
 from handmocap.app.gui.load_queue import LoadQueue
-from handmocap.app.gui.review_controller import AutoLabelSettings
+from handmocap.app.gui.review.dialogs import AutoLabelSettings
 from handmocap.core.errors import HandMocapError
 from handmocap.core.io import FrameRateMissingError, Take, load_take
 from handmocap.core.io.durable import write_atomic

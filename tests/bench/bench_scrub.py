@@ -26,7 +26,7 @@ from PySide6.QtCore import QEventLoop, QTimer
 from PySide6.QtWidgets import QApplication
 
 from handmocap.app.gui.main_window import MainWindow
-from handmocap.app.gui.review_controller import AutoLabelSettings
+from handmocap.app.gui.review.dialogs import AutoLabelSettings
 
 REAL = (Path(__file__).resolve().parents[3] / "shared" / "data" / "real"
         / "dfki_glove_right_hand_frames_0001_3000.tsv")

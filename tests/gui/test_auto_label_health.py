@@ -8,7 +8,7 @@ import pytest
 from PySide6.QtCore import Qt, QTimer
 from PySide6.QtWidgets import QApplication, QDialogButtonBox
 
-from handmocap.app.gui.review_controller import AutoLabelDialog, AutoLabelSettings
+from handmocap.app.gui.review.dialogs import AutoLabelDialog, AutoLabelSettings
 from handmocap.core.evaluation.data import REAL_RECORDING
 from handmocap.core.io import load_take, save_take
 from handmocap.core.io.labelled_c3d import subject_calibrations

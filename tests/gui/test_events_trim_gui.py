@@ -9,7 +9,7 @@ from PySide6.QtCore import Qt, QTimer
 from PySide6.QtWidgets import QApplication
 
 from handmocap.app.gui.document import TakeDocument
-from handmocap.app.gui.review_controller import EventDialog
+from handmocap.app.gui.review.dialogs import EventDialog
 from handmocap.core.review import review_from_labelled_c3d
 from handmocap.core.simulate import simulate_take
 

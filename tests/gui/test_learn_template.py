@@ -15,7 +15,7 @@ from PySide6.QtWidgets import QMessageBox
 
 from handmocap.app.gui.document import TakeDocument
 from handmocap.app.gui.learn_template import LearnTemplateDialog, TakeSource, where_it_sits
-from handmocap.app.gui.review_controller import AutoLabelDialog, AutoLabelSettings
+from handmocap.app.gui.review.dialogs import AutoLabelDialog, AutoLabelSettings
 from handmocap.core.evaluation.data import SHARED_DATA
 from handmocap.core.io import Take
 from handmocap.core.model import MarkerLayout, layout_names, load_layout

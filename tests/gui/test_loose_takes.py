@@ -12,7 +12,7 @@ from PySide6.QtWidgets import QMessageBox
 
 from handmocap.app.gui.loose_takes import LOOSE_FOLDER, loose_folder
 from handmocap.app.gui.main_window import MainWindow
-from handmocap.app.gui.review_controller import AutoLabelSettings
+from handmocap.app.gui.review.dialogs import AutoLabelSettings
 from handmocap.core.io import save_take
 from handmocap.core.simulate import simulate_take
 

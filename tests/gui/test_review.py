@@ -4,7 +4,7 @@ jump to problems, export a labelled C3D."""
 import numpy as np
 import pytest
 
-from handmocap.app.gui.review_controller import AutoLabelSettings
+from handmocap.app.gui.review.dialogs import AutoLabelSettings
 from handmocap.core.io import save_take
 from handmocap.core.simulate import simulate_take
 

@@ -4,7 +4,7 @@ crash (the journal is replayed); a damaged manifest gives a message and is left 
 import numpy as np
 import pytest
 
-from handmocap.app.gui.review_controller import AutoLabelSettings
+from handmocap.app.gui.review.dialogs import AutoLabelSettings
 from handmocap.core.io import save_take
 from handmocap.core.session import Session
 from handmocap.core.simulate import simulate_take
