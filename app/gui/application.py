@@ -4,9 +4,9 @@ current frame, the operator's selection in it and the running jobs.
 The window and the controllers change it through its methods; views hear what changed through
 :meth:`Application.add_listener`. Besides its own events it passes on the
 :class:`~core.review.events.ReviewChanged` events of the shown take's undo stack, so a view follows
-every edit, undo, redo and solve of that take whoever made it. Changes of the session folder made
-through it (takes added or removed, a take's state, subjects, layouts) are announced as
-:class:`SessionFolderChanged`.
+every edit, undo, redo and solve of that take whoever made it; a whole-take IK solve kept on a take is
+announced as :class:`SolveApplied`. Changes of the session folder made through it (takes added or removed,
+a take's state, subjects, layouts) are announced as :class:`SessionFolderChanged`.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from pathlib import Path
 
 from handmocap.app.gui.document import TakeDocument
 from handmocap.core.errors import HandMocapError
+from handmocap.core.ik import IKResult
 from handmocap.core.io import Take
 from handmocap.core.model import HandModel, MarkerLayout, add_layout_folder, best_layout_for, remove_layout_folder
 from handmocap.core.model.lab_template import LabTemplate
@@ -118,12 +119,19 @@ class FrameChanged:
 
 
 @dataclass(frozen=True)
+class SolveApplied:
+    """A whole-take IK solve of ``document`` was kept (see :meth:`Application.apply_solve`)."""
+
+    document: TakeDocument
+
+
+@dataclass(frozen=True)
 class JobsChanged:
     """A job started or ended (see :attr:`Application.jobs`)."""
 
 
 Event = (DocumentOpened | DocumentClosing | DocumentClosed | CurrentDocumentChanged | FrameChanged
-         | SelectionChanged | SessionChanged | SessionFolderChanged | JobsChanged | ReviewChanged)
+         | SelectionChanged | SessionChanged | SessionFolderChanged | SolveApplied | JobsChanged | ReviewChanged)
 Listener = Callable[[Event], None]
 
 
@@ -325,6 +333,15 @@ class Application:
         path = self._open_session().save_subject_model(subject, model)
         self._announce(SessionFolderChanged(SessionPart.SUBJECTS))
         return path
+
+    # ----------------------------------------------------------------------------------- solves
+    def apply_solve(self, document: TakeDocument, results: list[IKResult]) -> None:
+        """Keep a whole-take IK solve (one result per hand) on ``document``: as its IK result, and in its review
+        as one undoable step when the review has the labels (a :class:`ReviewChanged` when it is shown); then
+        :class:`SolveApplied`."""
+        document.set_result(results)
+        document.record_solve(results)
+        self._announce(SolveApplied(document))
 
     # ------------------------------------------------------------------------------------ jobs
     def job_started(self, name: str, job: Job) -> None:

@@ -1,4 +1,4 @@
-"""An open take in the application: the take, its layout choice, its IK result and its solve request."""
+"""An open take in the application: the take, its layout choice, its review and its IK result."""
 
 from __future__ import annotations
 
@@ -36,9 +36,8 @@ if TYPE_CHECKING:
 class TakeDocument:
     """One take shown in the main window.
 
-    ``solve_request`` is the id of the solve whose result may still be applied (0: none pending); a
-    result arriving with another id is stale and dropped. ``auto_solve``: solve it as soon as the
-    solver is free (demo takes, ``--solve``). ``current_frame``: where the operator left it (0-based).
+    ``auto_solve``: solve it as soon as the solver (:mod:`app.gui.solve_controller`) is free (demo takes,
+    ``--solve``). ``current_frame``: where the operator left it (0-based).
     ``side``: the hand the next solve fits ("right", "left", or "both" for a take with two hands); each result
     knows its own. ``layout_name`` and ``side`` start as the review's hands or the hands the take's names show
     (:func:`core.model.detect_hands`: ``R_``/``L_``, a lab template's or a vendor's names). ``results``: the
@@ -56,7 +55,6 @@ class TakeDocument:
     layout_name: str | None = None
     result: IKResult | None = None
     results: list[IKResult] = field(default_factory=list)
-    solve_request: int = 0
     auto_solve: bool = False
     current_frame: int = 0
     side: str = "right"

@@ -1,7 +1,7 @@
-"""The main window: 3D viewport, timeline, marker table, take list; opening and IK solving on workers.
+"""The main window: 3D viewport, timeline, marker table, take list; opening takes on a worker.
 
 The window holds the :class:`~app.gui.application.Application` (the open takes, the shown one, the session,
-the selection, the running jobs) and places the views of its controllers (review, session). Views follow
+the selection, the running jobs) and places the views of its controllers (review, solve, session). Views follow
 the application's events: the window sets up its own views for a shown take first, the controllers
 theirs next, then the window draws the frame, so that the review's drawing comes on top of the raw
 markers. The current frame is the application's (:attr:`Application.frame`): the timeline sets it and
@@ -36,14 +36,13 @@ from handmocap.app.gui.application import (
     Application,
     CurrentDocumentChanged,
     DocumentClosed,
-    DocumentClosing,
     DocumentOpened,
     FrameChanged,
-    Job,
     JobsChanged,
     SessionChanged,
     SessionFolderChanged,
     SessionPart,
+    SolveApplied,
 )
 from handmocap.app.gui.camera_controller import CameraController
 from handmocap.app.gui.document import TakeDocument
@@ -54,13 +53,13 @@ from handmocap.app.gui.loose_takes import loose_document, remembered_frame_rate
 from handmocap.app.gui.plots_controller import PlotsController
 from handmocap.app.gui.review.controller import ReviewController
 from handmocap.app.gui.session_controller import SessionController
-from handmocap.app.gui.workers import TaskRunner, one_line
-from handmocap.core.errors import CancelledError, HandMocapError, InputError
-from handmocap.core.ik import METHODS, IKResult
+from handmocap.app.gui.solve_controller import SOLVE_JOB, SolveChoice, SolveController
+from handmocap.app.gui.workers import one_line
+from handmocap.core.errors import CancelledError, HandMocapError
+from handmocap.core.ik import METHODS
 from handmocap.core.io import READ_SUFFIXES, TAKE_FILE_FILTER, FrameRateMissingError, Take, load_take
-from handmocap.core.model import detect_hands, layout_names, skin_vertices
+from handmocap.core.model import layout_names, skin_vertices
 from handmocap.core.review.events import ReviewChanged
-from handmocap.core.workflows.resolve import hand_marker_set, solve_labelled_take
 from handmocap.widgets.elided_combo import ElidedComboBox
 from handmocap.widgets.frame_rate_dialog import FrameRatePrompt
 from handmocap.widgets.marker_panel import MarkerPanel
@@ -78,7 +77,6 @@ OTHER_MARKER_COLOUR = (0.62, 0.62, 0.66)    # arm, body and object markers
 FRAMING_RADIUS_MM = 90.0                   # half-size of the box the camera frames around the hand
 TAKE_SUFFIXES = READ_SUFFIXES
 TAKE_FILTER = TAKE_FILE_FILTER
-SOLVE_JOB = "solve"                        # the IK solver's worker in Application.jobs
 TAKE_NAME_CHARACTERS = 28                  # the take choice's width; longer names are elided in the middle
 
 
@@ -139,12 +137,6 @@ class MainWindow(QMainWindow):
         self.app = Application()
         self.app.add_listener(self._set_up_views)        # before the controllers' listeners (module docstring)
 
-        self.runner = TaskRunner(self)        # IK solves
-        self.runner.progressed.connect(self._solve_progressed)
-        self.runner.succeeded.connect(self._solve_succeeded)
-        self.runner.failed.connect(self._solve_failed)
-        self.runner.cancelled.connect(self._solve_cancelled)
-        self.runner.busy_changed.connect(self._solver_busy_changed)
         self.loader = LoadQueue(self)         # opening files and session takes, the demo session
         self.loader.failed.connect(lambda message: self.show_error("Cannot open", message))
         self.loader.busy_changed.connect(self._loader_busy_changed)
@@ -168,6 +160,7 @@ class MainWindow(QMainWindow):
         self.plots = PlotsController(self.app, self)
         self.cameras = CameraController(self.app, self, self.viewport)
         self.fusion = FusionController(self.app, self, self.cameras)
+        self.solver = SolveController(self.app, self, self._solve_choice)   # solves a shown take after the others
         self._place_review()
         self._place_sessions()
         self._place_plots()
@@ -209,7 +202,7 @@ class MainWindow(QMainWindow):
         self.export_action = self._action("&Export joint angles (CSV)…", self.choose_export, "export_angles")
         quit_action = self._action("&Quit", self.close, "quit")
         # the lambda drops Qt's `checked` argument, which solve() would take as its document
-        self.solve_action = self._action("&Solve", lambda: self.solve(),  # noqa: PLW0108
+        self.solve_action = self._action("&Solve", lambda: self.solver.solve(),  # noqa: PLW0108
                                          "solve", icon=pixmap.SP_BrowserReload)
         self.cancel_action = self._action("&Cancel", self.cancel_work, "cancel", icon=pixmap.SP_BrowserStop)
         self.labels_action = self._action("Marker &names", self.viewport.set_labels_visible, "marker_names", True,
@@ -407,10 +400,10 @@ class MainWindow(QMainWindow):
         """Show what the controllers tell, and pass on what one asks of the other."""
         review, sessions = self.review, self.sessions
         self.solve_menu.insertAction(self.cancel_action, self.fusion.fuse_action)
-        for controller in (review, sessions, self.fusion):
+        for controller in (review, self.solver, sessions, self.fusion):
             controller.status_message.connect(self.statusBar().showMessage)
             controller.error_raised.connect(self.show_error)
-        for worker in (review, self.fusion):
+        for worker in (review, self.solver, self.fusion):
             worker.progress_started.connect(self.show_progress)
             worker.progressed.connect(self.set_progress)
             worker.progress_ended.connect(self.hide_progress)
@@ -464,7 +457,7 @@ class MainWindow(QMainWindow):
             for document in opened.documents:
                 self.app.open_document(document)
             self.app.show(self.app.documents[first])
-        self._solve_next_pending()
+        self.solver.solve_next_pending()
         if opened.errors:
             self.show_error("Cannot open", "\n".join(opened.errors))
         if opened.rate_needed:
@@ -495,7 +488,7 @@ class MainWindow(QMainWindow):
     # ----------------------------------------------------------------------------- following the app
     def _set_up_views(self, event: object) -> None:
         """The window's part before the controllers': the take list, a shown take's markers, table and
-        timeline, the solver stopping for a closing take, the session dock, the actions."""
+        timeline, the session dock, the actions."""
         if isinstance(event, DocumentOpened):
             document = event.document
             self.take_box.blockSignals(True)
@@ -503,9 +496,6 @@ class MainWindow(QMainWindow):
             self.take_box.setItemData(self.take_box.count() - 1, str(document.take.source_path or document.title),
                                       Qt.ItemDataRole.ToolTipRole)
             self.take_box.blockSignals(False)
-        elif isinstance(event, DocumentClosing):
-            if event.document.solve_request:
-                self.runner.stop()
         elif isinstance(event, DocumentClosed):
             self.take_box.blockSignals(True)
             self.take_box.removeItem(event.index)
@@ -532,7 +522,7 @@ class MainWindow(QMainWindow):
 
     def _draw_views(self, event: object) -> None:
         """The window's part after the controllers': draw the frame of a newly shown take (and point the
-        camera at its hand), or the frame again after a change of its review."""
+        camera at its hand), or the frame again after a change of its review or a solve of it."""
         document = self.document
         if document is None:
             return
@@ -542,11 +532,15 @@ class MainWindow(QMainWindow):
             self.show_frame(self.app.frame)
             self.frame_hand()
             self._update_enabled()
-            if document.auto_solve and document.result is None:
-                self._solve_next_pending()
         elif isinstance(event, ReviewChanged) and event.operation != "clean":
             self._show_review_residuals()
             self.show_frame(self.app.frame)
+            self._update_enabled()
+        elif isinstance(event, SolveApplied):
+            if event.document is document:
+                self._show_result_geometry()
+                self.timeline.set_residuals(document.mean_residual_per_frame())
+                self.show_frame(self.app.frame)
             self._update_enabled()
 
     def _set_up_take(self, document: TakeDocument) -> None:
@@ -670,56 +664,9 @@ class MainWindow(QMainWindow):
             self.show_frame(self.app.frame)
 
     # --------------------------------------------------------------------------------------- solve
-    def solve(self, document: TakeDocument | None = None) -> None:
-        """Run IK of ``document`` (default: the current take) on the worker thread with the chosen layout, hand
-        and method: each hand :func:`core.model.detect_hands` finds with that layout (both hands of a two-hand
-        take, or the chosen side), on the review's labels when it has any (after auto-label) else on the take's
-        names, with the subject's hand and calibrated markers when auto-label made them; a solve running for
-        another take is cancelled (it is retried later when it was an automatic one)."""
-        document = document or self.document
-        if document is None:
-            return
-        layout_name = (self.layout_box.currentText() if document is self.document
-                       else document.layout_name or self.layout_box.currentText())
-        side = self.side_box.currentText() if document is self.document else document.side
-        review = document.review
-        take = review.labelled_take() if review is not None and review.n_labels else document.take
-        try:
-            hands = detect_hands(take.marker_names, layout_name, side if side in ("right", "left") else None,
-                                 required=True)
-            if side in ("right", "left"):
-                hands = ([hand for hand in hands if hand.side == side]
-                         or [hand for hand in hands if not hand.side_from_names])[:1]
-                if not hands:
-                    raise InputError(f"the take has no {side} hand with layout '{layout_name}' (choose the hand "
-                                     "'both' or the other side)")
-        except HandMocapError as error:
-            self.show_error("Cannot solve", str(error))
-            return
-        document.layout_name = layout_name
-        document.side = side
-        method = self.method_box.currentText()
-        models = {hand.side: document.model_for(hand.side) for hand in hands}
-        calibrated = {hand.side: document.marker_sets.get(hand.side) for hand in hands}
-        names = list(take.marker_names)
-
-        def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> list[IKResult]:
-            results = []
-            for number, hand in enumerate(hands):
-                model = models[hand.side]
-                markers = hand_marker_set(hand, names, model, calibrated[hand.side])
-                results.append(solve_labelled_take(
-                    take, model, markers, method=method, cancelled=cancelled,
-                    progress=lambda fraction, number=number: progress((number + fraction) / len(hands))))
-                skin_vertices(model, results[-1].joint_angles[0])  # compiles the skinning kernel off the GUI thread
-            return results
-
-        document.solve_request = self.runner.start(task)
-        self.app.job_started(SOLVE_JOB, Job("solve", document, self.cancel_solve))
-        which = " and ".join(hand.side for hand in hands)
-        self.statusBar().showMessage(f"Solving {document.title} with {method} IK ({Path(layout_name).stem}, "
-                                     f"{which} hand{'s' if len(hands) > 1 else ''})…")
-        self._update_enabled()
+    def _solve_choice(self) -> SolveChoice:
+        """The toolbar's layout, hand and method, for the solve of the shown take."""
+        return SolveChoice(self.layout_box.currentText(), self.side_box.currentText(), self.method_box.currentText())
 
     def cancel_work(self) -> None:
         """Stop what the progress bar shows: the IK solve, or the review job (auto-label, fill, re-solve)."""
@@ -727,83 +674,13 @@ class MainWindow(QMainWindow):
         if job is not None:
             job.cancel()
 
-    def cancel_solve(self) -> None:
-        """Stop the running solve; its take stays as it was and is not solved automatically again."""
-        owner = self._owner(self.runner.current_request)
-        if owner is not None:
-            owner.auto_solve = False
-        self.runner.cancel()
-
-    def _owner(self, request_id: int) -> TakeDocument | None:
-        if request_id == 0:
-            return None
-        return next((d for d in self.app.documents if d.solve_request == request_id), None)
-
-    def _solve_progressed(self, request_id: int, fraction: float) -> None:
-        owner = self._owner(request_id)
-        if owner is None:
-            return
-        self.progress_bar.setValue(int(round(100 * fraction)))
-        self.progress_bar.setToolTip(f"Solving {owner.title}")
-
-    def _solve_succeeded(self, request_id: int, results: list[IKResult]) -> None:
-        document = self._owner(request_id)
-        if document is None:
-            return
-        document.solve_request = 0
-        document.set_result(results)
-        document.record_solve(results)
-        residuals = ", ".join(f"{result.hand_side} {result.mean_residual_mm:.2f} mm" for result in results)
-        self.statusBar().showMessage(f"{document.title}: {results[0].method} IK done, mean residual "
-                                     f"{residuals}", 15000)
-        if document is self.document:
-            self._show_result_geometry()
-            self.timeline.set_residuals(document.mean_residual_per_frame())
-            self.show_frame(self.app.frame)
-        self._update_enabled()
-        self._solve_next_pending()
-
-    def _solve_failed(self, request_id: int, message: str) -> None:
-        document = self._owner(request_id)
-        if document is not None:
-            document.solve_request = 0
-            document.auto_solve = False
-            self._update_enabled()
-            self._solve_next_pending()
-            self.show_error("Solve failed", f"{document.title}: {message}")
-
-    def _solve_cancelled(self, request_id: int) -> None:
-        document = self._owner(request_id)
-        if document is not None:
-            document.solve_request = 0
-            self.statusBar().showMessage(f"{document.title}: solve cancelled; the take is unchanged", 8000)
-            self._update_enabled()
-
-    def _solve_next_pending(self) -> None:
-        """Start the next automatic solve (the current take first), one at a time."""
-        if self.runner.is_busy():
-            return
-        waiting = [d for d in self.app.documents if d.auto_solve and d.result is None and d.solve_request == 0]
-        if self.document in waiting:
-            self.solve(self.document)
-        elif waiting:
-            self.solve(waiting[0])
-
-    def _solver_busy_changed(self, busy: bool) -> None:
-        if not busy:
-            self.app.job_ended(SOLVE_JOB)
-        self.progress_bar.setValue(0)
-        self.progress_bar.setVisible(busy)
-        self.cancel_button.setVisible(busy)
-        self._update_enabled()
-
     def _loader_busy_changed(self, busy: bool) -> None:
         self.opening_label.setVisible(busy)
         self._update_enabled()
 
     def _update_enabled(self) -> None:
         document = self.document
-        self.solve_action.setEnabled(document is not None and document.solve_request == 0)
+        self.solve_action.setEnabled(document is not None and self.solver.solving() is not document)
         self.cancel_action.setEnabled(self.app.is_busy())
         self.export_action.setEnabled(document is not None and document.result is not None)
         self.frame_action.setEnabled(document is not None)
@@ -826,7 +703,7 @@ class MainWindow(QMainWindow):
         self.progress_bar.setValue(int(round(100 * fraction)))
 
     def hide_progress(self) -> None:
-        if not self.runner.is_busy():
+        if not self.solver.is_busy():
             self.progress_bar.hide()
             self.cancel_button.hide()
             self.progress_bar.setFormat("Solving… %p %")
@@ -946,7 +823,7 @@ class MainWindow(QMainWindow):
         self.log_handler.remove()
         self.timeline.pause()
         self.sessions.close()
-        self.runner.stop()
+        self.solver.stop()
         self.loader.stop()
         self.review.stop()
         self.fusion.close()

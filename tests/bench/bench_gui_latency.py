@@ -34,7 +34,7 @@ def measure(app: QApplication, window: MainWindow, take, interval_s: float, solv
         app.processEvents()
     sys.setswitchinterval(interval_s)
     if solve:
-        window.solve(document)
+        window.solver.solve(document)
     clock, lateness, repaints = QElapsedTimer(), [], []
     clock.start()
     last = [clock.elapsed()]
@@ -50,10 +50,10 @@ def measure(app: QApplication, window: MainWindow, take, interval_s: float, solv
     timer = QTimer()
     timer.timeout.connect(tick)
     timer.start(TICK_MS)
-    while clock.elapsed() < 1000 * MEASURE_S and (window.runner.is_busy() or not solve):
+    while clock.elapsed() < 1000 * MEASURE_S and (window.solver.runner.is_busy() or not solve):
         app.processEvents()
     timer.stop()
-    window.runner.stop()
+    window.solver.runner.stop()
     return {"switch_interval_ms": interval_s * 1000, "solving": solve, "ticks": len(lateness),
             "timer_late_mean_ms": round(float(np.mean(lateness)), 1),
             "timer_late_max_ms": round(float(np.max(lateness)), 1),

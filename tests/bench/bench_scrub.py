@@ -79,7 +79,7 @@ def prepare(app: QApplication, window: MainWindow) -> None:
     window.review.start_auto_label(AutoLabelSettings(layout="glove-13"))
     wait_until(app, lambda: not window.is_busy())
     if not window.document.has_solved_hands():
-        window.solve()
+        window.solver.solve()
         wait_until(app, lambda: not window.is_busy())
     review = window.document.review
     window.review.select_label(review.label_index("index_tip"))

@@ -57,7 +57,7 @@ def open_solved(window, qtbot, folder):
     window.sessions.open_take(window.sessions.session.takes[0].id)
     qtbot.waitUntil(lambda: not window.loader.is_busy() and window.document is not None, timeout=30_000)
     window.fusion.settings = FAST
-    window.solve()
+    window.solver.solve()
     qtbot.waitUntil(lambda: not window.is_busy() and window.document.has_solved_hands(), timeout=60_000)
     return window.document
 

@@ -7,6 +7,7 @@ from PySide6.QtCore import Qt
 
 from handmocap.app.gui.document import TakeDocument
 from handmocap.core.io import Take, save_take
+from handmocap.core.model import skin_vertices
 from handmocap.core.simulate import simulate_take
 
 pytestmark = pytest.mark.gui
@@ -32,7 +33,7 @@ def open_and_wait(window, qtbot, *paths):
 
 
 def solve_and_wait(window, qtbot):
-    with qtbot.waitSignal(window.runner.succeeded, timeout=60_000):
+    with qtbot.waitSignal(window.solver.runner.succeeded, timeout=60_000):
         window.solve_action.trigger()
 
 
@@ -162,12 +163,12 @@ def test_each_take_keeps_its_solve_and_frame(window, qtbot, take_file, tmp_path)
 def test_cancel_leaves_the_take_unsolved(window, qtbot, long_take):
     window.add_document(TakeDocument(long_take, "long"))
     # the operator presses Cancel once the progress bar moves, however busy the GUI thread was before
-    window.runner.progressed.connect(lambda *_: window.cancel_action.trigger())
-    with qtbot.waitSignal(window.runner.cancelled, timeout=60_000):
-        window.solve()
-        assert window.runner.is_busy() and window.cancel_action.isEnabled()
+    window.solver.runner.progressed.connect(lambda *_: window.cancel_action.trigger())
+    with qtbot.waitSignal(window.solver.runner.cancelled, timeout=60_000):
+        window.solver.solve()
+        assert window.solver.runner.is_busy() and window.cancel_action.isEnabled()
     assert window.document.result is None
-    assert not window.runner.is_busy()
+    assert not window.solver.runner.is_busy()
     assert window.solve_action.isEnabled()
 
 
@@ -185,8 +186,8 @@ def test_bad_file_shows_a_message_and_keeps_the_open_take(window, qtbot, take_fi
 def test_take_without_layout_markers_reports_instead_of_crashing(window, qtbot):
     take = Take(["a", "b", "c"], np.random.default_rng(0).normal(size=(30, 3, 3)) * 100, 100.0)
     window.add_document(TakeDocument(take, "foreign"))
-    window.solve()                                   # refused before any work starts
-    assert not window.runner.is_busy()
+    window.solver.solve()                                   # refused before any work starts
+    assert not window.solver.runner.is_busy()
     assert window.messages and "only 0 of the" in window.messages[-1] and "\n" not in window.messages[-1]
     assert window.solve_action.isEnabled()
 
@@ -198,10 +199,10 @@ def test_closing_while_solving_stops_the_worker(qtbot, long_take):
     window.show()
     try:
         window.add_document(TakeDocument(long_take, "long"))
-        window.solve()
-        assert window.runner.is_busy()
+        window.solver.solve()
+        assert window.solver.runner.is_busy()
         window.close()
-        assert not window.runner.is_busy()
+        assert not window.solver.runner.is_busy()
     finally:
         release(window)
 
@@ -211,3 +212,41 @@ def test_screenshot_writes_a_png(window, qtbot, take_file, tmp_path):
     path = tmp_path / "shot.png"
     assert window.save_screenshot(path)
     assert path.exists() and path.stat().st_size > 10_000
+
+
+def test_the_solve_reaches_the_views_through_an_event(window, qtbot, take_file):
+    from handmocap.app.gui.application import SolveApplied
+
+    open_and_wait(window, qtbot, take_file)
+    heard = []
+    window.app.add_listener(lambda event: heard.append(event) if isinstance(event, SolveApplied) else None)
+    solve_and_wait(window, qtbot)
+    assert [event.document for event in heard] == [window.document]
+    results = window.document.results
+    # the same result applied through the application alone (no solver, no window call): the views follow
+    window.add_document(TakeDocument(window.document.take, "again"))
+    assert window.viewport.vertex_points().shape == (0, 3) and not window.export_action.isEnabled()
+    window.app.apply_solve(window.document, results)
+    assert window.document.result is results[0] and len(heard) == 2
+    window.timeline.set_frame(120)
+    np.testing.assert_allclose(window.viewport.vertex_points(),
+                               skin_vertices(window.document.model_for("right"), results[0].joint_angles[120]),
+                               atol=1e-3)
+    assert np.isfinite(window.document.review.hands[0].joint_angles).all()    # kept in the review as a step
+    assert window.export_action.isEnabled()
+
+
+def test_cancelling_from_the_solver_leaves_one_state_and_nothing_stale(window, qtbot, long_take):
+    window.add_document(TakeDocument(long_take, "long"))
+    solver = window.solver
+    with qtbot.waitSignal(solver.runner.cancelled, timeout=60_000):
+        solver.solve()
+        assert solver.solving() is window.document and window.app.jobs["solve"].document is window.document
+        assert not window.solve_action.isEnabled()
+        solver.cancel()
+    assert solver.solving() is None and "solve" not in window.app.jobs and not solver.is_busy()
+    assert not any(hasattr(window, name) for name in ("runner", "solve", "_solve_succeeded", "_owner"))
+    assert not hasattr(window.document, "solve_request")
+    assert window.document.result is None and not window.document.auto_solve
+    assert window.solve_action.isEnabled() and not window.cancel_action.isEnabled()
+    assert not window.progress_bar.isVisible()

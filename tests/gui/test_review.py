@@ -205,7 +205,7 @@ def test_ik_solve_is_kept_in_the_review_and_undoable(window, qtbot, tmp_path):
     assert review.n_labels == 24                                # a labelled take: its columns are the labels,
     assert [hand.side for hand in review.hands] == ["right"]    # its hand found from their names, unsolved
     assert np.isnan(review.hands[0].joint_angles).all()
-    with qtbot.waitSignal(window.runner.succeeded, timeout=60_000):
+    with qtbot.waitSignal(window.solver.runner.succeeded, timeout=60_000):
         window.solve_action.trigger()
     assert len(review.hands) == 1 and np.isfinite(review.hands[0].joint_angles).all()
     assert np.nanmean(review.residuals_mm) < 1.0

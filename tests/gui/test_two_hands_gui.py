@@ -20,7 +20,7 @@ def open_and_wait(window, qtbot, path):
 
 
 def solve_and_wait(window, qtbot):
-    with qtbot.waitSignal(window.runner.succeeded, timeout=60_000):
+    with qtbot.waitSignal(window.solver.runner.succeeded, timeout=60_000):
         window.solve_action.trigger()
 
 
