@@ -2,12 +2,9 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
-if TYPE_CHECKING:
-    from handmocap.core.labelling.scene import SceneLabelling
+from handmocap.core.labelling.result import SceneLabelling
 
 
 def _longest_run(flags: np.ndarray) -> int:

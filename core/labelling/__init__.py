@@ -2,6 +2,7 @@
 joint Hungarian assignment + IK, initialisation, side decision, swap repair, labelling health."""
 
 from handmocap.core.labelling.models import SceneSettings
-from handmocap.core.labelling.scene import SceneLabelling, SceneModel, label_scene
+from handmocap.core.labelling.result import SceneLabelling, SceneModel
+from handmocap.core.labelling.scene import label_scene
 
 __all__ = ["SceneLabelling", "SceneModel", "SceneSettings", "label_scene"]

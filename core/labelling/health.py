@@ -3,50 +3,10 @@ measured on the take, and warnings over frame ranges where the result looks wron
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING
-
 import numpy as np
 
-if TYPE_CHECKING:
-    from handmocap.core.labelling.scene import SceneLabelling
-
-#: kinds of :class:`HealthWarning`, with what each means (shown as a tooltip in the review)
-WARNING_KINDS = {
-    "low_labelled_share": "a model labels a small share of its markers over these frames",
-    "many_ghosts": "many points were rejected as ghosts, more than the noise estimate explains",
-    "side_uncertain": "left and right fit this hand almost equally well: check the side",
-    "reinitialised": "a model was re-initialised here: its labels before and after may differ",
-    "high_residual": "the fit is much worse here than over the rest of the take",
-    "no_hand": "no hand was found in the take",
-    "noisy_take": "the markers are noisier than a well-calibrated system gives",
-    "whole_take_doubt": "the lab template's distances cannot tell this hand's labelling from a whole-take "
-                        "alternative (fingers cycled, tip and middle exchanged, hands exchanged)",
-    "whole_take_identity": "the hand was relabelled for the whole take: the lab template's distances fit the "
-                           "alternative clearly better",
-}
-
-
-@dataclass(frozen=True)
-class HealthWarning:
-    """One doubt about a labelling: ``kind`` (a key of :data:`WARNING_KINDS`), the ``model`` it is about
-    ("" for the whole scene), 0-based frames ``first_frame..last_frame`` inclusive, and a one-line
-    ``message`` for the operator."""
-
-    kind: str
-    model: str
-    first_frame: int
-    last_frame: int
-    message: str
-
-    def as_dict(self) -> dict:
-        return asdict(self)
-
-    @staticmethod
-    def from_dict(values: dict) -> HealthWarning:
-        return HealthWarning(str(values["kind"]), str(values["model"]), int(values["first_frame"]),
-                             int(values["last_frame"]), str(values["message"]))
-
+from handmocap.core.labelling.health_warning import HealthWarning
+from handmocap.core.labelling.result import SceneLabelling
 
 NOISY_TAKE_MM = 1.0
 """Marker noise σ per axis (mm) above which a take is reported as noisy: a well-calibrated optical

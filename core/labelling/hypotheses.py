@@ -21,16 +21,13 @@ share of the frames (:data:`DOUBT_SHARE`) is reported as a doubt on that hand, w
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handmocap.core.labelling.health import HealthWarning
+from handmocap.core.labelling.health_warning import HealthWarning
+from handmocap.core.labelling.result import SceneLabelling
 from handmocap.core.model.hand_columns import name_side
 from handmocap.core.model.lab_template import LabTemplate, PairStatistics, TemplateHand
-
-if TYPE_CHECKING:
-    from handmocap.core.labelling.scene import SceneLabelling
 
 #: a hypothesis whose cost per pair is this much below the labelling's (squared standard deviations: every
 #: distance two sigmas better on average) replaces it

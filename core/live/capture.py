@@ -35,7 +35,7 @@ from handmocap.core.errors import InputError
 from handmocap.core.io import Take
 from handmocap.core.io.c3d_writer import write_c3d
 from handmocap.core.labelling.online import LabelledFrame, OnlineLabeller
-from handmocap.core.labelling.scene import SceneLabelling
+from handmocap.core.labelling.result import SceneLabelling
 from handmocap.core.live.recorder import (
     SYSTEM_GROUP,
     FrameJournal,

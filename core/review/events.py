@@ -9,10 +9,29 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import NamedTuple
 
-if TYPE_CHECKING:
-    from handmocap.core.review.commands import FrameSpan
+
+class FrameSpan(NamedTuple):
+    """Frames ``start .. stop - 1`` (0-based) a command changed; empty when ``stop <= start``."""
+
+    start: int
+    stop: int
+
+    @property
+    def empty(self) -> bool:
+        return self.stop <= self.start
+
+    def union(self, other: FrameSpan) -> FrameSpan:
+        if self.empty:
+            return other
+        if other.empty:
+            return self
+        return FrameSpan(min(self.start, other.start), max(self.stop, other.stop))
+
+
+EMPTY_SPAN = FrameSpan(0, 0)
+
 
 OPERATIONS = ("do", "attach", "undo", "redo", "clean")
 

@@ -39,7 +39,7 @@ import numpy as np
 from handmocap.core.errors import InputError
 from handmocap.core.io import Take
 from handmocap.core.io.c3d_events import TakeEvent, read_events
-from handmocap.core.labelling.health import WARNING_KINDS, HealthWarning
+from handmocap.core.labelling.health_warning import WARNING_KINDS, HealthWarning
 from handmocap.core.model.hand_columns import detect_hands
 from handmocap.core.model.provenance import MEASURED, MISSING
 

@@ -61,7 +61,8 @@ from handmocap.core.errors import InputError
 from handmocap.core.io import Take, load_take, looks_unlabelled
 from handmocap.core.model import HandModel, MarkerLayout, best_layout_for, detect_hands
 from handmocap.core.model.lab_template import LabTemplate, save_lab_template
-from handmocap.core.review.commands import Command, FrameSpan, UndoStack
+from handmocap.core.review.commands import Command, UndoStack
+from handmocap.core.review.events import FrameSpan
 from handmocap.core.review.take import HandTrack, ReviewTake
 from handmocap.core.session.files import (
     make_folder,

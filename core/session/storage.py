@@ -33,7 +33,8 @@ from handmocap.core.io import Take
 from handmocap.core.io.c3d_events import TakeEvent
 from handmocap.core.io.durable import write_atomic
 from handmocap.core.model import MarkerSet
-from handmocap.core.review.commands import Command, CompoundCommand, FrameSpan, UndoStack, command_from_json
+from handmocap.core.review.commands import Command, CompoundCommand, UndoStack, command_from_json
+from handmocap.core.review.events import FrameSpan
 from handmocap.core.review.take import (
     FRAME_ARRAYS,
     HandTrack,

@@ -27,8 +27,9 @@ from handmocap.core.calibration.subject import calibrated_model
 from handmocap.core.errors import InputError
 from handmocap.core.io import Take, is_marker_label
 from handmocap.core.io.labelled_c3d import SubjectCalibration, subject_calibrations
-from handmocap.core.labelling.health import HealthWarning
-from handmocap.core.labelling.scene import HAND_PREFIX, SceneLabelling, label_scene
+from handmocap.core.labelling.health_warning import HealthWarning
+from handmocap.core.labelling.result import SceneLabelling
+from handmocap.core.labelling.scene import HAND_PREFIX, label_scene
 from handmocap.core.model import HandModel, MarkerLayout, MarkerSet, load_layout, load_template, resolve_layout
 from handmocap.core.model.lab_template import LabTemplate, load_lab_template
 from handmocap.core.model.objects import ObjectSpec, load_scene_spec

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from handmocap.core.io import save_take
-from handmocap.core.labelling.health import HealthWarning
-from handmocap.core.labelling.scene import SceneLabelling, SceneModel
+from handmocap.core.labelling.health_warning import HealthWarning
+from handmocap.core.labelling.result import SceneLabelling, SceneModel
 from handmocap.core.review import ApplyLabelling, LabellingArrays, ReviewTake, UndoStack, command_from_json
 from handmocap.core.review.synthetic import synthetic_labelling
 from handmocap.core.session import Session

@@ -194,7 +194,7 @@ def test_subject_calibration_round_trips_and_a_damaged_group_is_one_line():
 
 
 def test_cli_label_claims_nothing_when_only_stray_points_fit_a_hand(tmp_path, capsys, monkeypatch):
-    from handmocap.core.labelling.scene import SceneLabelling, SceneModel
+    from handmocap.core.labelling.result import SceneLabelling, SceneModel
     from handmocap.core.workflows import labelling
 
     rng = np.random.default_rng(2)
