@@ -78,7 +78,10 @@ class LabelPicker(QDialog):
                 first = item
         if header is not None:
             header.setHidden(not header_shown)
-        self.list.setCurrentItem(first)
+        if first is None:
+            self.list.setCurrentRow(-1)     # no label shown: no current item (what setCurrentItem(None) does)
+        else:
+            self.list.setCurrentItem(first)
 
     def eventFilter(self, watched: QObject, event: QEvent) -> bool:  # noqa: N802 - Qt's name
         """Up/Down in the search field move in the list; Enter picks the current label."""

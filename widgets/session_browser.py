@@ -10,17 +10,20 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
-from PySide6.QtCore import QEvent, QModelIndex, QObject, QPoint, QRect, QSize, Qt, Signal
+from PySide6.QtCore import QEvent, QModelIndex, QObject, QPersistentModelIndex, QPoint, QRect, QSize, Qt, Signal
 from PySide6.QtGui import (
     QAction,
     QBrush,
     QColor,
     QDragEnterEvent,
+    QDragMoveEvent,
     QDropEvent,
     QFont,
     QFontMetrics,
     QIcon,
+    QKeyEvent,
     QPainter,
     QPalette,
     QPixmap,
@@ -72,6 +75,20 @@ SORT_ROLE = Qt.ItemDataRole.UserRole + 2
 NO_SUBJECT = "(no subject)"
 
 
+class TakeEntryLike(Protocol):
+    """What :meth:`TakeRow.from_entry` reads of a :class:`core.session.TakeEntry` (``subject``, ``layout``,
+    ``frames`` and ``source`` are read when present)."""
+
+    @property
+    def id(self) -> str: ...
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def state(self) -> str: ...
+
+
 @dataclass(frozen=True)
 class TakeRow:
     """One take as the browser shows it: ``id`` (session take id), ``name``, ``state`` (one of
@@ -87,7 +104,7 @@ class TakeRow:
     source: str = ""
 
     @classmethod
-    def from_entry(cls, entry: object) -> TakeRow:
+    def from_entry(cls, entry: TakeEntryLike) -> TakeRow:
         """A row from a :class:`core.session.TakeEntry` (or anything with the same attributes)."""
         return cls(str(entry.id), str(entry.name), str(entry.state), getattr(entry, "subject", None),
                    getattr(entry, "layout", None), int(getattr(entry, "frames", 0) or 0),
@@ -106,6 +123,16 @@ def _recognised(path: str) -> bool:
         return recognised_format(path) is not None
     except OSError:
         return False
+
+
+def _top_items(tree: QTreeWidget) -> list[QTreeWidgetItem]:
+    """The top-level items of ``tree``, in order."""
+    return [item for index in range(tree.topLevelItemCount()) if (item := tree.topLevelItem(index)) is not None]
+
+
+def _children(item: QTreeWidgetItem) -> list[QTreeWidgetItem]:
+    """The child items of ``item``, in order."""
+    return [child for index in range(item.childCount()) if (child := item.child(index)) is not None]
 
 
 def _shared_prefix(first: str, second: str) -> int:
@@ -143,14 +170,15 @@ class DistinctNameDelegate(QStyledItemDelegate):
         self.tree = tree
 
     def _names(self) -> list[str]:
-        names, stack = [], [self.tree.topLevelItem(i) for i in range(self.tree.topLevelItemCount())]
+        names, stack = [], _top_items(self.tree)
         while stack:
             item = stack.pop()
             names.append(item.text(TAKE_COLUMN))
-            stack += [item.child(i) for i in range(item.childCount())]
+            stack += _children(item)
         return names
 
-    def paint(self, painter: QPainter, option: QStyleOptionViewItem, index: QModelIndex) -> None:
+    def paint(self, painter: QPainter, option: QStyleOptionViewItem,
+              index: QModelIndex | QPersistentModelIndex) -> None:
         self.initStyleOption(option, index)
         text = option.text
         style = option.widget.style() if option.widget else None
@@ -165,7 +193,8 @@ class DistinctNameDelegate(QStyledItemDelegate):
 class StateBadgeDelegate(QStyledItemDelegate):
     """Paints a take's state as a rounded coloured badge."""
 
-    def paint(self, painter: QPainter, option: QStyleOptionViewItem, index: QModelIndex) -> None:
+    def paint(self, painter: QPainter, option: QStyleOptionViewItem,
+              index: QModelIndex | QPersistentModelIndex) -> None:
         state = index.data(Qt.ItemDataRole.DisplayRole)
         if state not in STATE_COLOURS:
             super().paint(painter, option, index)
@@ -192,7 +221,7 @@ class StateBadgeDelegate(QStyledItemDelegate):
         painter.drawText(rect, Qt.AlignmentFlag.AlignCenter, state)
         painter.restore()
 
-    def sizeHint(self, option: QStyleOptionViewItem, index: QModelIndex) -> QSize:
+    def sizeHint(self, option: QStyleOptionViewItem, index: QModelIndex | QPersistentModelIndex) -> QSize:
         size = super().sizeHint(option, index)
         return QSize(max(size.width(), 96), max(size.height(), 22))
 
@@ -354,9 +383,8 @@ class SessionBrowser(QWidget):
     def visible_takes(self) -> list[str]:
         """Ids of the takes shown (after filter, grouping and sort), top to bottom."""
         ids = []
-        for index in range(self.tree.topLevelItemCount()):
-            top = self.tree.topLevelItem(index)
-            children = [top.child(i) for i in range(top.childCount())] if top.childCount() else [top]
+        for top in _top_items(self.tree):
+            children = _children(top) or [top]
             ids += [str(item.data(TAKE_COLUMN, ID_ROLE)) for item in children
                     if not item.isHidden() and not top.isHidden() and item.data(TAKE_COLUMN, ID_ROLE)]
         return ids
@@ -394,7 +422,7 @@ class SessionBrowser(QWidget):
         if take_files([url.toLocalFile() for url in event.mimeData().urls()]):
             event.acceptProposedAction()
 
-    def dragMoveEvent(self, event: QDragEnterEvent) -> None:
+    def dragMoveEvent(self, event: QDragMoveEvent) -> None:
         """Keep accepting dragged take files over every child."""
         if take_files([url.toLocalFile() for url in event.mimeData().urls()]):
             event.acceptProposedAction()
@@ -411,7 +439,7 @@ class SessionBrowser(QWidget):
         columns again."""
         if watched is self.tree.viewport() and event.type() == QEvent.Type.Resize:
             self._fit_columns()
-        if (watched is self.tree and event.type() == QEvent.Type.KeyPress
+        if (watched is self.tree and isinstance(event, QKeyEvent) and event.type() == QEvent.Type.KeyPress
                 and event.key() in (Qt.Key.Key_Delete, Qt.Key.Key_Backspace) and self.selected_take()):
             self._remove_selected()
             return True
@@ -419,10 +447,9 @@ class SessionBrowser(QWidget):
 
     # ------------------------------------------------------------------------------------ private
     def _take_items(self) -> list[QTreeWidgetItem]:
-        items = []
-        for index in range(self.tree.topLevelItemCount()):
-            top = self.tree.topLevelItem(index)
-            items += [top.child(i) for i in range(top.childCount())] if top.childCount() else [top]
+        items: list[QTreeWidgetItem] = []
+        for top in _top_items(self.tree):
+            items += _children(top) or [top]
         return [item for item in items if item.data(TAKE_COLUMN, ID_ROLE)]
 
     def _item(self, take_id: str) -> QTreeWidgetItem | None:
@@ -458,7 +485,7 @@ class SessionBrowser(QWidget):
             grouped = self.group_box.isChecked()
             self.tree.setRootIsDecorated(grouped)
             if grouped:
-                groups: dict[str, QTreeWidgetItem] = {}
+                groups: dict[str, _TakeItem] = {}
                 for row in self._rows:
                     subject = row.subject or NO_SUBJECT
                     if subject not in groups:
@@ -512,9 +539,8 @@ class SessionBrowser(QWidget):
         text = self.filter_edit.text().strip().lower()
         state = self.state_box.currentData() or ""
         by_id = {row.id: row for row in self._rows}
-        for index in range(self.tree.topLevelItemCount()):
-            top = self.tree.topLevelItem(index)
-            children = [top.child(i) for i in range(top.childCount())]
+        for top in _top_items(self.tree):
+            children = _children(top)
             for item in children or [top]:
                 row = by_id.get(item.data(TAKE_COLUMN, ID_ROLE))
                 if row is None:

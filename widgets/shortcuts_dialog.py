@@ -60,10 +60,16 @@ class ShortcutsDialog(QDialog):
         """Show only the rows whose section, keys or words hold ``text`` (case-insensitive)."""
         wanted = text.strip().lower()
         for row in range(self.table.rowCount()):
-            cells = " ".join(self.table.item(row, column).text().lower() for column in range(3))
+            cells = " ".join(self._cells(row)).lower()
             self.table.setRowHidden(row, bool(wanted) and wanted not in cells)
 
     def visible_rows(self) -> list[tuple[str, str, str]]:
         """The rows shown now."""
-        return [tuple(self.table.item(row, column).text() for column in range(3))  # type: ignore[misc]
-                for row in range(self.table.rowCount()) if not self.table.isRowHidden(row)]
+        return [self._cells(row) for row in range(self.table.rowCount()) if not self.table.isRowHidden(row)]
+
+    def _cells(self, row: int) -> tuple[str, str, str]:
+        """The section, keys and words of ``row`` (every cell is filled when the table is built; an empty
+        one would read "")."""
+        where, keys, what = (item.text() if (item := self.table.item(row, column)) is not None else ""
+                             for column in range(3))
+        return where, keys, what

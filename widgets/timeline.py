@@ -9,6 +9,7 @@ from collections.abc import Callable
 
 import numpy as np
 import pyqtgraph as pg
+from pyqtgraph.GraphicsScene.mouseEvents import MouseClickEvent
 from PySide6.QtCore import QElapsedTimer, Qt, QTimer, Signal
 from PySide6.QtGui import QAction
 from PySide6.QtWidgets import (
@@ -356,7 +357,7 @@ class TimelineWidget(QWidget):
         self.pause()
         self.set_frame(int(round(self._cursor.value())) - self._first_frame)
 
-    def _plot_clicked(self, event: object) -> None:
+    def _plot_clicked(self, event: MouseClickEvent) -> None:
         if self._n_frames == 0:
             return
         position = self.plot.getPlotItem().vb.mapSceneToView(event.scenePos())
