@@ -108,7 +108,7 @@ class LayoutCompareView(QWidget):
         """The camera is shared: redraw the views the user is not dragging in."""
         for view, cell in zip(self._views, self._cells, strict=True):
             if view is not source and cell.isVisible():
-                view.render()
+                view.render_now()
 
     def set_layouts(self, layouts: Sequence[tuple[str, MarkerSet]]) -> None:
         """Compare ``layouts``: ``(title, resolved markers)`` pairs, at most :data:`MAX_VIEWS`."""
@@ -189,7 +189,7 @@ class LayoutCompareView(QWidget):
                 self._frame_back_view(vertices)
                 self._framed = True
             for view in self.views():
-                view.render()
+                view.render_now()
         self.frame_changed.emit(frame)
 
     def _frame_back_view(self, vertices: np.ndarray) -> None:

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pyvista as pv
+from numpy.typing import ArrayLike
 from PySide6.QtCore import QEvent, QObject, QPointF, Qt, QTimer, Signal
 from PySide6.QtGui import QMouseEvent
 from PySide6.QtOpenGLWidgets import QOpenGLWidget
@@ -28,6 +29,10 @@ from vtkmodules.vtkCommonCore import vtkStringArray
 from vtkmodules.vtkFiltersCore import vtkPolyDataNormals
 from vtkmodules.vtkRenderingCore import vtkActor2D, vtkGlyph3DMapper, vtkPolyDataMapper
 from vtkmodules.vtkRenderingLabel import vtkLabeledDataMapper
+
+# pyvista types the Plotter methods it defines through functools.wraps (set_background, enable_terrain_style,
+# add_axes, remove_actor, remove_scalar_bar) as unbound functions, so mypy wants ``self`` passed again: the
+# ``type: ignore``s marked "pyvista wraps" are that gap in pyvista's typing.
 
 SKIN_COLOUR = (0.91, 0.73, 0.62)
 MARKER_COLOUR = (0.55, 0.80, 1.00)
@@ -94,7 +99,7 @@ def screen_distances(plotter: QtInteractor, points: np.ndarray, x: float, y: flo
     return distance, ndc[:, 2]
 
 
-def _as_rgb_bytes(colours: np.ndarray) -> np.ndarray:
+def _as_rgb_bytes(colours: ArrayLike) -> np.ndarray:
     """``(N,3)`` floats in [0, 1] to ``(N,3)`` uint8."""
     return np.clip(np.round(np.asarray(colours, dtype=float) * 255.0), 0, 255).astype(np.uint8)
 
@@ -129,11 +134,12 @@ def _grid_lines(center_xy: np.ndarray, half_extent: float, spacing: float, heigh
     count = int(np.ceil(half_extent / spacing))
     ticks = np.arange(-count, count + 1) * spacing
     low, high = -count * spacing, count * spacing
-    starts, ends = [], []
+    start_xy: list[tuple[float, float]] = []
+    end_xy: list[tuple[float, float]] = []
     for tick in ticks:
-        starts += [(center[0] + tick, center[1] + low), (center[0] + low, center[1] + tick)]
-        ends += [(center[0] + tick, center[1] + high), (center[0] + high, center[1] + tick)]
-    starts, ends = np.asarray(starts, dtype=float), np.asarray(ends, dtype=float)
+        start_xy += [(center[0] + tick, center[1] + low), (center[0] + low, center[1] + tick)]
+        end_xy += [(center[0] + tick, center[1] + high), (center[0] + high, center[1] + tick)]
+    starts, ends = np.asarray(start_xy, dtype=float), np.asarray(end_xy, dtype=float)
     plane = np.full((len(starts), 1), float(height))
     return _segments(np.hstack([starts, plane]), np.hstack([ends, plane]))
 
@@ -182,14 +188,14 @@ class HandViewport(QWidget):
         self._idle_timer.timeout.connect(self._draw_still)
 
         plotter = self._plotter
-        plotter.set_background(BACKGROUND_BOTTOM, top=BACKGROUND_TOP)
+        plotter.set_background(BACKGROUND_BOTTOM, top=BACKGROUND_TOP)  # type: ignore[arg-type]  # pyvista wraps
         plotter.enable_lightkit()
         if plotter.iren is not None:
-            plotter.enable_terrain_style(mouse_wheel_zooms=True)
+            plotter.enable_terrain_style(mouse_wheel_zooms=True)  # type: ignore[call-arg]  # pyvista wraps
             style = plotter.iren.interactor.GetInteractorStyle()      # orbiting: fast renders, smooth once still
             style.AddObserver("StartInteractionEvent", lambda *_: self._set_multi_samples(0))
             style.AddObserver("EndInteractionEvent", lambda *_: self._idle_timer.start())
-        plotter.add_axes(interactive=False, line_width=2, color="white",
+        plotter.add_axes(interactive=False, line_width=2, color="white",  # type: ignore[call-arg]  # pyvista wraps
                          xlabel="X", ylabel="Y", zlabel="Z")
 
         self._marker_names: list[str] = []
@@ -370,7 +376,8 @@ class HandViewport(QWidget):
         marker under the mouse while no button is held."""
         if watched is not self._plotter:
             return False
-        if event.type() == QEvent.Type.MouseMove and event.buttons() == Qt.MouseButton.NoButton:
+        if (isinstance(event, QMouseEvent) and event.type() == QEvent.Type.MouseMove
+                and event.buttons() == Qt.MouseButton.NoButton):
             self.set_hovered_marker(self.marker_at(event.position().x(), event.position().y()))
         elif event.type() == QEvent.Type.Leave:
             self.set_hovered_marker(-1)
@@ -520,7 +527,9 @@ class HandViewport(QWidget):
             self._add_mesh_slot()
         for mesh, (vertices, faces) in zip(self._meshes, meshes, strict=False):
             # copies: the widget updates these points in place, the caller's arrays must stay untouched
-            surface = pv.PolyData.from_regular_faces(np.array(vertices, dtype=float), np.array(faces, dtype=np.int64))
+            # pyvista annotates faces as ndarray[dtype[int]], a dtype no numpy array has
+            surface = pv.PolyData.from_regular_faces(np.array(vertices, dtype=float),
+                                                     np.array(faces, dtype=np.int64))  # type: ignore[arg-type]
             mesh.ShallowCopy(surface)
         self._mesh_count = len(meshes)
         self._refresh_mesh_visibility()
@@ -695,8 +704,8 @@ class HandViewport(QWidget):
         self._plotter.renderer.ResetCameraClippingRange()
 
     # ------------------------------------------------------------------------------------- output
-    def render(self) -> None:
-        """Redraw now, anti-aliased (screenshots)."""
+    def render_now(self) -> None:
+        """Redraw now, anti-aliased (screenshots). (Not ``render``: that is QWidget's painting into a device.)"""
         self._render_timer.stop()
         self._idle_timer.stop()
         self._set_multi_samples(MULTI_SAMPLES)

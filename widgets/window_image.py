@@ -24,11 +24,12 @@ def window_image(window: QWidget, views: Iterable[HandViewport]) -> QImage:
     for view in views:
         if not view.isVisible():
             continue
-        view.render()
+        view.render_now()
         try:
             pixels = view.plotter.screenshot(return_img=True)
         except (RuntimeError, ValueError):
             break
+        assert pixels is not None      # pyvista returns None only when return_img is False
         height, width = pixels.shape[:2]
         rendered = QImage(np.ascontiguousarray(pixels[:, :, :3]).data, width, height, 3 * width,
                           QImage.Format.Format_RGB888).copy()

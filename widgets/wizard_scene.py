@@ -18,6 +18,10 @@ from vtkmodules.util.numpy_support import vtk_to_numpy
 
 from handmocap.widgets.viewport import ClickFilter, close_plotter, screen_distances
 
+# pyvista types the Plotter methods it defines through functools.wraps (set_background, enable_terrain_style,
+# add_axes, remove_actor, remove_scalar_bar) as unbound functions, so mypy wants ``self`` passed again: the
+# ``type: ignore``s marked "pyvista wraps" are that gap in pyvista's typing.
+
 SKIN_COLOUR = (0.91, 0.73, 0.62)
 POINT_COLOUR = (0.75, 0.78, 0.82)
 LANDMARK_COLOUR = (0.30, 0.75, 1.00)
@@ -46,10 +50,10 @@ class CalibrationScene(QWidget):
         layout.addWidget(self._plotter)
         self.setMinimumSize(280, 220)
         plotter = self._plotter
-        plotter.set_background(BACKGROUND_BOTTOM, top=BACKGROUND_TOP)
+        plotter.set_background(BACKGROUND_BOTTOM, top=BACKGROUND_TOP)  # type: ignore[arg-type]  # pyvista wraps
         plotter.enable_lightkit()
         if plotter.iren is not None:
-            plotter.enable_terrain_style(mouse_wheel_zooms=True)
+            plotter.enable_terrain_style(mouse_wheel_zooms=True)  # type: ignore[call-arg]  # pyvista wraps
         if title:
             plotter.add_text(title, position="upper_left", font_size=10, color="white", name="title")
         self._clicks = ClickFilter()
@@ -61,7 +65,7 @@ class CalibrationScene(QWidget):
     # ------------------------------------------------------------------------------------ content
     def set_points(self, points: np.ndarray | None, colours: np.ndarray | None = None, point_size: float = 2.0) -> None:
         """Show ``points (N,3)`` mm with RGB ``colours (N,3)`` uint8 (grey when None); None removes them."""
-        self._plotter.remove_actor("cloud", render=False)
+        self._plotter.remove_actor("cloud", render=False)  # type: ignore[arg-type]  # pyvista wraps
         if points is None or len(points) == 0:
             self._points, self._cloud = np.zeros((0, 3)), None
             return
@@ -77,7 +81,8 @@ class CalibrationScene(QWidget):
         """Recolour the shown points, ``colours (N,3)`` uint8."""
         if self._cloud is None:
             return
-        self._cloud["rgb"][:] = np.asarray(colours, dtype=np.uint8)
+        # pyvista types pyvista_ndarray's index as int or an int array only, not a slice
+        self._cloud["rgb"][:] = np.asarray(colours, dtype=np.uint8)  # type: ignore[index]
         self._cloud.Modified()
 
     def set_surface(self, vertices: np.ndarray | None, faces: np.ndarray | None = None,
@@ -86,12 +91,15 @@ class CalibrationScene(QWidget):
                     colour: tuple[float, float, float] = SKIN_COLOUR) -> None:
         """Show one surface ``vertices (V,3)``, ``faces (T,3)``; with ``scalars (V,)`` coloured by them (a
         colour bar titled ``scalar_title``), else in ``color``; None removes it."""
-        self._plotter.remove_actor("surface", render=False)
-        self._plotter.remove_scalar_bar(scalar_title) if self._surface_scalars else None
+        self._plotter.remove_actor("surface", render=False)  # type: ignore[arg-type]  # pyvista wraps
+        if self._surface_scalars:
+            self._plotter.remove_scalar_bar(scalar_title)  # type: ignore[arg-type]  # pyvista wraps
         self._surface, self._surface_scalars = None, None
         if vertices is None or faces is None:
             return
-        surface = pv.PolyData.from_regular_faces(np.array(vertices, dtype=float), np.array(faces, dtype=np.int64))
+        # pyvista annotates faces as ndarray[dtype[int]], a dtype no numpy array has
+        surface = pv.PolyData.from_regular_faces(np.array(vertices, dtype=float),
+                                                 np.array(faces, dtype=np.int64))  # type: ignore[arg-type]
         if scalars is not None:
             surface[scalar_title] = np.nan_to_num(np.asarray(scalars, dtype=float), nan=clim[1])
             self._plotter.add_mesh(surface, scalars=scalar_title, clim=clim, cmap="viridis", name="surface",
@@ -117,8 +125,8 @@ class CalibrationScene(QWidget):
 
     def set_landmarks(self, positions: np.ndarray, current: int | None = None) -> None:
         """Spheres at ``positions (L,3)`` mm (NaN rows are not drawn); ``current`` is highlighted."""
-        self._plotter.remove_actor("landmarks", render=False)
-        self._plotter.remove_actor("current-landmark", render=False)
+        self._plotter.remove_actor("landmarks", render=False)  # type: ignore[arg-type]  # pyvista wraps
+        self._plotter.remove_actor("current-landmark", render=False)  # type: ignore[arg-type]  # pyvista wraps
         positions = np.asarray(positions, dtype=float).reshape(-1, 3)
         shown = np.isfinite(positions).all(axis=1)
         others = shown.copy()
@@ -172,7 +180,8 @@ class CalibrationScene(QWidget):
     def plotter(self) -> QtInteractor:
         return self._plotter
 
-    def render(self) -> None:
+    def render_now(self) -> None:
+        """Redraw now. (Not ``render``: that is QWidget's painting into a device.)"""
         self._plotter.render()
 
     def save_screenshot(self, path: str | Path) -> None:

@@ -233,7 +233,7 @@ class CleanPage(QWizardPage):
         colours = scan.colors[self._display].copy()
         colours[~keep[self._display]] = REMOVED_COLOUR
         self.scene.set_point_colours(colours)
-        self.scene.render()
+        self.scene.render_now()
         self.counts.setText(f"{int(keep.sum()):,} skin points kept, {int((~keep).sum()):,} removed")
 
     def validatePage(self) -> bool:
@@ -411,8 +411,8 @@ class LandmarksPage(QWizardPage):
         positions = np.array([np.full(3, np.nan) if self.state.landmarks[n] is None else self.state.landmarks[n]
                               for n in LANDMARK_NAMES])
         self.scan_scene.set_landmarks(positions, current)
-        self.template_scene.render()
-        self.scan_scene.render()
+        self.template_scene.render_now()
+        self.scan_scene.render_now()
 
     def isComplete(self) -> bool:
         return self.state.picked_count() >= MIN_LANDMARKS
@@ -486,7 +486,7 @@ class _RunPage(QWizardPage):
                 self.scene.set_surface(vertices, self.state.template.faces, opacity=0.8, colour=TEMPLATE_COLOUR)
             else:
                 self.scene.update_surface(vertices)
-            self.scene.render()
+            self.scene.render_now()
 
     def _ended(self, text: str) -> None:
         self.timer.stop()
@@ -608,7 +608,7 @@ class ReviewPage(QWizardPage):
         self.scene.set_points(None)
         self.scene.set_surface(result.fitted_vertices, result.model.faces, scalars=report.vertex_distance)
         self.scene.frame(result.fitted_vertices)
-        self.scene.render()
+        self.scene.render_now()
         self.table.setRowCount(len(report.landmark_residuals))
         for row, (name, residual) in enumerate(report.landmark_residuals.items()):
             self.table.setItem(row, 0, QTableWidgetItem(name))

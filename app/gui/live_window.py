@@ -226,7 +226,7 @@ class LiveWindow(QMainWindow):
         """Have the view render once, in its next paint: the OpenGL widget renders there and shows the result
         (rendering first, then painting, would render twice); off screen, render now."""
         if getattr(self.view, "_off_screen", False):
-            self.view.render()
+            self.view.render_now()
         else:
             QOpenGLWidget.update(self.view)
 

@@ -149,7 +149,7 @@ def main(out: str) -> int:
         while time.monotonic() < end:
             app.processEvents()
             time.sleep(0.01)
-        window.view.render()
+        window.view.render_now()
         app.processEvents()
         window.grab().save(out)
         print(f"drawn {window.drawn} frames in 6 s; frames received {capture.frames_received}, "
