@@ -16,7 +16,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, TypeVar
+from typing import Protocol, TypeVar
 
 import numpy as np
 from PySide6.QtWidgets import (
@@ -38,6 +38,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from handmocap.app.gui.document import TakeDocument
 from handmocap.app.gui.workers import TaskRunner
 from handmocap.core.camera.extrinsics import Blobs, Registration, detect_blobs, register_from_board
 from handmocap.core.camera.files import save_camera
@@ -57,9 +58,21 @@ from handmocap.core.camera.sync import SyncResult, sync_markers
 from handmocap.core.errors import CancelledError, HandMocapError, InputError
 from handmocap.core.io.documents import read_document
 from handmocap.core.io.input_schemas import BOARD_MARKERS
+from handmocap.core.session.cameras import TakeCamera
 
-if TYPE_CHECKING:
-    from handmocap.app.gui.camera_controller import CameraController
+
+class CameraHost(Protocol):
+    """What the wizard needs of the window's camera controller (``CameraController``): the shown take and
+    camera, and where a calibrated camera is kept."""
+
+    @property
+    def document(self) -> TakeDocument | None: ...
+
+    @property
+    def camera(self) -> TakeCamera | None: ...
+
+    def set_camera(self, camera: Camera) -> None: ...
+
 
 IMAGE_FILTER = "Board images (*.png *.jpg *.jpeg)"
 #: video frames searched for the marked board (evenly spread over the video)
@@ -188,7 +201,7 @@ def offset_task(camera: Camera, media: Path, positions: np.ndarray, mocap_rate: 
 class CameraWizard(QDialog):
     """The wizard (module docstring); ``controller`` gives the shown take and camera and keeps the result."""
 
-    def __init__(self, parent: QWidget, controller: CameraController) -> None:
+    def __init__(self, parent: QWidget, controller: CameraHost) -> None:
         super().__init__(parent)
         self.controller = controller
         taken = controller.camera

@@ -5,8 +5,8 @@ from __future__ import annotations
 from contextlib import suppress
 from dataclasses import dataclass, field
 from functools import cached_property
+from pathlib import Path
 from types import SimpleNamespace
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,11 +25,23 @@ from handmocap.core.model import (
 )
 from handmocap.core.review import Command, CompoundCommand, DefineHand, FrameSpan, ReviewTake, SetSolve, UndoStack
 from handmocap.core.review.commands import replaced_hand
-from handmocap.core.session import OpenTake
+from handmocap.core.session import OpenTake, Session
 from handmocap.core.workflows.resolve import subject_markers
 
-if TYPE_CHECKING:
-    from handmocap.app.gui.loose_takes import LooseTake
+
+@dataclass
+class LooseTake:
+    """A take file reviewed outside a session: ``source`` (absolute path), the automatic ``session`` and its
+    ``opened`` take (both None: reviewed in memory only), ``restored``: edits of an earlier review that
+    came back, ``notice``: one line for the status bar when the take is first shown, ``warning``: why
+    edits will not survive ("" when they will)."""
+
+    source: Path
+    session: Session | None = None
+    opened: OpenTake | None = None
+    restored: int = 0
+    notice: str = ""
+    warning: str = ""
 
 
 @dataclass(eq=False)

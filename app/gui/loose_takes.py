@@ -22,33 +22,17 @@ import hashlib
 import json
 import os
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
-from handmocap.app.gui.document import TakeDocument
+from handmocap.app.gui.document import LooseTake, TakeDocument
 from handmocap.core.errors import HandMocapError
 from handmocap.core.io import Take, looks_unlabelled
 from handmocap.core.io.durable import write_text_atomic
-from handmocap.core.session import OpenTake, Session
+from handmocap.core.session import Session
 
 LOOSE_FOLDER = "loose-takes"
 SOURCE_NAME = "source.json"     # the file the folder's review belongs to: path, size, SHA-256
 READ_CHUNK = 1 << 20            # bytes read at a time to hash a file
-
-
-@dataclass
-class LooseTake:
-    """A take file reviewed outside a session: ``source`` (absolute path), the automatic ``session`` and its
-    ``opened`` take (both None: reviewed in memory only), ``restored``: edits of an earlier review that
-    came back, ``notice``: one line for the status bar when the take is first shown, ``warning``: why
-    edits will not survive ("" when they will)."""
-
-    source: Path
-    session: Session | None = None
-    opened: OpenTake | None = None
-    restored: int = 0
-    notice: str = ""
-    warning: str = ""
 
 
 def data_folder() -> Path:
