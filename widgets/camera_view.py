@@ -46,7 +46,13 @@ def depth_to_grey(depth_mm: np.ndarray) -> np.ndarray:
     return np.where(valid, grey, 0).astype(np.uint8)
 
 
-def to_qimage(image: np.ndarray) -> QImage:
+class ArrayImage(QImage):
+    """A QImage that reads a numpy array's memory and keeps that array alive (``array``)."""
+
+    array: np.ndarray
+
+
+def to_qimage(image: np.ndarray) -> ArrayImage:
     """A QImage over ``image`` (BGR uint8 colour, grey uint8, or depth float mm); the QImage keeps the array
     it reads alive (attribute ``array``)."""
     if image.ndim == 2 and image.dtype != np.uint8:
@@ -54,9 +60,9 @@ def to_qimage(image: np.ndarray) -> QImage:
     image = np.ascontiguousarray(image)
     height, width = image.shape[:2]
     if image.ndim == 3:
-        qimage = QImage(image.data, width, height, image.strides[0], QImage.Format.Format_BGR888)
+        qimage = ArrayImage(image.data, width, height, image.strides[0], QImage.Format.Format_BGR888)
     else:
-        qimage = QImage(image.data, width, height, image.strides[0], QImage.Format.Format_Grayscale8)
+        qimage = ArrayImage(image.data, width, height, image.strides[0], QImage.Format.Format_Grayscale8)
     qimage.array = image
     return qimage
 
@@ -70,7 +76,7 @@ class FrameCanvas(QWidget):
         super().__init__(parent)
         self.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Expanding)
         self.setMinimumSize(160, 60)    # the dock shares the right column with the tables, even at 1366×768
-        self._image: QImage | None = None
+        self._image: ArrayImage | None = None
         self._pixels = np.zeros((0, 2))
         self._colours = np.zeros((0, 3), dtype=np.uint8)
         self._selected = -1
@@ -112,6 +118,8 @@ class FrameCanvas(QWidget):
 
     def widget_point(self, pixel: np.ndarray) -> QPointF:
         """Widget coordinates of image pixel ``(x, y)`` (OpenCV convention: pixel centres at integers)."""
+        if self._image is None:
+            raise ValueError("no image is shown: an image pixel has no place in the widget")
         rect = self.image_rect()
         scale = rect.width() / self._image.width()
         return QPointF(rect.left() + (pixel[0] + 0.5) * scale, rect.top() + (pixel[1] + 0.5) * scale)

@@ -4,7 +4,15 @@ residual). Selecting a row emits :attr:`MarkerPanel.marker_selected` with the ma
 from __future__ import annotations
 
 import numpy as np
-from PySide6.QtCore import QAbstractTableModel, QModelIndex, QObject, QSortFilterProxyModel, Qt, Signal
+from PySide6.QtCore import (
+    QAbstractTableModel,
+    QModelIndex,
+    QObject,
+    QPersistentModelIndex,
+    QSortFilterProxyModel,
+    Qt,
+    Signal,
+)
 from PySide6.QtGui import QBrush, QColor, QIcon, QPainter, QPixmap
 from PySide6.QtWidgets import QAbstractItemView, QHeaderView, QLineEdit, QTableView, QVBoxLayout, QWidget
 
@@ -72,7 +80,7 @@ class ColumnTableModel(QAbstractTableModel):
     columns: tuple[str, ...] = ()
     column_tips: tuple[str, ...] = ()
 
-    def columnCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008 - Qt signature
+    def columnCount(self, parent: QModelIndex | QPersistentModelIndex = QModelIndex()) -> int:  # noqa: B008 - Qt signature
         return 0 if parent.isValid() else len(self.columns)
 
     def headerData(self, section: int, orientation: Qt.Orientation,
@@ -120,19 +128,19 @@ class MarkerTableModel(ColumnTableModel):
             self.dataChanged.emit(self.index(0, 0), self.index(last, 0), [Qt.ItemDataRole.DecorationRole])
             self.dataChanged.emit(self.index(0, 2), self.index(last, len(COLUMNS) - 1))
 
-    def rowCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008 - Qt signature
+    def rowCount(self, parent: QModelIndex | QPersistentModelIndex = QModelIndex()) -> int:  # noqa: B008 - Qt signature
         return 0 if parent.isValid() else len(self._names)
 
     def _value(self, row: int, column: int) -> float | str:
         if column == 0:
             return self._names[row]
         if column == 1:
-            return 100.0 * self._observed[row]
+            return 100.0 * float(self._observed[row])
         if column <= 4:
             return float(self._positions[row, column - 2])
         return float(self._residuals[row])
 
-    def data(self, index: QModelIndex, role: int = Qt.ItemDataRole.DisplayRole) -> object:
+    def data(self, index: QModelIndex | QPersistentModelIndex, role: int = Qt.ItemDataRole.DisplayRole) -> object:
         if not index.isValid():
             return None
         row, column = index.row(), index.column()
@@ -150,7 +158,7 @@ class MarkerTableModel(ColumnTableModel):
             return self._icons[row][0 if observed else 1]
         if role == Qt.ItemDataRole.TextAlignmentRole and column > 0:
             return int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
-        if role == Qt.ItemDataRole.ForegroundRole:
+        if role == Qt.ItemDataRole.ForegroundRole and isinstance(value, float):    # the numbers' columns
             if column == 1 and value < 90.0:
                 return QBrush(QColor(240, 170, 60))
             if column == 5 and not np.isnan(value) and value > 5.0:

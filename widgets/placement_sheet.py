@@ -52,6 +52,8 @@ def ensure_gui_application() -> QGuiApplication:
         if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
             os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
         app = QApplication([])
+    if not isinstance(app, QGuiApplication):
+        raise RuntimeError("a Qt application without a GUI is running: a placement sheet cannot be painted")
     return app
 
 
@@ -250,7 +252,8 @@ def save_placement_sheet(sheet: PlacementSheet, path: str | Path, dpi: int = PNG
     ensure_gui_application()
     with durable_path(path) as temporary:  # Qt writes by file name; the rename keeps the old file on failure
         if suffix == ".png":
-            if not render_sheet_image(sheet, dpi).save(str(temporary), "PNG"):
+            # PySide6's stub types the format as bytes, but the binding takes only a str ("PNG")
+            if not render_sheet_image(sheet, dpi).save(str(temporary), "PNG"):  # type: ignore[call-overload]
                 raise InputError(f"{path}: could not write the image")
         else:
             writer = QPdfWriter(str(temporary))

@@ -9,7 +9,7 @@ The figures come as a :class:`core.session.MarkerStats` (``ReviewTake.marker_sta
 from __future__ import annotations
 
 import numpy as np
-from PySide6.QtCore import QModelIndex, QObject, Qt, Signal
+from PySide6.QtCore import QModelIndex, QObject, QPersistentModelIndex, Qt, Signal
 from PySide6.QtGui import QBrush, QColor, QIcon
 from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
@@ -87,10 +87,10 @@ class ReviewTableModel(ColumnTableModel):
         """The raw value of a cell (name, or a number; NaN when unknown)."""
         return self._names[row] if column == 0 else float(self._values[row, column - 1])
 
-    def rowCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008 - Qt signature
+    def rowCount(self, parent: QModelIndex | QPersistentModelIndex = QModelIndex()) -> int:  # noqa: B008 - Qt signature
         return 0 if parent.isValid() else len(self._names)
 
-    def data(self, index: QModelIndex, role: int = Qt.ItemDataRole.DisplayRole) -> object:
+    def data(self, index: QModelIndex | QPersistentModelIndex, role: int = Qt.ItemDataRole.DisplayRole) -> object:
         if not index.isValid():
             return None
         row, column = index.row(), index.column()
@@ -108,7 +108,9 @@ class ReviewTableModel(ColumnTableModel):
             return self._icons[row]
         if role == Qt.ItemDataRole.TextAlignmentRole and column > 0:
             return int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
-        if role == Qt.ItemDataRole.ForegroundRole and column > 0:
+        if not isinstance(value, float):      # the name column
+            return None
+        if role == Qt.ItemDataRole.ForegroundRole:
             return self._foreground(column, value)
         if role == Qt.ItemDataRole.ToolTipRole and column == LONGEST_COLUMN and value > 0:
             return f"{self._names[row]}: longest unfilled gap {value:.0f} frames"
