@@ -18,34 +18,59 @@ NEAR_MM = 10.0
 
 
 @njit(cache=True)
-def _rasterise(points, faces, fx, fy, cx, cy, depth, face_index):  # pragma: no cover - numba
-    height, width = depth.shape
+def fill_triangles(pixels, depth, faces, perspective, centre, tolerance, near, zbuffer, face_index, values,
+                   image):  # pragma: no cover - numba
+    """Z-buffered fill of the triangles ``faces (T,3)`` whose corners stand at ``pixels (V,2)`` (x right, y
+    down; the pixel ``(x, y)`` is sampled at ``(x + centre, y + centre)``) with ``depth (V,)``: a pixel is
+    the triangle's when none of its barycentric weights is below ``-tolerance`` and it is nearer than
+    ``zbuffer (H,W)``; it then gets the depth, the face's index in ``face_index (H,W)`` and, when
+    ``image (H,W)`` is not empty, the corners' ``values (V,)`` interpolated. ``perspective``: the depth is
+    a camera z, interpolated as 1/z (pinhole), else linearly (orthographic). Triangles with a corner
+    nearer than ``near`` are not drawn."""
+    height, width = zbuffer.shape
+    shaded = image.size > 0
     for t in range(faces.shape[0]):
         a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
-        za, zb, zc = points[a, 2], points[b, 2], points[c, 2]
-        if za < NEAR_MM or zb < NEAR_MM or zc < NEAR_MM:
+        za, zb, zc = depth[a], depth[b], depth[c]
+        if za < near or zb < near or zc < near:
             continue
-        xa, ya = fx * points[a, 0] / za + cx, fy * points[a, 1] / za + cy
-        xb, yb = fx * points[b, 0] / zb + cx, fy * points[b, 1] / zb + cy
-        xc, yc = fx * points[c, 0] / zc + cx, fy * points[c, 1] / zc + cy
+        xa, ya, xb, yb, xc, yc = pixels[a, 0], pixels[a, 1], pixels[b, 0], pixels[b, 1], pixels[c, 0], pixels[c, 1]
         area = (xb - xa) * (yc - ya) - (xc - xa) * (yb - ya)
         if abs(area) < 1e-12:
             continue
-        left = max(int(np.ceil(min(xa, xb, xc))), 0)
-        right = min(int(np.floor(max(xa, xb, xc))), width - 1)
-        top = max(int(np.ceil(min(ya, yb, yc))), 0)
-        bottom = min(int(np.floor(max(ya, yb, yc))), height - 1)
+        left = max(int(np.ceil(min(xa, xb, xc) - centre)), 0)
+        right = min(int(np.floor(max(xa, xb, xc) - centre)), width - 1)
+        top = max(int(np.ceil(min(ya, yb, yc) - centre)), 0)
+        bottom = min(int(np.floor(max(ya, yb, yc) - centre)), height - 1)
         for y in range(top, bottom + 1):
+            py = y + centre
             for x in range(left, right + 1):
-                wa = ((xb - x) * (yc - y) - (xc - x) * (yb - y)) / area
-                wb = ((xc - x) * (ya - y) - (xa - x) * (yc - y)) / area
+                px = x + centre
+                wa = ((xb - px) * (yc - py) - (xc - px) * (yb - py)) / area
+                wb = ((xc - px) * (ya - py) - (xa - px) * (yc - py)) / area
                 wc = 1.0 - wa - wb
-                if wa < 0.0 or wb < 0.0 or wc < 0.0:
+                if wa < -tolerance or wb < -tolerance or wc < -tolerance:
                     continue
-                z = 1.0 / (wa / za + wb / zb + wc / zc)
-                if z < depth[y, x]:
-                    depth[y, x] = z
+                z = 1.0 / (wa / za + wb / zb + wc / zc) if perspective else wa * za + wb * zb + wc * zc
+                if z < zbuffer[y, x]:
+                    zbuffer[y, x] = z
                     face_index[y, x] = t
+                    if shaded:
+                        image[y, x] = wa * values[a] + wb * values[b] + wc * values[c]
+
+
+_NO_VALUES = np.empty(0)
+_NO_IMAGE = np.empty((0, 0), dtype=np.float32)
+
+
+def _pinhole(points: np.ndarray, faces: np.ndarray, fx: float, fy: float, cx: float, cy: float, depth: np.ndarray,
+             face_index: np.ndarray) -> None:
+    """Z-buffer camera-frame ``points (V,3)`` float64 through a pinhole into ``depth`` and ``face_index``."""
+    z = points[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):                # corners behind NEAR_MM are not drawn
+        pixels = np.column_stack([fx * points[:, 0] / z + cx, fy * points[:, 1] / z + cy])
+    fill_triangles(pixels, np.ascontiguousarray(z), faces, True, 0.0, 0.0, NEAR_MM, depth, face_index, _NO_VALUES,
+                   _NO_IMAGE)
 
 
 def render_mesh(camera: Camera, vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -55,7 +80,7 @@ def render_mesh(camera: Camera, vertices: np.ndarray, faces: np.ndarray) -> tupl
     depth = np.full((camera.height, camera.width), np.inf, dtype=np.float32)
     face_index = np.full((camera.height, camera.width), -1, dtype=np.int32)
     (fx, fy), (cx, cy) = camera.focal, camera.principal_point
-    _rasterise(points, np.ascontiguousarray(faces, dtype=np.int64), fx, fy, cx, cy, depth, face_index)
+    _pinhole(points, np.ascontiguousarray(faces, dtype=np.int64), fx, fy, cx, cy, depth, face_index)
     return depth, face_index
 
 
@@ -66,7 +91,7 @@ def rasterise(points: np.ndarray, faces: np.ndarray, focal: tuple[float, float],
     ``(depth (H,W) float32 mm, inf where empty; face (H,W) int32, -1 where empty)``."""
     depth = np.full(shape, np.inf, dtype=np.float32)
     face_index = np.full(shape, -1, dtype=np.int32)
-    _rasterise(np.ascontiguousarray(points, dtype=np.float64), faces, float(focal[0]), float(focal[1]),
+    _pinhole(np.ascontiguousarray(points, dtype=np.float64), faces, float(focal[0]), float(focal[1]),
                float(principal[0]), float(principal[1]), depth, face_index)
     return depth, face_index
 

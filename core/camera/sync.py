@@ -6,8 +6,7 @@ at each camera frame's mocap time are projected and every detected blob pays its
 nearest projection, truncated at :data:`TRUNCATION_PX` (the robust nearest-neighbour term of Zhao et al.
 2012, eq. 4, in the image). The minimum is refined to a fraction of a frame by a parabola. Local
 offsets of :data:`SEGMENTS` consecutive stretches of the video, fitted by a line against time, give the
-rate ratio. RGB-D (Zhao et al. §5.3): the hand model posed at the candidate mocap frame is rendered and
-compared with the observed depth frames by the silhouette and depth terms (eqs. 5, 6).
+rate ratio.
 """
 
 from __future__ import annotations
@@ -18,7 +17,6 @@ import numpy as np
 
 from handmocap.core.camera.extrinsics import Blobs
 from handmocap.core.camera.model import Camera, CameraClock
-from handmocap.core.camera.render import render_mesh
 from handmocap.core.errors import InputError
 
 #: a blob further than this (px) from every projected marker costs this much
@@ -27,11 +25,6 @@ TRUNCATION_PX = 10.0
 SEGMENTS = 4
 #: search half-width (mocap frames) for a stretch's offset around the global one
 SEGMENT_SEARCH_FRAMES = 10
-#: weights of the silhouette and depth terms (Zhao et al. 2012, eq. 3: λ_s = 22, λ_d = 0.8, depth in mm)
-SILHOUETTE_WEIGHT = 22.0
-DEPTH_WEIGHT = 0.8
-#: observed depth within this distance (mm) of the rendered hand's depth range is hand
-HAND_DEPTH_BAND = 60.0
 
 
 @dataclass
@@ -139,43 +132,3 @@ def _rate_fit(projected: np.ndarray, blobs: list[Blobs], camera_times: np.ndarra
     slope, intercept = np.polyfit(times, offsets, 1)
     ratio = 1.0 + slope
     return CameraClock(float(intercept), float(ratio)) if 0.9 < ratio < 1.1 else None
-
-
-def sync_depth(camera: Camera, depth_frames: list[np.ndarray], camera_times: np.ndarray,
-               vertices_at, n_mocap_frames: int, faces: np.ndarray, mocap_rate: float,
-               window_s: float = 1.0, centre_s: float = 0.0) -> SyncResult:
-    """Offset of a registered RGB-D ``camera`` from its ``depth_frames`` (``(H,W)`` mm, 0 = none) at
-    ``camera_times`` s against the hand model: ``vertices_at(f)`` gives the posed mesh vertices ``(V,3)``
-    mocap mm at mocap frame ``f`` (of ``n_mocap_frames``), ``faces (T,3)``. Cost per candidate offset: the
-    silhouette and depth terms of Zhao et al. (eqs. 5, 6) summed over the frames (the paper matches the
-    first pose against the first several camera frames; the rate ratio is taken as 1)."""
-    camera_times = np.asarray(camera_times, dtype=float)
-    candidates = np.round(centre_s * mocap_rate) + np.arange(-round(window_s * mocap_rate),
-                                                              round(window_s * mocap_rate) + 1)
-    renders: dict[int, np.ndarray] = {}
-    costs = np.zeros(len(candidates))
-    for index, shift in enumerate(candidates):
-        for observed, time in zip(depth_frames, camera_times, strict=True):
-            frame = int(round(time * mocap_rate + shift))
-            if not 0 <= frame < n_mocap_frames:
-                costs[index] += SILHOUETTE_WEIGHT * 2.0
-                continue
-            if frame not in renders:
-                renders[frame] = render_mesh(camera, vertices_at(frame), faces)[0]
-            costs[index] += _depth_cost(observed, renders[frame])
-    offset_frames, quality = _minimum(candidates, costs)
-    return SyncResult(CameraClock(offset_frames / mocap_rate, 1.0), offset_frames, quality,
-                      candidates / mocap_rate, costs)
-
-
-def _depth_cost(observed: np.ndarray, rendered: np.ndarray) -> float:
-    """λ_s E_s + λ_d E_d of an observed depth image against a rendered one (inf = no hand)."""
-    hand = np.isfinite(rendered)
-    if not hand.any():
-        return SILHOUETTE_WEIGHT * 2.0
-    near, far = float(rendered[hand].min()), float(rendered[hand].max())
-    seen = (observed > near - HAND_DEPTH_BAND) & (observed < far + HAND_DEPTH_BAND)
-    overlap = seen & hand
-    silhouette = (seen & ~hand).sum() / max(seen.sum(), 1) + (hand & ~seen).sum() / hand.sum()
-    depth = float(np.abs(observed[overlap] - rendered[overlap]).mean()) if overlap.any() else HAND_DEPTH_BAND
-    return SILHOUETTE_WEIGHT * silhouette + DEPTH_WEIGHT * depth

@@ -239,9 +239,7 @@ class ArticulatedICP:
             residual = (positions - observation.markers)[seen].reshape(-1)
             rows = jacobian[seen].reshape(-1, N_PARAMS)
             weight = settings.marker_weight / seen.sum()
-            hessian += weight * rows.T @ rows
-            gradient += weight * rows.T @ residual
-            energy += weight * residual @ residual
+            energy += _add_rows(hessian, gradient, weight, residual, rows)
             marker_rows = weight
         depth = self._depth_correspondences(theta, targets)
         if depth is not None:
@@ -249,34 +247,22 @@ class ArticulatedICP:
             positions, jacobian = self.sample.evaluate(theta)
             residual = np.einsum("pa,pa->p", normal, positions[index] - target)
             rows = np.einsum("pa,pab->pb", normal, jacobian[index])
-            hessian += (weight[:, None] * rows).T @ rows
-            gradient += (weight * residual) @ rows
-            energy += float(weight @ residual ** 2)
+            energy += _add_weighted_rows(hessian, gradient, weight, residual, rows)
         rendering = None
         if (settings.silhouette_weight > 0 or settings.front_weight > 0 or settings.coverage_weight > 0) \
                 and observation.silhouette.any():
             rendering = self.renderer.render(theta, observation.crop, with_edges=False)
         silhouette = self._silhouette_correspondences(observation, rendering)
-        if silhouette is not None:
-            vertex_set, goal, scale, weight = silhouette
-            residual, rows = self._projection_rows(theta, vertex_set, goal, scale)
-            hessian += weight * rows.T @ rows
-            gradient += weight * rows.T @ residual
-            energy += weight * residual @ residual
         coverage = self._coverage_correspondences(observation, rendering)
-        if coverage is not None:
-            vertex_set, goal, scale, weight = coverage
-            residual, rows = self._projection_rows(theta, vertex_set, goal, scale)
-            hessian += weight * rows.T @ rows
-            gradient += weight * rows.T @ residual
-            energy += weight * residual @ residual
+        for pixels in (silhouette, coverage):
+            if pixels is not None:
+                vertex_set, goal, scale, weight = pixels
+                residual, rows = self._projection_rows(theta, vertex_set, goal, scale)
+                energy += _add_rows(hessian, gradient, weight, residual, rows)
         front = self._front_correspondences(observation, rendering)
         if front is not None:
             residual, rows = self._front_rows(theta, front)
-            weight = front[2]
-            hessian += (weight[:, None] * rows).T @ rows
-            gradient += (weight * residual) @ rows
-            energy += float(weight @ residual ** 2)
+            energy += _add_weighted_rows(hessian, gradient, front[2], residual, rows)
         return hessian, gradient, energy, (marker_rows, seen, observation.markers, depth, silhouette, front, coverage)
 
     def _energy(self, theta: np.ndarray, problem: tuple, prior_matrix: np.ndarray | None, prior_mean: np.ndarray,
@@ -415,6 +401,23 @@ class ArticulatedICP:
         perspective[:, 1, 2] = -fy * points[:, 1] / z ** 2
         rows = np.einsum("kij,jl,klp->kip", perspective, camera.rotation, jacobian) * scale[:, None, None]
         return residual, rows.reshape(-1, N_PARAMS)
+
+
+def _add_rows(hessian: np.ndarray, gradient: np.ndarray, weight: float, residual: np.ndarray, rows: np.ndarray
+              ) -> float:
+    """Adds a term of linearised ``residual`` (n,) and ``rows`` (n,26) with one ``weight`` to the normal
+    equations ``hessian``, ``gradient`` (in place); returns its energy."""
+    hessian += weight * rows.T @ rows
+    gradient += weight * rows.T @ residual
+    return weight * residual @ residual
+
+
+def _add_weighted_rows(hessian: np.ndarray, gradient: np.ndarray, weight: np.ndarray, residual: np.ndarray,
+                       rows: np.ndarray) -> float:
+    """As :func:`_add_rows` with a weight (n,) per residual."""
+    hessian += (weight[:, None] * rows).T @ rows
+    gradient += (weight * residual) @ rows
+    return float(weight @ residual ** 2)
 
 
 def _posture_rows(matrix: np.ndarray, value: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:

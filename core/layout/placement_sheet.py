@@ -14,8 +14,8 @@ import datetime as _dt
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from handmocap.core.camera.render import fill_triangles
 from handmocap.core.model import HandModel, MarkerLayout, resolve_layout
 from handmocap.core.model.skeleton import DIGITS, JOINT_NAMES, JOINT_PARENTS
 
@@ -147,38 +147,6 @@ def _view(model: HandModel, title: str, right: np.ndarray, up: np.ndarray, marke
                      marker_points, visible, (float(low[0]), float(low[1]), float(high[0]), float(high[1])))
 
 
-@njit(cache=True)
-def _rasterise_kernel(points: np.ndarray, depth: np.ndarray, shades: np.ndarray, faces: np.ndarray,
-                      width: int, height: int) -> np.ndarray:
-    """Z-buffered Gouraud fill of triangles given in pixel coordinates (y down); NaN = background."""
-    image = np.full((height, width), np.nan, dtype=np.float32)
-    zbuffer = np.full((height, width), np.inf)
-    for face in range(faces.shape[0]):
-        a, b, c = faces[face, 0], faces[face, 1], faces[face, 2]
-        ax, ay, bx, by, cx, cy = points[a, 0], points[a, 1], points[b, 0], points[b, 1], points[c, 0], points[c, 1]
-        area = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay)
-        if abs(area) < 1e-12:
-            continue
-        x0 = max(int(np.floor(min(ax, bx, cx))), 0)
-        x1 = min(int(np.ceil(max(ax, bx, cx))), width - 1)
-        y0 = max(int(np.floor(min(ay, by, cy))), 0)
-        y1 = min(int(np.ceil(max(ay, by, cy))), height - 1)
-        for y in range(y0, y1 + 1):
-            py = y + 0.5
-            for x in range(x0, x1 + 1):
-                px = x + 0.5
-                w0 = ((bx - px) * (cy - py) - (cx - px) * (by - py)) / area
-                w1 = ((cx - px) * (ay - py) - (ax - px) * (cy - py)) / area
-                w2 = 1.0 - w0 - w1
-                if w0 < -1e-9 or w1 < -1e-9 or w2 < -1e-9:
-                    continue
-                z = w0 * depth[a] + w1 * depth[b] + w2 * depth[c]
-                if z < zbuffer[y, x]:
-                    zbuffer[y, x] = z
-                    image[y, x] = w0 * shades[a] + w1 * shades[b] + w2 * shades[c]
-    return image
-
-
 def rasterise_view(view: SheetView, pixels_per_mm: float, scale: float) -> tuple[np.ndarray, tuple[float, float]]:
     """The view's skin as a shade image ``(H, W)`` float32 in [0, 1] (NaN outside the hand), drawn at
     ``scale`` page mm per model mm and ``pixels_per_mm`` page pixels per page mm, and the page position
@@ -190,7 +158,9 @@ def rasterise_view(view: SheetView, pixels_per_mm: float, scale: float) -> tuple
     pixels = np.empty_like(view.points)
     pixels[:, 0] = (view.points[:, 0] - xmin) * factor + 1.0
     pixels[:, 1] = (ymax - view.points[:, 1]) * factor + 1.0
-    image = _rasterise_kernel(pixels, view.depth, view.shades, view.faces, width, height)
+    image = np.full((height, width), np.nan, dtype=np.float32)      # Gouraud-shaded skin, NaN = background
+    fill_triangles(pixels, view.depth, view.faces, False, 0.5, 1e-9, -np.inf, np.full((height, width), np.inf),
+                   np.full((height, width), -1, dtype=np.int32), view.shades, image)
     origin = ((1.0 - xmin * factor) / pixels_per_mm, (1.0 + ymax * factor) / pixels_per_mm)
     return image, origin
 
