@@ -32,7 +32,8 @@ from handmocap.core.model import MarkerLayout, load_template
 from handmocap.core.model.lab_template import LabTemplate, save_lab_template
 from handmocap.core.model.skeleton import PARAM_NAMES
 from handmocap.core.review import ReviewTake
-from handmocap.core.review.export import EXPORT_FORMATS, export_review, labelled_take
+from handmocap.core.review.export import export_review, labelled_take
+from handmocap.core.review.export_formats import export_format
 from handmocap.core.simulate import simulate_take as simulate
 from handmocap.core.workflows.filling import fill_review_gaps, find_review_gaps, gap_groups
 from handmocap.core.workflows.labelling import auto_label, subject_hands
@@ -189,11 +190,10 @@ def export(take: Take, path: PathArg, format: str = "c3d", units: str | None = N
     """Write a labelled take as ``format`` (``handmocap export --format``: c3d, trc, csv, bvh, gltf, ...),
     solving first the hands a format of joint angles needs. Returns the files written (one per hand for a
     BVH of two hands)."""
-    if format not in EXPORT_FORMATS:
-        raise InputError(f"unknown export format '{format}' (use {', '.join(EXPORT_FORMATS)})")
+    chosen = export_format(format)
     review = _review(take)
     models = {}
-    if EXPORT_FORMATS[format][2]:
+    if chosen.joint_angles:
         hands = subject_hands(take.parameters, take.source_path)
         solve_unsolved_hands(review, hands.models, hands.marker_sets, progress, cancelled)
         models = hands.models

@@ -10,8 +10,8 @@ import pyqtgraph as pg
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
-from handmocap.widgets.gap_list import METHOD_ORDER, METHOD_TITLES
-from handmocap.widgets.marker_lanes import BACKGROUND, GAP_COLOUR, METHOD_COLOURS, css
+from handmocap.core.gaps import fill_method, menu_fill_methods
+from handmocap.widgets.marker_lanes import BACKGROUND, GAP_COLOUR, css
 
 AXES = ("X", "Y", "Z")
 MEASURED_PEN = (205, 210, 218)
@@ -117,7 +117,7 @@ class FillPreview(QWidget):
         self._remove_candidates()
         before = trajectory[start - 1] if start > 0 else np.full(3, np.nan)
         after = trajectory[start + length] if start + length < n_frames else np.full(3, np.nan)
-        for method in METHOD_ORDER:
+        for method in (registered.name for registered in menu_fill_methods()):
             values = (candidates or {}).get(method)
             if values is None:
                 continue
@@ -144,7 +144,7 @@ class FillPreview(QWidget):
         self._selected = method if method in self._curves else None
         for name, curves in self._curves.items():
             chosen = name == self._selected
-            colour = METHOD_COLOURS[name]
+            colour = fill_method(name).colour
             pen = (pg.mkPen(colour, width=2.6) if chosen
                    else pg.mkPen((*colour, 170), width=1.1, style=Qt.PenStyle.DashLine))
             for curve in curves:
@@ -182,10 +182,10 @@ class FillPreview(QWidget):
                  f'<span style="color:{css(GAP_COLOUR)}">▮</span>&nbsp;gap']
         for method in self._curves:
             error = self._errors.get(method)
-            text = METHOD_TITLES[method].replace(" ", "&nbsp;")
+            text = fill_method(method).label.replace(" ", "&nbsp;")
             if error is not None:
                 text += f"&nbsp;{error:.2f}&nbsp;mm"
             if method == self._selected:
                 text = f"<b>{text}</b>"
-            parts.append(f'<span style="color:{css(METHOD_COLOURS[method])}">■</span>&nbsp;{text}')
+            parts.append(f'<span style="color:{css(fill_method(method).colour)}">■</span>&nbsp;{text}')
         self.legend_label.setText("&nbsp;&nbsp; ".join(parts))

@@ -35,27 +35,12 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from handmocap.core.gaps import FILL_METHODS, FillCheck, Gap
+from handmocap.core.gaps import FillCheck, Gap, fill_method, fill_method_names, menu_fill_methods, provenance_names
 from handmocap.core.gaps.check import DISPLACE_FACTOR, LOCAL_HORIZON_S
-from handmocap.core.model.provenance import PROVENANCE_NAMES
-from handmocap.widgets.marker_lanes import GAP_COLOUR, METHOD_COLOURS, css
+from handmocap.widgets.marker_lanes import GAP_COLOUR, css, filled_text
 from handmocap.widgets.marker_panel import MISSING_TEXT, SORT_ROLE, ColumnTableModel
 
 GAP_STATES = ("open", "filled", "rejected")
-#: methods in the order the detail panel lists them
-METHOD_ORDER = ("model", "pca", "linear", "spline", "pattern", "rigid")
-METHOD_TITLES = {"model": "Model", "pca": "PCA", "linear": "Linear", "spline": "Spline", "pattern": "Pattern",
-                 "rigid": "Rigid body"}
-METHOD_TIPS = {
-    "model": "Hand model: joint angles interpolated through the gap with minimum angular acceleration,\n"
-             "markers placed by forward kinematics (the papers' method)",
-    "pca": "Marker intercorrelations: the gap follows the other markers through the principal components\n"
-           "of their coordinated motion around the gap (Gløersen & Federolf 2016)",
-    "linear": "Straight line between the samples on each side",
-    "spline": "Cubic spline through the samples on each side",
-    "pattern": "Copies the motion of a donor marker observed through the gap, blended to the gap's ends",
-    "rigid": "Rigid body: three donor markers on the same segment carry the marker through the gap",
-}
 COLUMNS = ("Marker", "First", "Frames", "Best fill", "Error (mm)", "State")
 COLUMN_TIPS = (
     "Marker with the gap",
@@ -71,8 +56,6 @@ STATE_FILTERS = ("All gaps", "Open", "Filled", "Rejected")
 AUTO_DONOR = -1
 DEFAULT_MAX_FILL = 20
 REJECTED_COLOUR = QColor(150, 150, 155)
-if set(METHOD_ORDER) != set(FILL_METHODS):
-    raise ImportError("widgets.gap_list lists other fill methods than core.gaps")
 
 
 @dataclass
@@ -125,7 +108,7 @@ class GapRow:
     def state_text(self) -> str:
         """"open", "filled (method)" or "rejected"."""
         if self.state == "filled" and self.method:
-            return f"filled ({METHOD_TITLES.get(self.method, self.method).lower()})"
+            return filled_text(self.method)
         return self.state
 
     def applicable(self, method: str) -> bool:
@@ -204,7 +187,7 @@ class GapTableModel(ColumnTableModel):
                 return "cannot fill"
             if not row.checked:
                 return "…"
-            return METHOD_TITLES.get(row.recommended, MISSING_TEXT) if row.recommended else "none applies"
+            return fill_method(row.recommended).label if row.recommended else "none applies"
         if column == 4:
             error = (row.errors_mm or {}).get(row.recommended or "")
             return MISSING_TEXT if error is None else f"{error:.2f}"
@@ -213,12 +196,12 @@ class GapTableModel(ColumnTableModel):
     @staticmethod
     def _foreground(row: GapRow, column: int) -> QBrush | None:
         if column == 3 and row.recommended:
-            return QBrush(QColor(*METHOD_COLOURS[row.recommended]).darker(115))
+            return QBrush(QColor(*fill_method(row.recommended).colour).darker(115))
         if column == 5:
             if row.state == "open":
                 return QBrush(QColor(*GAP_COLOUR))
-            if row.state == "filled" and row.method in METHOD_COLOURS:
-                return QBrush(QColor(*METHOD_COLOURS[row.method]).darker(115))
+            if row.state == "filled" and row.method in fill_method_names():
+                return QBrush(QColor(*fill_method(row.method).colour).darker(115))
             return QBrush(REJECTED_COLOUR)
         if column == 3 and (row.at_take_edge or row.checked):
             return QBrush(REJECTED_COLOUR)
@@ -367,10 +350,11 @@ class GapList(QWidget):
         self.method_buttons: dict[str, QRadioButton] = {}
         self.error_labels: dict[str, QLabel] = {}
         self.note_labels: dict[str, QLabel] = {}
-        for row, method in enumerate(METHOD_ORDER, start=1):
-            button = QRadioButton(METHOD_TITLES[method], self.detail)
-            button.setToolTip(METHOD_TIPS[method])
-            button.setIcon(_chip(METHOD_COLOURS[method]))
+        for row, registered in enumerate(menu_fill_methods(), start=1):
+            method = registered.name
+            button = QRadioButton(registered.label, self.detail)
+            button.setToolTip(registered.description)
+            button.setIcon(_chip(registered.colour))
             self.method_group.addButton(button, row)
             self.method_buttons[method] = button
             error = QLabel(MISSING_TEXT, self.detail)
@@ -548,7 +532,7 @@ class GapList(QWidget):
             self.detail_title.setText("No gap selected")
             self.detail_note.setText("")
             self._set_checked(None)
-            for method in METHOD_ORDER:
+            for method in self.method_buttons:
                 self.error_labels[method].setText(MISSING_TEXT)
                 if method in self.note_labels:
                     self.note_labels[method].setText("")
@@ -560,7 +544,7 @@ class GapList(QWidget):
             f"<b>{row.name}</b> · frames {first}–{first + row.length - 1} · {row.length} frames · "
             f"<span style='color:{self._state_css(row)}'>{row.state_text()}</span>")
         ranking = sorted(row.errors_mm, key=row.errors_mm.get) if row.errors_mm else []
-        for method in METHOD_ORDER:
+        for method in self.method_buttons:
             button, error_label = self.method_buttons[method], self.error_labels[method]
             button.setEnabled(row.applicable(method))
             error = (row.errors_mm or {}).get(method)
@@ -569,7 +553,7 @@ class GapList(QWidget):
                 text, tip = "n/a", "observed on one side only"
             elif error is not None:
                 text = f"{error:.2f} mm"
-                tip = f"{METHOD_TITLES[method]}: mean error {error:.2f} mm on the hidden stretches"
+                tip = f"{fill_method(method).label}: mean error {error:.2f} mm on the hidden stretches"
             elif not row.checked:
                 text, tip = "…", "the fill check has not run yet"
             else:
@@ -591,7 +575,7 @@ class GapList(QWidget):
         if previous_donor != AUTO_DONOR:
             self.set_donor(previous_donor)
         choice = previous if previous and row.applicable(previous) else row.method if row.state == "filled" else None
-        choice = choice or row.recommended or next((m for m in METHOD_ORDER if row.applicable(m)), None)
+        choice = choice or row.recommended or next((m for m in self.method_buttons if row.applicable(m)), None)
         self._set_checked(choice)
         if row.at_take_edge:
             note = "The take starts or ends inside this gap: there is nothing to interpolate from on one side."
@@ -668,8 +652,8 @@ class GapList(QWidget):
     def _state_css(row: GapRow) -> str:
         if row.state == "open":
             return css(GAP_COLOUR)
-        if row.state == "filled" and row.method in METHOD_COLOURS:
-            return css(METHOD_COLOURS[row.method])
+        if row.state == "filled" and row.method in fill_method_names():
+            return css(fill_method(row.method).colour)
         return css((150, 150, 155))
 
 
@@ -689,7 +673,7 @@ def gap_rows(gaps: list[Gap], provenance: np.ndarray | None = None,
         fields: dict[str, object] = {"donors": tuple(donors.get(index, ()))}
         codes = None if provenance is None else np.asarray(provenance)[gap.start:gap.end, gap.marker]
         if codes is not None and len(codes) and (codes > 0).all():
-            fields.update(state="filled", method=PROVENANCE_NAMES.get(int(np.bincount(codes).argmax())))
+            fields.update(state="filled", method=provenance_names().get(int(np.bincount(codes).argmax())))
         elif index in rejected:
             fields["state"] = "rejected"
         if isinstance(check, str):

@@ -4,10 +4,11 @@ QTM's trajectory info. Clicking a lane emits the frame, the marker and the stret
 under the click; hovering shows the marker, the frame and that stretch.
 
 State codes ``(F,M)`` int8 follow the provenance codes of :mod:`core.model.provenance` (-1 missing,
-0 measured, 1..6 filled by the method of ``FILL_CODES``) and add :data:`LOW_CONFIDENCE` and :data:`EDITED`
-(measured samples the labelling is unsure about, and samples the operator edited) and :data:`NO_DATA`
-(before a marker's first or after its last sample: nothing to show). :func:`lane_states` builds them from provenance
-and masks; :func:`lanes_from_review` from :meth:`core.session.ReviewTake.lane_states` and provenance.
+0 measured, 1..6 filled by the built-in fill method of that code, :mod:`core.gaps.methods`) and add
+:data:`LOW_CONFIDENCE` and :data:`EDITED` (measured samples the labelling is unsure about, and samples the
+operator edited) and :data:`NO_DATA` (before a marker's first or after its last sample: nothing to show).
+:func:`lane_states` builds them from provenance and masks; :func:`lanes_from_review` from
+:meth:`core.session.ReviewTake.lane_states` and provenance.
 
 Drawing is one image (a colour per lane and screen column). When more frames than pixels are
 visible, each column shows the most important state of its frames (gap > low confidence > edited >
@@ -34,8 +35,8 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from handmocap.core.gaps import FILL_METHODS
-from handmocap.core.model.provenance import FILL_CODES, MEASURED, MISSING
+from handmocap.core.gaps import fill_method, fill_methods
+from handmocap.core.model.provenance import MEASURED, MISSING
 from handmocap.core.review import LANE_EDITED, LANE_FILLED, LANE_GAP, LANE_LOW_CONFIDENCE, LANE_NONE, LANE_OBSERVED
 
 NO_DATA = -2                  # before the first or after the last sample of the marker
@@ -43,7 +44,7 @@ GAP = MISSING                 # -1: no sample (not filled)
 OBSERVED = MEASURED           # 0: measured, labelled
 LOW_CONFIDENCE = 7            # measured, but the label is uncertain
 EDITED = 8                    # changed by the operator
-STATE_CODES = (NO_DATA, GAP, OBSERVED, *(FILL_CODES[m] for m in FILL_METHODS), LOW_CONFIDENCE, EDITED)
+STATE_CODES = (NO_DATA, GAP, OBSERVED, *(method.code for method in fill_methods()), LOW_CONFIDENCE, EDITED)
 
 BACKGROUND = (30, 32, 36)     # the timeline's plot background
 CURSOR_PEN = (255, 200, 60)   # the timeline's cursor
@@ -53,25 +54,23 @@ NO_DATA_COLOUR = (40, 43, 48)
 GAP_COLOUR = (232, 66, 56)
 LOW_CONFIDENCE_COLOUR = (250, 158, 36)
 EDITED_COLOUR = (232, 232, 240)
-#: colour of each fill method, shared by the lanes, the gap list and the fill preview
-METHOD_COLOURS: dict[str, tuple[int, int, int]] = {
-    "linear": (112, 140, 240),
-    "spline": (72, 196, 232),
-    "pattern": (178, 118, 240),
-    "rigid": (236, 112, 198),
-    "model": (84, 206, 120),
-    "pca": (196, 214, 72),
-}
+
+
+def filled_text(method: str) -> str:
+    """How the GUI names a fill in running text: "filled (rigid body)", "filled (PCA)" (the method's label, lower
+    case unless it is an acronym)."""
+    label = fill_method(method).label
+    return f"filled ({label if label.isupper() else label.lower()})"
+
+
 STATE_COLOURS: dict[int, tuple[int, int, int]] = {
     NO_DATA: NO_DATA_COLOUR, GAP: GAP_COLOUR, OBSERVED: OBSERVED_COLOUR,
-    **{FILL_CODES[m]: METHOD_COLOURS[m] for m in FILL_METHODS},
+    **{method.code: method.colour for method in fill_methods()},
     LOW_CONFIDENCE: LOW_CONFIDENCE_COLOUR, EDITED: EDITED_COLOUR,
 }
-#: how a lane's tooltip names a fill method, when not by its code name
-FILL_NAMES = {"rigid": "rigid body", "pca": "PCA"}
 STATE_NAMES: dict[int, str] = {
     NO_DATA: "no data", GAP: "gap", OBSERVED: "observed",
-    **{FILL_CODES[m]: f"filled ({FILL_NAMES.get(m, m)})" for m in FILL_METHODS},
+    **{method.code: filled_text(method.name) for method in fill_methods()},
     LOW_CONFIDENCE: "low confidence", EDITED: "edited",
 }
 MIN_LANE_PX = 14.0            # lanes never get thinner: more markers than fit scroll vertically

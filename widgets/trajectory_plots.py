@@ -24,9 +24,9 @@ from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QBrush, QColor, QShowEvent
 from PySide6.QtWidgets import QCheckBox, QGraphicsItem, QHBoxLayout, QLabel, QPushButton, QVBoxLayout, QWidget
 
-from handmocap.core.model.provenance import FILL_CODES
+from handmocap.core.gaps import fill_method, fill_methods
 from handmocap.core.review.take import runs
-from handmocap.widgets.marker_lanes import BACKGROUND, CURSOR_PEN, GAP_COLOUR, METHOD_COLOURS, SELECTION_COLOUR, css
+from handmocap.widgets.marker_lanes import BACKGROUND, CURSOR_PEN, GAP_COLOUR, SELECTION_COLOUR, css
 
 #: spike threshold: median + SPIKE_MADS × (1.4826 × MAD) of a label's |acceleration|. 1.4826 × MAD is the
 #: standard deviation for Gaussian noise; on a simulated 3000-frame take with 0.3 mm noise and grasping
@@ -107,10 +107,10 @@ def make_trace(name: str, colour: tuple[int, int, int], positions: np.ndarray, p
     speed, acceleration = kinematics(positions, frame_rate)
     spikes, threshold = acceleration_spikes(acceleration)
     fills = {}
-    for method, code in FILL_CODES.items():
-        _, starts, stops = runs(provenance == code)
+    for method in fill_methods():
+        _, starts, stops = runs(provenance == method.code)
         if len(starts):
-            fills[method] = list(zip(starts.tolist(), stops.tolist(), strict=True))
+            fills[method.name] = list(zip(starts.tolist(), stops.tolist(), strict=True))
     _, starts, stops = runs(gaps)
     return Trace(name, colour, positions, speed, acceleration, list(zip(starts.tolist(), stops.tolist(), strict=True)),
                  fills, list(swaps), spikes, threshold)
@@ -249,8 +249,8 @@ class TrajectoryPlots(QWidget):
 
     @staticmethod
     def _legend() -> str:
-        fills = "".join(f'<span style="color:{css(colour)}">━</span>&nbsp;{method} ' for method, colour
-                        in METHOD_COLOURS.items())
+        fills = "".join(f'<span style="color:{css(method.colour)}">━</span>&nbsp;{method.name} '
+                        for method in fill_methods())
         return (f'<span style="color:{css(GAP_COLOUR)}">■</span>&nbsp;gap &nbsp; fill: {fills}&nbsp; '
                 f'<span style="color:{css(SWAP_COLOUR)}">▨</span>&nbsp;swap suspect &nbsp; '
                 f'<span style="color:{css(SPIKE_COLOUR)}">×</span>&nbsp;acceleration spike')
@@ -292,7 +292,7 @@ class TrajectoryPlots(QWidget):
                 values = trace.values(key)
                 for method, spans in trace.fills.items():
                     self._add(plot, pg.PlotDataItem(frames, _masked(values, spans), connect="finite",
-                                                    pen=pg.mkPen(METHOD_COLOURS[method], width=5)), z=1)
+                                                    pen=pg.mkPen(fill_method(method).colour, width=5)), z=1)
                 self._add(plot, pg.PlotDataItem(frames, values, connect="finite",
                                                 pen=pg.mkPen(trace.colour, width=1.5)), z=2)
                 if len(trace.spikes):

@@ -1,4 +1,5 @@
-"""``handmocap export``: a labelled take or a session's reviewed take as C3D, TRC, CSV, BVH or glTF.
+"""``handmocap export``: a labelled take or a session's reviewed take in a registered export format
+(:mod:`core.review.export_formats`: C3D, TRC, CSV markers, joint angles as CSV, BVH, glTF).
 
 The take is a labelled file (our labelled C3D, or any labelled C3D/TSV/TRC/CSV), ``SESSION_FOLDER:TAKE``
 or ``SESSION_FOLDER --take TAKE`` (a take id or name of a session; the session is opened read-only and
@@ -64,10 +65,11 @@ def _solve_missing_hands(review, models: dict, marker_sets: dict, quiet: bool) -
 def command_export(args: argparse.Namespace) -> int:
     """``handmocap export``: write a labelled take or a session's take in the chosen format; exit 2 on bad input."""
     from handmocap.core.model import load_template
-    from handmocap.core.review.export import EXPORT_FORMATS, export_review
+    from handmocap.core.review.export import export_review
+    from handmocap.core.review.export_formats import export_format
     from handmocap.core.session import Session
 
-    angles = EXPORT_FORMATS[args.format][2]
+    chosen = export_format(args.format)
     with ExitStack() as cleanup:
         session_take = _session_take(args.take, args.take_name)
         if session_take is None:
@@ -85,10 +87,10 @@ def command_export(args: argparse.Namespace) -> int:
                 models[model.side] = model
             where = f"take '{entry.name}' of session {folder}"
         hand_models = {}
-        if angles:
+        if chosen.joint_angles:
             _solve_missing_hands(review, models, marker_sets, args.quiet)
             hand_models = {hand.side: models.get(hand.side) or load_template(hand.side) for hand in review.hands}
-            if args.format == "bvh" and args.hand is None:
+            if chosen.per_hand and args.hand is None:
                 _check_hand_outputs(review, args.out, args.overwrite)
         written = export_review(review, args.out, args.format, units=args.units, up=args.up, hand=args.hand,
                                 fills=not args.no_fills, models=hand_models, subjects=subjects)
@@ -98,7 +100,7 @@ def command_export(args: argparse.Namespace) -> int:
 
 
 def _check_hand_outputs(review, out: str, overwrite: bool) -> None:
-    """Check the per-hand BVH files (``OUT_right.bvh``...) of a take with two solved hands before writing."""
+    """Check the per-hand files (``OUT_right.bvh``...) of a take with two solved hands before writing."""
     from handmocap.app.cli.common import check_output
     from handmocap.core.review.export import per_hand_path
 
@@ -110,23 +112,37 @@ def _check_hand_outputs(review, out: str, overwrite: bool) -> None:
 
 def register(commands, bench_commands, evaluate_commands) -> None:
     """Add ``export`` to the ``handmocap`` parser."""
+    import handmocap.core.review  # noqa: F401  (registers the built-in export formats)
+    from handmocap.core.review.export_formats import export_format_names, export_formats
+
+    def names(test) -> str:
+        return ", ".join(chosen.name for chosen in export_formats() if test(chosen))
+
     export = commands.add_parser(
-        "export", help="export a labelled take or a session's take as c3d, trc, csv, bvh or gltf",
-        description="Formats: c3d (labelled C3D with provenance, mm, lab frame), trc (markers; OpenSim: --units m "
-        "--up y), csv (markers, mm), bvh (joint angles; Blender: --units m --up y, MotionBuilder: --units cm "
-        "--up y), gltf (.glb/.gltf skinned hand with its animation; always metres, Y up).")
+        "export", help=f"export a labelled take or a session's take as {', '.join(export_format_names())}",
+        description="Formats: " + "; ".join(
+            f"{chosen.name} ({chosen.label}, {' or '.join(chosen.suffixes)}"
+            + (")" if chosen.axes else f"; always {chosen.units}, {chosen.up.upper()} up)")
+            for chosen in export_formats())
+        + ". OpenSim: --units m --up y; Blender: --units m --up y; MotionBuilder: --units cm --up y.")
     export.add_argument("take", metavar="TAKE", help="labelled take file, or SESSION_FOLDER:TAKE (id or name), or "
                         "SESSION_FOLDER with --take")
     add_rate_argument(export)
     export.add_argument("--take", dest="take_name", metavar="NAME", help="the take (id or name) of the session")
-    export.add_argument("--format", required=True, choices=["c3d", "trc", "csv", "bvh", "gltf"],
-                        help="c3d, trc, csv: labelled points; bvh, gltf: the solved hands")
+    export.add_argument("--format", required=True, choices=export_format_names(),
+                        help=f"{names(lambda chosen: not chosen.joint_angles)}: labelled points; "
+                        f"{names(lambda chosen: chosen.joint_angles)}: the solved hands")
     export.add_argument("--out", required=True, metavar="FILE", help="the file to write")
-    export.add_argument("--units", choices=["mm", "cm", "m"], help="trc and bvh lengths (default mm)")
-    export.add_argument("--up", choices=["y", "z"], help="trc and bvh up axis (default z, the lab frame)")
-    export.add_argument("--hand", choices=["right", "left"], help="bvh and gltf: that hand only (default: every "
-                        "hand: with two, FILE_right.bvh and FILE_left.bvh, or one glTF with both)")
-    export.add_argument("--no-fills", action="store_true", help="c3d, trc, csv: leave filled samples out")
+    export.add_argument("--units", choices=["mm", "cm", "m"],
+                        help=f"{names(lambda chosen: chosen.axes)} lengths (default mm)")
+    export.add_argument("--up", choices=["y", "z"],
+                        help=f"{names(lambda chosen: chosen.axes)} up axis (default z, the lab frame)")
+    export.add_argument("--hand", choices=["right", "left"],
+                        help=f"{names(lambda chosen: chosen.joint_angles)}: that hand only (default: every hand: "
+                        f"with two, a file per hand for {names(lambda chosen: chosen.per_hand)} (FILE_right.bvh and "
+                        "FILE_left.bvh), one file with both for the others)")
+    export.add_argument("--no-fills", action="store_true",
+                        help=f"{names(lambda chosen: not chosen.joint_angles)}: leave filled samples out")
     export.add_argument("--quiet", action="store_true", help="no progress output")
     add_outputs(export, "out")
     export.set_defaults(handler=command_export)

@@ -103,8 +103,9 @@ def command_label(args: argparse.Namespace) -> int:
 
 def command_fill(args: argparse.Namespace) -> int:
     """``handmocap fill``: write the labelled take with its short gaps filled, print the counts; exit 2 on bad input."""
+    from handmocap.core.gaps import provenance_names
     from handmocap.core.io import looks_unlabelled
-    from handmocap.core.review import PROVENANCE_NAMES, export_labelled_c3d
+    from handmocap.core.review import export_labelled_c3d
     from handmocap.core.workflows import fill_review_gaps, find_review_gaps, gap_groups
 
     review = _load_review(args.labelled, args.rate)
@@ -130,7 +131,7 @@ def command_fill(args: argparse.Namespace) -> int:
           f"({methods}); {still} samples still missing -> {args.out}")
     if args.json:
         print_json({"gaps": len(gaps), "short_gaps": len(short), "filled": counts, "missing_samples": still,
-                    "codes": {str(code): name for code, name in PROVENANCE_NAMES.items()}})
+                    "codes": {str(code): name for code, name in provenance_names().items()}})
     return 0
 
 
@@ -286,6 +287,8 @@ def command_evaluate_gaps(args: argparse.Namespace) -> int:
 
 def register(commands, bench_commands, evaluate_commands) -> None:
     """Add ``label``, ``fill`` and ``bench label`` to the ``handmocap`` parser."""
+    from handmocap.core.gaps import AUTO, fill_choices, fill_methods
+
     label = commands.add_parser("label", help="automatically label the raw points of a take (hands and objects)")
     label.add_argument("raw", help="raw take: C3D with unlabelled points or fragments, Qualisys TSV, TRC, the CSV "
                        "exports of Vicon Nexus, Motive or NOKOV")
@@ -311,9 +314,9 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     fill.add_argument("labelled", metavar="LABELLED.c3d", help="labelled take (our labelled C3D, or any "
                       "labelled C3D/TSV/TRC/CSV)")
     fill.add_argument("--max-gap", type=int, required=True, metavar="FRAMES", help="longest gap to fill")
-    fill.add_argument("--method", choices=["auto", "pca", "model", "spline", "linear", "pattern", "rigid"],
-                      default="auto", help="auto: per gap, the first method of its fill check that applies (pca: "
-                      "marker intercorrelations, Gløersen & Federolf 2016)")
+    fill.add_argument("--method", choices=fill_choices(), default=AUTO,
+                      help="auto: per gap, the first method of its fill check that applies; "
+                      + "; ".join(f"{method.name}: {method.description}" for method in fill_methods()))
     fill.add_argument("--out", required=True, metavar="FILLED.c3d", help="the filled take to write (labelled C3D)")
     fill.add_argument("--quiet", action="store_true", help="no progress output")
     add_outputs(fill, "out")

@@ -42,13 +42,14 @@ from PySide6.QtWidgets import (
 from handmocap.app.gui.application import Application
 from handmocap.app.gui.document import TakeDocument
 from handmocap.core.batch.open_take import OpenTakeResult, process_review_copy, record_done
-from handmocap.core.batch.pipeline import EXPORTS, HANDS, SOLVE_METHODS, STEPS, Pipeline, load_pipeline, save_pipeline
+from handmocap.core.batch.pipeline import HANDS, SOLVE_METHODS, STEPS, Pipeline, load_pipeline, save_pipeline
 from handmocap.core.batch.runner import BatchPlan, BatchProgress, TakeJob, plan_batch, run_batch
 from handmocap.core.batch.task import step_description
 from handmocap.core.errors import HandMocapError
-from handmocap.core.gaps import FILL_METHODS
+from handmocap.core.gaps import fill_choices
 from handmocap.core.model import layout_names
 from handmocap.core.review import ReviewTake
+from handmocap.core.review.export_formats import export_formats
 
 
 class BatchPanel(QDialog):
@@ -71,7 +72,9 @@ class BatchPanel(QDialog):
         self._open_jobs: list[tuple[TakeJob, TakeDocument, ReviewTake, int, bool]] = []
         self._plan: BatchPlan | None = None
         self.steps = {step: QCheckBox(step) for step in STEPS}
-        self.exports = {kind: QCheckBox(kind) for kind in EXPORTS}
+        self.exports = {registered.name: QCheckBox(registered.name) for registered in export_formats()}
+        for registered in export_formats():
+            self.exports[registered.name].setToolTip(registered.label)
         self.layout_box = QComboBox()
         self.layout_box.setEditable(True)
         self.layout_box.addItems(layout_names())
@@ -80,7 +83,7 @@ class BatchPanel(QDialog):
         self.max_gap = QSpinBox()
         self.max_gap.setRange(1, 100_000)
         self.fill_box = QComboBox()
-        self.fill_box.addItems(["auto", *FILL_METHODS])
+        self.fill_box.addItems(list(fill_choices()))
         self.solve_box = QComboBox()
         self.solve_box.addItems(SOLVE_METHODS)
         self.output = QLineEdit()

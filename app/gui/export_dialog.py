@@ -34,20 +34,11 @@ from handmocap.core.errors import HandMocapError
 from handmocap.core.io.labelled_c3d import SubjectCalibration
 from handmocap.core.model import HandModel
 from handmocap.core.review import ReviewTake
-from handmocap.core.review.export import EXPORT_FORMATS, export_review
+from handmocap.core.review.export import export_review
+from handmocap.core.review.export_formats import export_format, export_formats
 from handmocap.widgets.shortcuts import bind
 
-#: format -> (menu text, file dialog filter)
-FORMAT_TEXTS = {
-    "c3d": ("Labelled C3D (markers, provenance)", "C3D (*.c3d)"),
-    "trc": ("TRC markers (OpenSim)", "TRC (*.trc)"),
-    "csv": ("CSV markers", "CSV (*.csv)"),
-    "bvh": ("BVH joint angles (Blender, MotionBuilder)", "BVH (*.bvh)"),
-    "gltf": ("glTF skinned hand with its animation", "glTF binary (*.glb);;glTF (*.gltf)"),
-}
 UNITS_HINT = "OpenSim: m, Y up · Blender: m, Y up · MotionBuilder: cm, Y up · as recorded: mm, Z up"
-#: what an export's file name adds to the raw take's (never the raw take's own name)
-FORMAT_ENDINGS = {"c3d": "_labelled", "trc": "_markers", "csv": "_markers", "bvh": "_angles", "gltf": "_hand"}
 
 
 def default_export_path(review: ReviewTake, title: str, ending: str, suffix: str) -> Path:
@@ -74,9 +65,9 @@ class ExportDialog(QDialog):
         self._proposed: str | None = None     # the file name proposed (replaced when the format changes)
         solved = [hand for hand in review.hands if np.isfinite(hand.joint_angles).all(axis=1).any()]
         self.format_box = QComboBox()
-        for name, (text, _) in FORMAT_TEXTS.items():
-            self.format_box.addItem(text, name)
-            if EXPORT_FORMATS[name][2] and not solved:
+        for registered in export_formats():
+            self.format_box.addItem(registered.label, registered.name)
+            if registered.joint_angles and not solved:
                 item = self.format_box.model().item(self.format_box.count() - 1)
                 item.setEnabled(False)
                 item.setToolTip("needs a solved hand (Solve the take first)")
@@ -124,39 +115,36 @@ class ExportDialog(QDialog):
 
     def _format_changed(self) -> None:
         """Enable the options the chosen format takes and give the file the format's suffix."""
-        name = self.format_name
-        suffixes, axes, angles = EXPORT_FORMATS[name]
+        chosen = export_format(self.format_name)
+        suffixes = chosen.suffixes
         for widget in (self.units_box, self.up_box):
-            widget.setEnabled(axes)
-        if name == "gltf":
-            self.units_box.setCurrentText("m")
-            self.up_box.setCurrentIndex(self.up_box.findData("y"))
-        elif not axes:
-            self.units_box.setCurrentText("mm")
-            self.up_box.setCurrentIndex(self.up_box.findData("z"))
-        self.hand_box.setEnabled(angles and self.hand_box.count() > 1)
-        self.fills_box.setEnabled(not angles)
+            widget.setEnabled(chosen.axes)
+        if not chosen.axes:
+            self.units_box.setCurrentText(chosen.units)
+            self.up_box.setCurrentIndex(self.up_box.findData(chosen.up))
+        self.hand_box.setEnabled(chosen.joint_angles and self.hand_box.count() > 1)
+        self.fills_box.setEnabled(not chosen.joint_angles)
         current = self.path_edit.text().strip()
         if not current or current == self._proposed:   # what the dialog proposed: next to the raw take
-            self._proposed = str(default_export_path(self.review, self.stem, FORMAT_ENDINGS[name], suffixes[0]))
+            self._proposed = str(default_export_path(self.review, self.stem, chosen.name_tag, suffixes[0]))
             self.path_edit.setText(self._proposed)
         else:                                           # the operator's own file: only its suffix changes
             self.path_edit.setText(str(Path(current).with_suffix("")) + suffixes[0])
         self.path_edit.setToolTip(self.path_edit.text())
 
     def choose_path(self) -> None:
-        path, _ = QFileDialog.getSaveFileName(self, "Export", self.path_edit.text(), FORMAT_TEXTS[self.format_name][1])
+        path, _ = QFileDialog.getSaveFileName(self, "Export", self.path_edit.text(),
+                                              export_format(self.format_name).file_filter)
         if path:
             self.path_edit.setText(path)
 
     def options(self) -> dict:
         """The keyword options of :func:`export_review` the dialog's fields give."""
-        name = self.format_name
-        _, axes, angles = EXPORT_FORMATS[name]
-        return {"units": self.units_box.currentText() if axes else None,
-                "up": self.up_box.currentData() if axes else None,
-                "hand": self.hand_box.currentData() if angles else None,
-                "fills": self.fills_box.isChecked() or angles}
+        chosen = export_format(self.format_name)
+        return {"units": self.units_box.currentText() if chosen.axes else None,
+                "up": self.up_box.currentData() if chosen.axes else None,
+                "hand": self.hand_box.currentData() if chosen.joint_angles else None,
+                "fills": self.fills_box.isChecked() or chosen.joint_angles}
 
     def export(self) -> bool:
         """Write the file (asking before replacing one); True when written (the dialog then closes)."""
@@ -171,7 +159,7 @@ class ExportDialog(QDialog):
         name, options = self.format_name, self.options()
         try:
             models = {}
-            if EXPORT_FORMATS[name][2]:
+            if export_format(name).joint_angles:
                 models = {side: self.model_for(side) for side in ([options["hand"]] if options["hand"] else
                                                                   self.sides or [self.review.hands[0].side])}
             written = export_review(self.review, path, name, models=models, subjects=self.subjects, **options)
@@ -188,7 +176,7 @@ def export_action(host: QWidget, controller) -> QAction:
     """The File ▸ Export… action of ``host`` for the take ``controller`` (the review controller) shows;
     each written file is announced through ``controller.exported`` (the session records it)."""
     action = QAction("&Export…", host)
-    bind(action, "export", "Export the take as C3D, TRC, CSV, BVH or glTF")
+    bind(action, "export", "Export the take as " + ", ".join(registered.name for registered in export_formats()))
 
     def run() -> None:
         document = controller.document

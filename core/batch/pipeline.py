@@ -11,14 +11,16 @@ One flat TOML (or JSON) table, written by the GUI and read by ``handmocap batch`
     max_gap = 20                 # longest gap filled (frames)
     fill_method = "auto"
     solve_method = "layered"
-    exports = ["c3d", "csv", "bvh"]
+    exports = ["c3d", "angles-csv", "bvh"]   # any registered export format (core.review.export_formats)
     output = "exports"           # folder of the exports ("" = <session>/exports)
     rate = 120.0                 # frame rate (Hz) of the takes whose file states none (NOKOV CSV); 0: none
 
 Relative file names (``layout`` when it names a file, ``objects``, ``output``) are relative to the
 pipeline file's folder. Every error is one line naming the file and the setting. ``rate`` is used when a
 take is added to the session (a folder of takes): a take keeps the rate it was added with, so the rate is
-not part of what decides whether a take is redone.
+not part of what decides whether a take is redone. ``exports`` are the names ``handmocap export --format``
+takes: "csv" is the labelled markers (as in a Vicon Nexus or Motive CSV export), "angles-csv" the joint angles
+(before :data:`PIPELINE_VERSION` 2, "csv" was the joint angles).
 """
 
 from __future__ import annotations
@@ -31,16 +33,16 @@ from pathlib import Path
 from typing import Any
 
 from handmocap.core.errors import InputError
-from handmocap.core.gaps import FILL_METHODS
+from handmocap.core.gaps import fill_choices
 from handmocap.core.io.documents import read_document
 from handmocap.core.io.input_schemas import PIPELINE
+from handmocap.core.review.export_formats import export_format_names
 
 STEPS = ("label", "calibrate", "fill", "solve", "export")
 HANDS = ("auto", "right", "left", "both")
 SOLVE_METHODS = ("layered", "subspace", "full")
-EXPORTS = ("c3d", "csv", "bvh")
-#: changes whenever what a pipeline computes changes, so that a re-run redoes every take
-PIPELINE_VERSION = 1
+#: changes whenever what a pipeline computes changes, so that a re-run redoes every take (2: "csv" is markers)
+PIPELINE_VERSION = 2
 
 
 @dataclass(frozen=True)
@@ -56,7 +58,7 @@ class Pipeline:
     max_gap: int = 20
     fill_method: str = "auto"
     solve_method: str = "layered"
-    exports: tuple[str, ...] = ("c3d", "csv")
+    exports: tuple[str, ...] = ("c3d", "angles-csv")
     output: str = ""
     rate: float = 0.0
 
@@ -102,16 +104,17 @@ def pipeline_from_dict(data: dict[str, Any], source: str = "pipeline", base: Pat
     values = {name: data[name] for name in _KINDS if name in data}
     steps = _choices(values.get("steps", list(STEPS)), STEPS, "steps", source)
     values["steps"] = tuple(step for step in STEPS if step in steps)
-    values["exports"] = tuple(_choices(values.get("exports", ["c3d", "csv"]), EXPORTS, "exports", source))
+    values["exports"] = tuple(_choices(values.get("exports", ["c3d", "angles-csv"]), export_format_names(), "exports",
+                                       source))
     _one_of(values.get("hands", "auto"), HANDS, "hands", source)
-    _one_of(values.get("fill_method", "auto"), ("auto", *FILL_METHODS), "fill_method", source)
+    _one_of(values.get("fill_method", "auto"), fill_choices(), "fill_method", source)
     _one_of(values.get("solve_method", "layered"), SOLVE_METHODS, "solve_method", source)
     if not (math.isfinite(values.get("rate", 0.0)) and values.get("rate", 0.0) >= 0):
         raise InputError(f"{source}: setting 'rate' must be a positive number of Hz (0: none given)")
     if values.get("max_gap", 20) < 1:
         raise InputError(f"{source}: setting 'max_gap' must be at least 1 frame")
     if "export" in values["steps"] and not values["exports"]:
-        raise InputError(f"{source}: the export step needs at least one of exports = {list(EXPORTS)}")
+        raise InputError(f"{source}: the export step needs at least one of exports = {list(export_format_names())}")
     if not values.get("layout", "dense").strip():
         raise InputError(f"{source}: setting 'layout' is empty")
     base = base or Path.cwd()

@@ -21,8 +21,10 @@ from handmocap.core.ik import IKSettings, solve_positions
 from handmocap.core.io.labelled_c3d import SubjectCalibration, subject_calibrations
 from handmocap.core.model import HandModel, MarkerSet, load_layout, load_template
 from handmocap.core.model.provenance import MEASURED
-from handmocap.core.review import ReviewTake, SetSolve, export_bvh, export_joint_angles_csv, export_labelled_c3d
+from handmocap.core.review import ReviewTake, SetSolve
 from handmocap.core.review.commands import Command
+from handmocap.core.review.export import export_review
+from handmocap.core.review.export_formats import export_format
 from handmocap.core.workflows.filling import fill_review_gaps, gap_groups
 from handmocap.core.workflows.labelling import auto_label, subject_model
 from handmocap.core.workflows.resolve import resolve_jobs
@@ -99,36 +101,37 @@ def _steps(review: ReviewTake, pipeline: Pipeline, done: StepsResult, do: Callab
 
 
 def output_paths(pipeline: Pipeline, folder: Path, stem: str) -> dict[str, Path]:
-    """Every file the export step may write for a take named ``stem`` into ``folder``: ``c3d``, ``csv``,
-    and ``bvh-right``/``bvh-left`` (one BVH per hand found)."""
+    """Every file the export step may write for a take named ``stem`` into ``folder``, by kind: each export
+    format's name (``<stem><batch_ending>``, :class:`core.review.export_formats.ExportFormat`), and for a
+    per-hand format ``<name>-right``/``<name>-left`` (``<stem>.<side><batch_ending>``, one file per hand found)."""
     paths: dict[str, Path] = {}
     for kind in pipeline.exports:
-        if kind == "bvh":
-            paths |= {f"bvh-{side}": folder / f"{stem}.{side}.bvh" for side in ("right", "left")}
+        chosen = export_format(kind)
+        if chosen.per_hand:
+            paths |= {f"{kind}-{side}": folder / f"{stem}.{side}{chosen.batch_ending}" for side in ("right", "left")}
         else:
-            paths[kind] = folder / f"{stem}.{kind}"
+            paths[kind] = folder / f"{stem}{chosen.batch_ending}"
     return paths
 
 
 def export_take(review: ReviewTake, pipeline: Pipeline, done: StepsResult, paths: dict[str, Path]) -> dict[str, Path]:
-    """Write the pipeline's exports of ``review`` (atomically, each file) to ``paths``
-    (:func:`output_paths`); returns the ones written. InputError when one cannot be made (e.g. joint
-    angles of a take without a solved hand)."""
+    """Write the pipeline's exports of ``review`` (atomically, each file) to ``paths`` (:func:`output_paths`) as
+    ``handmocap export`` does (:func:`core.review.export.export_review`; the subject's calibrated hands, else the
+    template); returns the ones written. InputError when one cannot be made (e.g. joint angles of a take
+    without a solved hand)."""
     written: dict[str, Path] = {}
-    if "c3d" in pipeline.exports:
-        export_labelled_c3d(review, paths["c3d"], subjects=done.subjects or None)
-        written["c3d"] = paths["c3d"]
-    if "csv" in pipeline.exports:
-        export_joint_angles_csv(review, paths["csv"])
-        written["csv"] = paths["csv"]
-    if "bvh" in pipeline.exports:
-        if not review.hands:
-            raise InputError("this take has no solved hand; no BVH to export")
-        for number, hand in enumerate(review.hands):
-            key = f"bvh-{hand.side}"
-            if key in written:
-                continue  # one BVH per side
-            export_bvh(review, paths[key], done.models.get(hand.side) or load_template(hand.side), number)
+    models = {hand.side: done.models.get(hand.side) or load_template(hand.side) for hand in review.hands}
+    for kind in pipeline.exports:
+        chosen = export_format(kind)
+        if chosen.joint_angles and not review.hands:
+            raise InputError(f"this take has no solved hand; no {kind} to export")
+        if not chosen.per_hand:
+            export_review(review, paths[kind], kind, models=models, subjects=done.subjects or None)
+            written[kind] = paths[kind]
+            continue
+        for side in dict.fromkeys(hand.side for hand in review.hands):   # one file per side
+            key = f"{kind}-{side}"
+            export_review(review, paths[key], kind, hand=side, models=models)
             written[key] = paths[key]
     return written
 

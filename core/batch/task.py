@@ -32,6 +32,7 @@ from handmocap.core.batch.state import file_sha256, read_state, write_state
 from handmocap.core.batch.steps import export_take, output_paths, review_figures, run_steps, undo_all
 from handmocap.core.errors import HandMocapError
 from handmocap.core.review import CompoundCommand
+from handmocap.core.review.export_formats import export_format
 from handmocap.core.session.session import OpenTake, Session
 
 
@@ -127,10 +128,10 @@ def _process(folder: Path, take_id: str, pipeline: Pipeline, key: str, output: P
 
 
 def exports_complete(pipeline: Pipeline, present: dict[str, Path]) -> bool:
-    """Whether the exports ``present`` are every one the pipeline writes (a BVH per hand: at least one)."""
+    """Whether the exports ``present`` are every one the pipeline writes (a per-hand format: at least one hand's)."""
     if not pipeline.runs("export"):
         return True
-    return all(any(kind.startswith("bvh-") for kind in present) if kind == "bvh" else kind in present
+    return all(any(key.startswith(f"{kind}-") for key in present) if export_format(kind).per_hand else kind in present
                for kind in pipeline.exports)
 
 

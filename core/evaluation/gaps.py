@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from handmocap.core.errors import InputError
-from handmocap.core.gaps.check import FILL_METHODS, ModelContext, fill_gap
+from handmocap.core.gaps import ModelContext, fill_gap, fill_method_names
 from handmocap.core.gaps.fills import SPLINE_CONTEXT
 from handmocap.core.io import Take
 from handmocap.core.model import HandModel, MarkerLayout, load_template
@@ -37,7 +37,7 @@ def marker_columns(take: Take, context: ModelContext, markers: list[str] | None 
 
 def evaluate_gap_fill(take: Take, model: HandModel, layout: MarkerLayout, lengths: tuple[int, ...] = GAP_LENGTHS,
                       markers: list[str] | None = None, n_trials: int = 30, seed: int = 0,
-                      methods: tuple[str, ...] = FILL_METHODS, margin: int = SPLINE_CONTEXT) -> dict:
+                      methods: tuple[str, ...] | None = None, margin: int = SPLINE_CONTEXT) -> dict:
     """Mean and worst-frame fill error (mm) of each method per gap length on ``n_trials`` hidden stretches
     per length.
 
@@ -46,8 +46,10 @@ def evaluate_gap_fill(take: Take, model: HandModel, layout: MarkerLayout, length
     method fills the same stretches (the model fill solves its IK with the stretch hidden). Returns
     ``{"lengths": [...], "mean_error_mm": {method: {length: mm}}, "worst_error_mm": {method: {length:
     mm}}, "trials": {method: {length: count}}}``: the mean over every hidden frame and the largest error
-    in any of them; a method counts only the trials it applies to (NaN when none).
+    in any of them; a method counts only the trials it applies to (NaN when none). ``methods``: default every
+    registered one (:func:`core.gaps.fill_method_names`).
     """
+    methods = fill_method_names() if methods is None else methods
     context = ModelContext.for_take(take.marker_names, model, layout)
     columns = marker_columns(take, context, markers)
     observed = ~take.missing_mask

@@ -1,7 +1,8 @@
-"""Filling gaps of a take: donor choice, fill check (hide known stretches, measure each method), fill-all.
+"""Filling gaps of a take: fill check (hide known stretches, measure each method), "auto" (the check's ranking
+over the registered methods, :mod:`core.gaps.methods`), fill-all.
 
-Provenance codes per (frame, marker): 0 measured, 1 linear, 2 spline, 3 pattern, 4 rigid body,
-5 model, 6 PCA, -1 still missing. Measured samples are never changed; donors are always measured samples.
+Provenance codes per (frame, marker): 0 measured, each method's code (:attr:`FillMethod.code`), -1 still
+missing. Measured samples are never changed; donors are always measured samples.
 """
 
 from __future__ import annotations
@@ -12,25 +13,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from handmocap.core.errors import CancelledError, InputError
+from handmocap.core.gaps.context import ModelContext
 from handmocap.core.gaps.detect import Gap, find_gaps
-from handmocap.core.gaps.fills import (
-    MODEL_FIT,
-    SPLINE_CONTEXT,
-    fill_linear,
-    fill_model,
-    fill_pattern,
-    fill_rigid,
-    fill_spline,
-)
-from handmocap.core.gaps.pca import PCA_WINDOW, fill_pca
-from handmocap.core.ik import IKResult, match_layout, solve_positions, solve_take
+from handmocap.core.gaps.fills import SPLINE_CONTEXT
+from handmocap.core.gaps.methods import AUTO, check_fill_choice, fill_method, fill_method_names, fill_methods
+from handmocap.core.ik import IKResult, solve_take
 from handmocap.core.io import Take
-from handmocap.core.model import N_PARAMS, HandModel, MarkerLayout, MarkerSet, load_template, resolve_layout
-from handmocap.core.model.provenance import FILL_CODES as METHOD_CODES  # the fill methods' provenance codes
+from handmocap.core.model import HandModel, MarkerLayout, load_template
 from handmocap.core.model.provenance import MEASURED, MISSING
-from handmocap.core.prior import load_default_prior
 
-FILL_METHODS = ("linear", "spline", "pattern", "rigid", "model", "pca")
 #: order tried by ``fill_all(method="auto")`` when no stretch near a gap can be hidden to check the fills
 FALLBACK_ORDER = ("pca", "model", "spline", "linear")
 #: known stretches the fill check hides on each side of a gap, when there is room
@@ -41,110 +32,20 @@ LOCAL_HORIZON_S = 0.5
 #: another method displaces PCA only when it beats it by this factor on every hidden stretch, on the mean and on
 #: the worst-frame error (the check's few stretches are a noisy sample; PCA is the better fill in general)
 DISPLACE_FACTOR = 2.0
-#: frames of IK solved on each side of a gap for a model fill without precomputed joint angles
-IK_PAD = 30
-#: frames on each side of a gap over which a donor's distance to the gap marker must stay steady
-DONOR_WINDOW = 20
 #: the fill check first looks for its hidden stretches within this many stretch sizes on each side of the gap
 SEARCH_REACH = 4
 
 
-@dataclass(frozen=True, eq=False)
-class ModelContext:
-    """A hand model, a layout resolved on it, and the take column of each layout marker (-1 absent)."""
-
-    model: HandModel
-    layout: MarkerLayout
-    markers: MarkerSet
-    columns: np.ndarray
-
-    @classmethod
-    def for_take(cls, marker_names: list[str], model: HandModel, layout: MarkerLayout,
-                 markers: MarkerSet | None = None) -> ModelContext:
-        """Match ``layout`` to a take's ``marker_names`` by name, with ``markers`` (the subject's calibrated
-        ones) or the layout resolved on ``model``."""
-        return cls(model, layout, markers if markers is not None else resolve_layout(model, layout),
-                   match_layout(marker_names, layout))
-
-    def layout_index(self, marker: int) -> int:
-        """Index in the layout of take column ``marker``; InputError when the layout lacks it."""
-        found = np.flatnonzero(self.columns == marker)
-        if not found.size:
-            raise InputError(f"model fill: take marker {marker} is not in layout '{self.layout.name}'")
-        return int(found[0])
-
-    def layout_positions(self, positions: np.ndarray) -> np.ndarray:
-        """(F, M_layout, 3) mm in layout order from take positions (F, M, 3); NaN for absent markers."""
-        result = np.full((len(positions), len(self.columns), 3), np.nan)
-        present = self.columns >= 0
-        result[:, present] = positions[:, self.columns[present]]
-        return result
-
-    def solve(self, layout_positions: np.ndarray) -> np.ndarray:
-        """Joint angles (F, 26) by layered IK of ``layout_positions (F, M_layout, 3)`` mm."""
-        return solve_positions(layout_positions, self.model, self.markers, load_default_prior()).joint_angles
-
-
-def choose_donors(positions: np.ndarray, marker: int, start: int, length: int, count: int,
-                  method: str) -> np.ndarray:
-    """``count`` donor columns for a gap: measured from the frame before to the frame after the gap, and
-    with the steadiest distance to the gap marker over ``DONOR_WINDOW`` frames on each side, (count,)."""
-    end = start + length
-    if start < 1 or end >= len(positions):
-        raise InputError(f"{method} fill needs observed frames on both sides of the gap")
-    valid = np.isfinite(positions[start - 1:end + 1]).all(axis=(0, 2))
-    valid[marker] = False
-    candidates = np.flatnonzero(valid)
-    if len(candidates) < count:
-        raise InputError(f"{method} fill needs {count} donor marker(s) observed through the gap "
-                         f"(frames {start - 1}..{end}); {len(candidates)} are")
-    frames = np.r_[max(0, start - DONOR_WINDOW):start, end:min(len(positions), end + DONOR_WINDOW)]
-    distances = np.linalg.norm(positions[frames][:, candidates] - positions[frames, marker][:, None], axis=2)
-    samples = np.isfinite(distances).sum(axis=0)
-    spread = np.where(samples >= 3, np.nanstd(np.where(samples >= 3, distances, 0.0), axis=0), np.inf)
-    return candidates[np.argsort(spread, kind="stable")[:count]]
-
-
 def fill_gap(positions: np.ndarray, marker: int, start: int, length: int, method: str,
              context: ModelContext | None = None, joint_angles: np.ndarray | None = None) -> np.ndarray:
-    """Fill frames ``start .. start + length - 1`` of take column ``marker`` with ``method``, (length, 3) mm.
+    """Fill frames ``start .. start + length - 1`` of take column ``marker`` with the registered ``method``
+    (:func:`core.gaps.methods.fill_method`), (length, 3) mm.
 
-    ``positions (F, M, 3)`` mm are the take's measured positions (the gap samples are ignored). Pattern
-    and rigid fills choose their donors with :func:`choose_donors`. The model fill needs ``context``
-    and uses ``joint_angles (F, 26)`` when given (IK solved with the gap missing), else solves IK over
-    ``IK_PAD`` frames on each side with the gap hidden. The PCA fill uses every other column of
-    ``positions`` (:func:`core.gaps.pca.fill_pca`). Raises InputError when the method cannot apply.
+    ``positions (F, M, 3)`` mm are the take's measured positions (the gap samples are ignored); ``context``
+    (a hand model matched to the take) and ``joint_angles (F, 26)`` (IK solved with the gap missing) are
+    for the methods that need a model. Raises InputError when the method is unknown or cannot apply.
     """
-    trajectory = positions[:, marker]
-    if method == "linear":
-        return fill_linear(trajectory, start, length)
-    if method == "spline":
-        return fill_spline(trajectory, start, length)
-    if method == "pattern":
-        donor = choose_donors(positions, marker, start, length, 1, "pattern")[0]
-        return fill_pattern(trajectory, start, length, positions[:, donor])
-    if method == "rigid":
-        donors = choose_donors(positions, marker, start, length, 3, "rigid body")
-        return fill_rigid(trajectory, start, length, positions[:, donors])
-    if method == "model":
-        if context is None:
-            raise InputError("model fill needs a hand model and a marker layout")
-        index = context.layout_index(marker)
-        first, last = max(0, start - IK_PAD), min(len(positions), start + length + IK_PAD)
-        window = context.layout_positions(positions[first:last])
-        window[start - first:start - first + length, index] = np.nan
-        if joint_angles is None:
-            # IK runs forwards (each frame warm-started from the ones before) and the fill reads no angle
-            # past MODEL_FIT frames after the gap, so the frames after those are not solved
-            solved = min(len(window), start - first + length + MODEL_FIT)
-            angles = np.full((len(window), N_PARAMS), np.nan)
-            angles[:solved] = context.solve(window[:solved])
-        else:
-            angles = joint_angles[first:last]
-        return fill_model(window, start - first, length, index, angles, context.model, context.markers)
-    if method == "pca":
-        return fill_pca(positions, marker, start, length)
-    raise InputError(f"unknown fill method '{method}' (use {', '.join(FILL_METHODS)})")
+    return fill_method(method).fill(positions, marker, start, length, context, joint_angles)
 
 
 @dataclass
@@ -238,7 +139,7 @@ class HiddenStretches:
                  margin: int = SPLINE_CONTEXT) -> None:
         self.gap, self.context = gap, context
         self.starts = _test_stretches(take.marker_positions[:, gap.marker], gap, margin)
-        pad = max(PCA_WINDOW, IK_PAD, DONOR_WINDOW, margin) + 1
+        pad = max(max((method.reach for method in fill_methods()), default=0), margin) + 1
         self.first = max(0, min(self.starts) - pad)
         self.positions = take.marker_positions[self.first:max(self.starts) + gap.length + pad]
         self._hidden: dict[int, np.ndarray] = {}
@@ -265,13 +166,15 @@ class HiddenStretches:
 
 
 def check_gap(take: Take, gap: Gap, context: ModelContext | None = None,
-              methods: tuple[str, ...] = FILL_METHODS, margin: int = SPLINE_CONTEXT,
+              methods: tuple[str, ...] | None = None, margin: int = SPLINE_CONTEXT,
               stretches: HiddenStretches | None = None) -> FillCheck:
     """Hide measured stretches of ``gap.length`` frames near the gap (up to :data:`STRETCHES_PER_SIDE` on
     each side, ``margin`` observed frames around each), fill each with every method and report the mean
     and worst-frame 3D error in mm (ranked by :meth:`FillCheck.ranking`). The model fill solves its IK
     with the stretch hidden; a method that fails on any stretch is not applicable. ``stretches``: the
-    stretches of this gap with fills already computed (:func:`fill_order`)."""
+    stretches of this gap with fills already computed (:func:`fill_order`). ``methods``: default every
+    registered one."""
+    methods = fill_method_names() if methods is None else methods
     stretches = stretches or HiddenStretches(take, gap, context, margin)
     check = FillCheck(gap, tuple(stretches.starts), take.frame_rate)
     errors: dict[str, list[np.ndarray]] = {method: [] for method in methods}
@@ -308,7 +211,7 @@ def _first_choice(stretches: HiddenStretches, frame_rate: float) -> str | None:
     if stretches.gap.length > LOCAL_HORIZON_S * frame_rate:
         return "pca"
     best, best_score = "pca", np.inf
-    for method in FILL_METHODS:
+    for method in fill_method_names():
         if method == "pca":
             continue
         per_stretch = []
@@ -395,7 +298,7 @@ class FillChooser:
             return
         size = int(np.log2(gap.length))
         keys = {method: (group, method) if method in GROUP_LEARNED else (group, gap.marker, method, size)
-                for method in FILL_METHODS if method != "pca"}
+                for method in fill_method_names() if method != "pca"}
         due = [method for method, key in keys.items() if self._due(key)]
         first = None
         if due:
@@ -459,20 +362,20 @@ def fill_all(take: Take, max_gap: int, method: str = "auto", ik_result: IKResult
     """Fill every closed gap of at most ``max_gap`` frames; returns positions (F, M, 3) mm and provenance
     (F, M) int (codes in the module docstring). Measured samples are copied unchanged.
 
-    ``method`` is one of :data:`FILL_METHODS` or "auto": per gap, the methods in the order of its fill
-    check (or :data:`FALLBACK_ORDER` when the check cannot run), the first that applies. The model fill
-    needs ``layout`` (``model`` defaults to the template) and uses ``ik_result`` (solved on this take,
-    gaps missing, in layout order) or solves it. Gaps no method fills stay missing (-1).
+    ``method`` is a registered method's name or "auto": per gap, the methods in the order of its fill
+    check (or :data:`FALLBACK_ORDER` when the check cannot run), the first that applies. The model fill (and
+    any method that needs a model) needs ``layout`` (``model`` defaults to the template) and uses
+    ``ik_result`` (solved on this take, gaps missing, in layout order) or solves it. Gaps no method fills
+    stay missing (-1).
     """
-    if method != "auto" and method not in FILL_METHODS:
-        raise InputError(f"unknown fill method '{method}' (use auto, {', '.join(FILL_METHODS)})")
+    check_fill_choice(method)
     if max_gap < 1:
         raise InputError(f"the maximum gap length must be at least 1 frame, got {max_gap}")
-    if method == "model" and layout is None:
-        raise InputError("model fill needs a marker layout")
+    if method != AUTO and fill_method(method).needs_model and layout is None:
+        raise InputError(f"{method} fill needs a marker layout")
     context = None
     joint_angles = None
-    if layout is not None and method in ("auto", "model"):
+    if layout is not None and (method == AUTO or fill_method(method).needs_model):
         context = ModelContext.for_take(take.marker_names, model or load_template(), layout)
         if ik_result is None:
             ik_result = solve_take(take, context.model, layout, cancelled=cancelled)
@@ -487,14 +390,14 @@ def fill_all(take: Take, max_gap: int, method: str = "auto", ik_result: IKResult
     for number, gap in enumerate(gaps):
         if cancelled is not None and cancelled():
             raise CancelledError("gap filling cancelled; the take is unchanged")
-        order = chooser.order(take, gap, context, none_applies=()) if method == "auto" else (method,)
+        order = chooser.order(take, gap, context, none_applies=()) if method == AUTO else (method,)
         for name in order:
             try:
                 values = fill_gap(positions, gap.marker, gap.start, gap.length, name, context, joint_angles)
             except InputError:
                 continue
             filled[gap.start:gap.end, gap.marker] = values
-            provenance[gap.start:gap.end, gap.marker] = METHOD_CODES[name]
+            provenance[gap.start:gap.end, gap.marker] = fill_method(name).code
             break
         if progress is not None:
             progress((number + 1) / len(gaps))

@@ -162,7 +162,7 @@ def write_labelled_c3d(path: str | PathLike[str], label_names: list[str], positi
     """Write a labelled C3D (scheme in the module docstring), atomically.
 
     ``positions (F, M, 3)`` mm: measured and filled samples of the M labels (NaN missing);
-    ``provenance (F, M)`` codes (0 measured, 1..6 fill method as PROVENANCE_NAMES, -1 missing);
+    ``provenance (F, M)`` codes (0 measured, a fill method's code as core.gaps.provenance_names, -1 missing);
     ``edited (F, M)`` bool; ``residuals_mm (F, M)``: the measured samples' residuals (NaN not known);
     ``unlabelled (F, U, 3)`` mm named ``unlabelled_names`` (default ``*0``, ``*1``...), ``ghost (F, U)``
     bool; ``parameters``: other groups to copy (a group the writer cannot store is dropped with a

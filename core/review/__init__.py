@@ -6,7 +6,7 @@
 * :mod:`core.review.export` — labelled C3D, joint-angle CSV and BVH exports of a review, and the way back.
 """
 
-from handmocap.core.model.provenance import FILL_CODES, MEASURED, MISSING, PROVENANCE_NAMES
+from handmocap.core.model.provenance import MEASURED, MISSING
 from handmocap.core.review.commands import (
     SCOPES,
     AcceptFills,
@@ -55,8 +55,8 @@ from handmocap.core.review.take import (
 )
 
 __all__ = [
-    "FILL_CODES", "LANE_EDITED", "LANE_FILLED", "LANE_GAP", "LANE_LOW_CONFIDENCE", "LANE_NAMES", "LANE_NONE",
-    "LANE_OBSERVED", "MEASURED", "MISSING", "PROBLEM_KINDS", "PROVENANCE_NAMES", "SCOPES",
+    "LANE_EDITED", "LANE_FILLED", "LANE_GAP", "LANE_LOW_CONFIDENCE", "LANE_NAMES", "LANE_NONE",
+    "LANE_OBSERVED", "MEASURED", "MISSING", "PROBLEM_KINDS", "SCOPES",
     "AcceptFills", "AddEvent", "ApplyLabelling", "AssignLabel", "Change", "Command", "CompoundCommand", "DefineHand",
     "FrameSpan",
     "GapFill", "HandTrack", "LabellingArrays", "MarkGhost", "MarkerStats", "Problem", "RejectFills", "RemoveEvent",

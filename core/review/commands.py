@@ -39,7 +39,8 @@ from typing import Any, ClassVar, NamedTuple, Protocol
 import numpy as np
 
 from handmocap.core.errors import InputError
-from handmocap.core.model.provenance import FILL_CODES, MEASURED, MISSING
+from handmocap.core.gaps.methods import fill_method
+from handmocap.core.model.provenance import MEASURED, MISSING
 from handmocap.core.review.events import Change, ReviewChanged
 from handmocap.core.review.take import (
     ReviewTake,
@@ -462,8 +463,7 @@ class AcceptFills(Command):
         self._resolved = []
         for fill in self.fills:
             label = review.label_index(fill.label)
-            if fill.method not in FILL_CODES:
-                raise InputError(f"unknown fill method '{fill.method}' (use {', '.join(FILL_CODES)})")
+            code = fill_method(fill.method).code
             positions = np.asarray(fill.positions, dtype=np.float64)
             if positions.ndim != 2 or positions.shape[1] != 3 or not len(positions):
                 raise InputError(f"fill of '{fill.label}': positions must be (n, 3), got {positions.shape}")
@@ -475,7 +475,7 @@ class AcceptFills(Command):
             if (review.assignment[start:stop, label] >= 0).any():
                 raise InputError(f"'{fill.label}' has measured points in frames "
                                  f"{frame_text(review.take.first_frame, start, stop)}; fill only its gaps")
-            self._resolved.append((label, start, stop, FILL_CODES[fill.method], positions))
+            self._resolved.append((label, start, stop, code, positions))
             span = span.union(FrameSpan(start, stop))
         return span
 

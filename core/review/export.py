@@ -1,4 +1,5 @@
-"""Exports of a review: labelled C3D (with provenance), joint angles as CSV and BVH; labelled C3D import.
+"""Exports of a review: labelled C3D (with provenance), TRC and CSV markers, joint angles as CSV, BVH and glTF
+(the registered formats of :mod:`core.review.export_formats`); labelled C3D import.
 
 Exports show the file's own frame numbers (``take.first_frame`` onwards) and never change the review. A
 trimmed review (:attr:`ReviewTake.trim`) exports its range only, numbered as in the file; its events go into
@@ -12,7 +13,7 @@ of its unlabelled ``*n`` points.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from os import PathLike
 from pathlib import Path
 
@@ -38,10 +39,19 @@ from handmocap.core.model.bvh import write_bvh
 from handmocap.core.model.gltf import HandAnimation, save_gltf_hands
 from handmocap.core.model.joint_angles import write_joint_angles_csv
 from handmocap.core.model.provenance import MEASURED, MISSING
+from handmocap.core.review.export_formats import (
+    ExportFormat,
+    ExportOptions,
+    export_format,
+    export_formats,
+    register_export_format,
+)
 from handmocap.core.review.take import HandTrack, ReviewTake, detected_hands
 
 UNLABELLED_CHOICES = ("all", "non-ghost", "none")
 HAND_PREFIXES = {"right": "R_", "left": "L_"}
+#: how an error message names a format's fixed units
+UNIT_WORDS = {"m": "metres"}
 
 
 def unlabelled_columns(review: ReviewTake, unlabelled: str = "all") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -63,12 +73,6 @@ def unlabelled_columns(review: ReviewTake, unlabelled: str = "all") -> tuple[np.
     return columns, positions, review.ghost[:, columns] & free[:, columns]
 
 
-#: export formats: name -> (file suffixes, takes units and up axis, needs a solved hand)
-EXPORT_FORMATS: dict[str, tuple[tuple[str, ...], bool, bool]] = {
-    "c3d": ((".c3d",), False, False), "trc": ((".trc",), True, False), "csv": ((".csv",), False, False),
-    "bvh": ((".bvh",), True, True), "gltf": ((".glb", ".gltf"), False, True)}
-
-
 def per_hand_path(path: str | PathLike[str], side: str) -> Path:
     """The file of the ``side`` hand when a take's two hands are written to one file each:
     ``OUT.bvh`` -> ``OUT_right.bvh``, ``OUT_left.bvh``."""
@@ -80,52 +84,45 @@ def export_review(review: ReviewTake, path: str | PathLike[str], format_name: st
                   up: str | None = None, hand: str | None = None, fills: bool = True, model: HandModel | None = None,
                   subjects: list[SubjectCalibration] | None = None,
                   models: Mapping[str, HandModel] | None = None) -> list[Path]:
-    """Write ``review`` as ``format_name`` (:data:`EXPORT_FORMATS`): "c3d" labelled C3D (mm, Z up, with
-    provenance and ``subjects``), "trc" (``units``, ``up``), "csv" labelled points (mm), "bvh" (``units``,
-    ``up``) and "gltf" (metres, Y up by the glTF specification) of the solved hands on their models
-    (``models`` per side, or ``model`` for its side). ``hand`` ("right"/"left") exports that hand only; without
-    it a take with two hands gives two BVH files (:func:`per_hand_path`) and one glTF with both hands.
-    ``fills`` False leaves the fills out of the point formats. Returns the files written. InputError (one
-    line) on options the format does not take."""
-    if format_name not in EXPORT_FORMATS:
-        raise InputError(f"unknown export format '{format_name}' (use {', '.join(EXPORT_FORMATS)})")
+    """Write ``review`` as the registered format ``format_name`` (:mod:`core.review.export_formats`): "c3d"
+    labelled C3D (mm, Z up, with provenance and ``subjects``), "trc" (``units``, ``up``), "csv" labelled points
+    (mm), "angles-csv" joint angles, "bvh" (``units``, ``up``) and "gltf" (metres, Y up by the glTF
+    specification) of the solved hands on their models (``models`` per side, or ``model`` for its side).
+    ``hand`` ("right"/"left") exports that hand only; without it a take with two hands gives two BVH files
+    (:func:`per_hand_path`) and one glTF with both hands. ``fills`` False leaves the fills out of the point
+    formats. Returns the files written. InputError (one line) on options the format does not take."""
+    chosen = export_format(format_name)
     review = review.trimmed()
-    suffixes, axes, angles = EXPORT_FORMATS[format_name]
-    if not str(path).lower().endswith(suffixes):
-        raise InputError(f"a {format_name} file name must end in {' or '.join(suffixes)}: {path}")
-    if not axes and (units not in (None, "mm" if format_name != "gltf" else "m")
-                     or up not in (None, "z" if format_name != "gltf" else "y")):
-        fixed = "metres and Y up (the glTF specification)" if format_name == "gltf" else "mm in the lab frame (Z up)"
-        raise InputError(f"{format_name} files are always in {fixed}; --units and --up apply to trc and bvh")
-    if angles and not fills:
-        raise InputError("--no-fills applies to the marker formats (c3d, trc, csv), not to joint angles")
-    if hand is not None and not angles:
-        raise InputError("--hand applies to the joint-angle formats (bvh, gltf)")
-    units, up = units or "mm", up or "z"
-    if format_name == "c3d":
-        export_labelled_c3d(review, path, subjects=subjects, fills=fills)
-    elif format_name == "trc":
-        export_trc(review, path, units, up, fills)
-    elif format_name == "csv":
-        export_points_csv(review, path, fills)
-    else:
-        tracks = [_hand_of_side(review, hand)] if hand is not None else _hands_to_export(review)
-        hand_models = dict(models or {})
-        if model is not None:
-            hand_models.setdefault(model.side, model)
-        for track in tracks:
-            if track.side not in hand_models:
-                raise InputError(f"no hand model given for the {track.side} hand")
-        if format_name == "gltf":
-            export_gltf_hands(review, path, {track.name: hand_models[track.side] for track in tracks})
-            return [Path(path)]
-        written = []
-        for track in tracks:
-            target = Path(path) if len(tracks) == 1 else per_hand_path(path, track.side)
-            export_bvh(review, target, hand_models[track.side], track.name, units, up)
-            written.append(target)
-        return written
-    return [Path(path)]
+    if not str(path).lower().endswith(chosen.suffixes):
+        raise InputError(f"a {format_name} file name must end in {' or '.join(chosen.suffixes)}: {path}")
+    if not chosen.axes and units not in (None, chosen.units) or not chosen.axes and up not in (None, chosen.up):
+        raise InputError(f"{format_name} files are always in {UNIT_WORDS.get(chosen.units, chosen.units)} and "
+                         f"{chosen.up.upper()} up; "
+                         f"--units and --up apply to {_names(lambda other: other.axes)}")
+    if chosen.joint_angles and not fills:
+        raise InputError(f"--no-fills applies to the marker formats ({_names(lambda other: not other.joint_angles)}), "
+                         "not to joint angles")
+    if hand is not None and not chosen.joint_angles:
+        raise InputError(f"--hand applies to the joint-angle formats ({_names(lambda other: other.joint_angles)})")
+    hand_models = dict(models or {})
+    if model is not None:
+        hand_models.setdefault(model.side, model)
+    options = ExportOptions(units or chosen.units, up or chosen.up, hand, fills, hand_models, subjects)
+    return chosen.writer(review, Path(path), options)
+
+
+def _names(test: Callable[[ExportFormat], bool]) -> str:
+    """The names of the registered formats that pass ``test``, comma-separated."""
+    return ", ".join(other.name for other in export_formats() if test(other))
+
+
+def _tracks(review: ReviewTake, options: ExportOptions) -> list[HandTrack]:
+    """The hands a joint-angle export writes (``options.hand``, else every solved one), each with a model."""
+    tracks = [_hand_of_side(review, options.hand)] if options.hand is not None else _hands_to_export(review)
+    for track in tracks:
+        if track.side not in options.models:
+            raise InputError(f"no hand model given for the {track.side} hand")
+    return tracks
 
 
 def _hands_to_export(review: ReviewTake) -> list[HandTrack]:
@@ -247,14 +244,15 @@ def _prefix(review: ReviewTake, track: HandTrack) -> str:
     return "R_" if track.side == "right" else "L_"
 
 
-def export_joint_angles_csv(review: ReviewTake, path: str | PathLike[str]) -> None:
-    """Every hand's joint angles as one CSV: ``frame, time_s`` then per hand the 26 parameters
-    (``wrist_tx_mm``..., angles in degrees; columns prefixed ``R_``/``L_`` with two hands). Unsolved
+def export_joint_angles_csv(review: ReviewTake, path: str | PathLike[str], hand: str | None = None) -> None:
+    """Every hand's joint angles (``hand``: that side's only) as one CSV: ``frame, time_s`` then per hand the 26
+    parameters (``wrist_tx_mm``..., angles in degrees; columns prefixed ``R_``/``L_`` with two hands). Unsolved
     samples are empty cells. Atomic; InputError when no hand is solved or the file cannot be written."""
     review = review.trimmed()
     if not review.hands:
         raise InputError("this take has no solved hand; nothing to export")
-    hands = [(_prefix(review, track), track.joint_angles) for track in review.hands]
+    tracks = review.hands if hand is None else [_hand_of_side(review, hand)]
+    hands = [(_prefix(review, track), track.joint_angles) for track in tracks]
     events: dict[int, str] = {}
     for event in review.events or []:
         events[event.frame_number] = "; ".join(filter(None, [events.get(event.frame_number), event.name]))
@@ -317,3 +315,59 @@ def labelled_take(review: ReviewTake, fills: bool = True) -> Take:
     return Take(marker_names=list(review.label_names), marker_positions=np.array(positions, dtype=np.float64),
                 frame_rate=review.take.frame_rate, first_frame=review.take.first_frame, vendor=review.take.vendor,
                 source_path=review.take.source_path)
+
+
+def _write_c3d(review: ReviewTake, path: Path, options: ExportOptions) -> list[Path]:
+    export_labelled_c3d(review, path, subjects=options.subjects, fills=options.fills)
+    return [path]
+
+
+def _write_trc(review: ReviewTake, path: Path, options: ExportOptions) -> list[Path]:
+    export_trc(review, path, options.units, options.up, options.fills)
+    return [path]
+
+
+def _write_points_csv(review: ReviewTake, path: Path, options: ExportOptions) -> list[Path]:
+    export_points_csv(review, path, options.fills)
+    return [path]
+
+
+def _write_angles_csv(review: ReviewTake, path: Path, options: ExportOptions) -> list[Path]:
+    export_joint_angles_csv(review, path, options.hand)
+    return [path]
+
+
+def _write_bvh(review: ReviewTake, path: Path, options: ExportOptions) -> list[Path]:
+    """One BVH per hand (:func:`per_hand_path` when there are several)."""
+    tracks = _tracks(review, options)
+    written = []
+    for track in tracks:
+        target = path if len(tracks) == 1 else per_hand_path(path, track.side)
+        export_bvh(review, target, options.models[track.side], track.name, options.units, options.up)
+        written.append(target)
+    return written
+
+
+def _write_gltf(review: ReviewTake, path: Path, options: ExportOptions) -> list[Path]:
+    export_gltf_hands(review, path, {track.name: options.models[track.side] for track in _tracks(review, options)})
+    return [path]
+
+
+register_export_format(ExportFormat(
+    name="c3d", label="Labelled C3D (markers, provenance)", suffixes=(".c3d",), name_tag="_labelled",
+    batch_ending=".c3d", writer=_write_c3d))
+register_export_format(ExportFormat(
+    name="trc", label="TRC markers (OpenSim)", suffixes=(".trc",), name_tag="_markers", batch_ending=".trc",
+    writer=_write_trc, axes=True))
+register_export_format(ExportFormat(
+    name="csv", label="CSV markers", suffixes=(".csv",), name_tag="_markers", batch_ending=".csv",
+    writer=_write_points_csv))
+register_export_format(ExportFormat(
+    name="angles-csv", label="Joint angles (CSV)", suffixes=(".csv",), name_tag="_angles",
+    batch_ending=".angles.csv", writer=_write_angles_csv, joint_angles=True))
+register_export_format(ExportFormat(
+    name="bvh", label="BVH joint angles (Blender, MotionBuilder)", suffixes=(".bvh",), name_tag="_angles",
+    batch_ending=".bvh", writer=_write_bvh, axes=True, joint_angles=True, per_hand=True))
+register_export_format(ExportFormat(
+    name="gltf", label="glTF skinned hand with its animation", suffixes=(".glb", ".gltf"), name_tag="_hand",
+    batch_ending=".glb", writer=_write_gltf, units="m", up="y", joint_angles=True))

@@ -18,12 +18,22 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from handmocap.core.errors import CancelledError, InputError
-from handmocap.core.gaps import FILL_METHODS, FillCheck, Gap, ModelContext, check_gap, fill_gap, find_gaps
+from handmocap.core.gaps import (
+    AUTO,
+    FillCheck,
+    Gap,
+    ModelContext,
+    check_fill_choice,
+    check_gap,
+    fill_gap,
+    find_gaps,
+    provenance_names,
+)
 from handmocap.core.gaps.check import FillChooser
 from handmocap.core.gaps.fills import fill_pattern
 from handmocap.core.io import Take
 from handmocap.core.model import HandModel, MarkerSet, detect_hands, load_template, track_layout
-from handmocap.core.review import PROVENANCE_NAMES, AcceptFills, GapFill, ReviewTake
+from handmocap.core.review import AcceptFills, GapFill, ReviewTake
 from handmocap.core.workflows.resolve import subject_markers
 
 
@@ -130,7 +140,7 @@ def find_review_gaps(review: ReviewTake, groups: list[GapGroup]) -> list[ReviewG
             codes = review.provenance[gap.start:gap.end, label]
             method = None
             if (codes > 0).all():
-                method = PROVENANCE_NAMES[int(np.bincount(codes.astype(np.int64)).argmax())]
+                method = provenance_names()[int(np.bincount(codes.astype(np.int64)).argmax())]
             found.append(ReviewGap(label, review.label_names[label], gap.start, gap.length, number, gap, method,
                                    tuple(bool(code > 0) for code in codes)))
     return sorted(found, key=lambda item: (item.label, item.start))
@@ -174,15 +184,14 @@ def fill_gaps(groups: list[GapGroup], gaps: list[ReviewGap], method: str = "auto
     check ranking that applies, the check learned along the gaps of each marker (:class:`core.gaps.check.
     FillChooser`), else PCA, model, spline, linear); None when nothing could be filled. Reads only the
     groups (copies), so it may run on a worker while the review changes."""
-    if method != "auto" and method not in FILL_METHODS:
-        raise InputError(f"unknown fill method '{method}' (use auto, {', '.join(FILL_METHODS)})")
+    check_fill_choice(method)
     fills = []
     chooser = FillChooser()
     for number, gap in enumerate(gaps):
         if cancelled is not None and cancelled():
             raise CancelledError("gap filling cancelled; nothing was filled")
         group = groups[gap.group]
-        order = chooser.order(group.take, gap.gap, group.context, gap.group) if method == "auto" else (method,)
+        order = chooser.order(group.take, gap.gap, group.context, gap.group) if method == AUTO else (method,)
         for name in order:
             try:
                 values = preview_fill(group, gap, name)

@@ -24,7 +24,7 @@ from handmocap.core.session.session import Session
 
 LABEL_ONLY = {"steps": ["label", "export"], "layout": "glove-13", "hands": "right", "exports": ["c3d"]}
 FULL = {"steps": ["label", "calibrate", "fill", "solve", "export"], "layout": "glove-13", "hands": "right",
-        "max_gap": 20, "exports": ["c3d", "csv", "bvh"]}
+        "max_gap": 20, "exports": ["c3d", "csv", "angles-csv", "bvh"]}
 
 distributed = pytest.importorskip("distributed")
 
@@ -95,7 +95,7 @@ def test_full_pipeline_resume_and_corrupt_take(tmp_path, cluster):
         assert final[entry.id]["state"] == "done", final[entry.id]
         summary = final[entry.id]["summary"]
         assert summary["labelled_share"] > 0.8 and summary["mean_residual_mm"] < 2.0 and summary["hands"]
-        assert {"c3d", "csv", "bvh-right"} <= set(summary["outputs"])
+        assert {"c3d", "csv", "angles-csv", "bvh-right"} <= set(summary["outputs"])
         assert summary["compilations"] == 0, "a worker compiled numba kernels instead of loading them"
     assert Session.open(session.folder).take(good[0].id).state == "exported"
     plan, _ = run(session, FULL, cluster[0])

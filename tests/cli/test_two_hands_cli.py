@@ -14,11 +14,11 @@ import pytest
 from two_hand_takes import STYLES, named_take, write_lab_template
 
 from handmocap.app.cli.main import main
+from handmocap.core.gaps import fill_codes
 from handmocap.core.io import save_take
 from handmocap.core.io.labelled_c3d import read_labelled_c3d
 from handmocap.core.model import add_layout_folder, remove_layout_folder
 from handmocap.core.model.bvh import read_bvh
-from handmocap.core.model.provenance import FILL_CODES
 
 
 @pytest.fixture(scope="module")
@@ -99,7 +99,7 @@ def test_model_fill_fills_the_gaps_of_both_hands(style, takes, tmp_path, capsys)
     filled = json.loads(capsys.readouterr().out.strip().splitlines()[-1])["filled"]
     assert filled.get("model", 0) >= 2 and set(filled) == {"model"}
     data = read_labelled_c3d(tmp_path / "filled.c3d")
-    model = data.provenance == FILL_CODES["model"]
+    model = data.provenance == fill_codes()["model"]
     right = [index for index, name in enumerate(data.label_names) if name.startswith(("R", "Right"))]
     left = [index for index, name in enumerate(data.label_names) if name.startswith(("L", "Left"))]
     assert model[:, right].any() and model[:, left].any()

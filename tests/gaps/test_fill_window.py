@@ -7,7 +7,8 @@ from scipy.interpolate import CubicSpline
 
 from handmocap.core.errors import InputError
 from handmocap.core.gaps import ModelContext, check_gap, fill_gap, find_gaps
-from handmocap.core.gaps.check import FALLBACK_ORDER, IK_PAD, _test_stretches, fill_order
+from handmocap.core.gaps.builtin_methods import IK_PAD
+from handmocap.core.gaps.check import FALLBACK_ORDER, _test_stretches, fill_order
 from handmocap.core.gaps.fills import MODEL_FIT, SPLINE_CONTEXT, fill_linear, fill_model, fill_pattern, fill_spline
 from handmocap.core.io import Take
 from handmocap.core.model import load_layout, load_template

@@ -8,13 +8,13 @@ from handmocap.core.errors import InputError
 from handmocap.core.evaluation.data import REAL_RECORDING
 from handmocap.core.evaluation.gaps import evaluate_gap_fill
 from handmocap.core.gaps import (
-    FILL_METHODS,
-    METHOD_CODES,
     ModelContext,
     check_gap,
     fill_all,
+    fill_codes,
     fill_gap,
     fill_linear,
+    fill_method_names,
     fill_model,
     fill_pattern,
     fill_rigid,
@@ -150,12 +150,12 @@ def test_fill_all_provenance_and_measured_samples_unchanged():
     assert np.array_equal(filled[measured], positions[measured])
     assert (provenance[measured] == 0).all()
     assert (provenance[90:110, 2] == -1).all() and (provenance[:6, 1] == -1).all()
-    assert set(provenance[40:52, 4]) <= set(METHOD_CODES.values()) and len(set(provenance[40:52, 4])) == 1
+    assert set(provenance[40:52, 4]) <= set(fill_codes().values()) and len(set(provenance[40:52, 4])) == 1
     assert np.isfinite(filled[40:52, 4]).all() and np.isfinite(filled[70:75, 3]).all()
     truth = rigid_cluster(120)
     assert np.abs(filled[40:52, 4] - truth[40:52, 4]).max() < 1.0
     linear, codes = fill_all(take, max_gap=15, method="linear")
-    assert (codes[40:52, 4] == METHOD_CODES["linear"]).all() and (codes[70:75, 3] == 1).all()
+    assert (codes[40:52, 4] == fill_codes()["linear"]).all() and (codes[70:75, 3] == 1).all()
     assert np.array_equal(linear[measured], positions[measured])
     with pytest.raises(InputError, match="needs a marker layout"):
         fill_all(take, max_gap=15, method="model")
@@ -198,7 +198,7 @@ def test_real_recording_thumb_gaps_filled(real_take):
     assert gaps and {gap.name for gap in gaps} == {"thumb_tip"}
     context = ModelContext.for_take(real_take.marker_names, load_template(), layout)
     check = check_gap(real_take, gaps[0], context)
-    assert set(check.errors_mm) == set(FILL_METHODS)
+    assert set(check.errors_mm) == set(fill_method_names())
     filled, provenance = fill_all(real_take, max_gap=100, layout=layout)
     measured = ~real_take.missing_mask
     assert np.array_equal(filled[measured], real_take.marker_positions[measured])

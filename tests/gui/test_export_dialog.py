@@ -92,7 +92,7 @@ def test_joint_angle_formats_need_a_solved_hand(qtbot, review, tmp_path) -> None
     dialog = _dialog(qtbot, review, tmp_path)
     model = dialog.format_box.model()
     enabled = {dialog.format_box.itemData(row): model.item(row).isEnabled() for row in range(dialog.format_box.count())}
-    assert enabled == {"c3d": True, "trc": True, "csv": True, "bvh": False, "gltf": False}
+    assert enabled == {"c3d": True, "trc": True, "csv": True, "angles-csv": False, "bvh": False, "gltf": False}
 
 
 def test_replacing_asks_and_errors_keep_the_dialog_open(qtbot, review, tmp_path, messages, monkeypatch) -> None:

@@ -4,12 +4,12 @@ marker lanes colour and name its filled samples."""
 import numpy as np
 import pytest
 
-from handmocap.core.gaps import METHOD_CODES, check_gap, fill_gap, find_gaps
+from handmocap.core.gaps import check_gap, fill_codes, fill_gap, fill_method, find_gaps
 from handmocap.core.io import Take
 from handmocap.core.simulate import simulate_take
 from handmocap.widgets.fill_preview import FillPreview
-from handmocap.widgets.gap_list import METHOD_TITLES, GapList, gap_rows
-from handmocap.widgets.marker_lanes import METHOD_COLOURS, STATE_COLOURS, STATE_NAMES, STATE_RANKS, lane_states
+from handmocap.widgets.gap_list import GapList, gap_rows
+from handmocap.widgets.marker_lanes import STATE_COLOURS, STATE_NAMES, STATE_RANKS, lane_states
 
 pytestmark = pytest.mark.gui
 
@@ -36,7 +36,7 @@ def test_gap_list_lists_and_checks_pca(qtbot, hand_take):
     widget.set_gaps(rows, take.marker_names, take.first_frame)
     widget.select_gap(0)
     button = widget.method_buttons["pca"]
-    assert button.text() == METHOD_TITLES["pca"] == "PCA" and button.isEnabled()
+    assert button.text() == fill_method("pca").label == "PCA" and button.isEnabled()
     assert widget.error_labels["pca"].text() == f"★ {rows[0].errors_mm['pca']:.2f} mm"
     assert widget.chosen_method() == "pca"
     assert widget.model.data(widget.model.index(0, 3)) == "PCA"
@@ -57,14 +57,14 @@ def test_fill_preview_draws_the_pca_fill(qtbot, hand_take):
     assert widget.methods() == ["pca", "spline"] and widget.selected() == "pca"
     _, values = widget.curve_data("pca", 0)
     np.testing.assert_allclose(values[1:-1], candidates["pca"][:, 0])
-    assert widget._curves["pca"][0].opts["pen"].color().getRgb()[:3] == METHOD_COLOURS["pca"]
+    assert widget._curves["pca"][0].opts["pen"].color().getRgb()[:3] == fill_method("pca").colour
     assert "PCA&nbsp;0.80&nbsp;mm" in widget.legend_label.text()
 
 
 def test_marker_lanes_show_pca_fills():
-    provenance = np.array([[0, METHOD_CODES["pca"], -1, METHOD_CODES["model"]]], dtype=np.int8)
+    provenance = np.array([[0, fill_codes()["pca"], -1, fill_codes()["model"]]], dtype=np.int8)
     states = lane_states(provenance, low_confidence=np.array([[True, False, False, False]]), no_data_outside=False)
-    assert states[0, 1] == METHOD_CODES["pca"] == 6
-    assert STATE_COLOURS[6] == METHOD_COLOURS["pca"] and STATE_NAMES[6] == "filled (PCA)"
+    assert states[0, 1] == fill_codes()["pca"] == 6
+    assert STATE_COLOURS[6] == fill_method("pca").colour and STATE_NAMES[6] == "filled (PCA)"
     assert STATE_RANKS[states[0, 0]] > STATE_RANKS[6] > STATE_RANKS[0]      # low confidence > fill > observed
     assert len(set(STATE_RANKS.values())) == len(STATE_RANKS)

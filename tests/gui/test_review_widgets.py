@@ -7,7 +7,7 @@ from PySide6.QtCore import QMimeData, QPoint, QPointF, Qt, QUrl
 from PySide6.QtGui import QDropEvent
 from PySide6.QtWidgets import QFileDialog
 
-from handmocap.core.gaps import METHOD_CODES, check_gap, fill_gap, find_gaps
+from handmocap.core.gaps import check_gap, fill_codes, fill_gap, find_gaps
 from handmocap.core.io import Take
 from handmocap.core.review import (
     LANE_EDITED,
@@ -86,7 +86,7 @@ def lanes(qtbot):
 def lane_fixture_states(n_frames: int = 1000, n_markers: int = 5) -> np.ndarray:
     states = np.zeros((n_frames, n_markers), dtype=np.int8)
     states[100:150, 1] = GAP
-    states[300:320, 2] = METHOD_CODES["model"]
+    states[300:320, 2] = fill_codes()["model"]
     states[500:505, 3] = LOW_CONFIDENCE
     states[700:760, 4] = EDITED
     states[:40, 0] = NO_DATA
@@ -109,15 +109,15 @@ def test_lane_states_from_provenance_and_masks():
 def test_lanes_from_review_codes_keep_the_fill_method():
     lanes = np.array([[LANE_NONE, LANE_OBSERVED, LANE_GAP, LANE_FILLED, LANE_LOW_CONFIDENCE, LANE_EDITED]],
                      dtype=np.int8)
-    provenance = np.array([[-1, 0, -1, METHOD_CODES["pattern"], 0, 0]], dtype=np.int8)
+    provenance = np.array([[-1, 0, -1, fill_codes()["pattern"], 0, 0]], dtype=np.int8)
     states = lanes_from_review(lanes, provenance)
-    np.testing.assert_array_equal(states[0], [NO_DATA, OBSERVED, GAP, METHOD_CODES["pattern"], LOW_CONFIDENCE,
+    np.testing.assert_array_equal(states[0], [NO_DATA, OBSERVED, GAP, fill_codes()["pattern"], LOW_CONFIDENCE,
                                               EDITED])
 
 
 def test_zoomed_out_columns_show_the_most_important_state():
-    assert STATE_RANKS[GAP] > STATE_RANKS[LOW_CONFIDENCE] > STATE_RANKS[EDITED] > STATE_RANKS[METHOD_CODES["model"]]
-    assert STATE_RANKS[METHOD_CODES["linear"]] > STATE_RANKS[OBSERVED] > STATE_RANKS[NO_DATA]
+    assert STATE_RANKS[GAP] > STATE_RANKS[LOW_CONFIDENCE] > STATE_RANKS[EDITED] > STATE_RANKS[fill_codes()["model"]]
+    assert STATE_RANKS[fill_codes()["linear"]] > STATE_RANKS[OBSERVED] > STATE_RANKS[NO_DATA]
     assert len(set(STATE_RANKS.values())) == len(STATE_RANKS)
     codes = np.array(list(STATE_RANKS), dtype=np.int8)[:, None]
     np.testing.assert_array_equal(state_ranks(codes)[:, 0], list(STATE_RANKS.values()))
@@ -429,7 +429,7 @@ def test_gap_rows_of_a_review_show_filled_open_and_rejected_gaps(gap_take):
     positions[300:305, 0] = np.nan
     take = Take(gap_take.marker_names, positions, 100.0, first_frame=gap_take.first_frame)
     provenance = np.where(take.missing_mask, -1, 0).astype(np.int8)
-    provenance[150:170, 1] = METHOD_CODES["model"]            # the 20-frame gap was filled
+    provenance[150:170, 1] = fill_codes()["model"]            # the 20-frame gap was filled
     review = ReviewTake.from_labelled_take(take)
     gaps = find_gaps(review.labelled_take(include_fills=False))
     index = {gap.marker: i for i, gap in enumerate(gaps)}

@@ -6,10 +6,11 @@ import pytest
 from PySide6.QtCore import QPoint, QPointF, Qt
 
 from handmocap.app.gui.document import TakeDocument
+from handmocap.core.gaps import fill_method
 from handmocap.core.io import Take
 from handmocap.core.review import AcceptFills, GapFill, Unlabel
 from handmocap.core.simulate import simulate_take
-from handmocap.widgets.marker_lanes import GAP_COLOUR, METHOD_COLOURS
+from handmocap.widgets.marker_lanes import GAP_COLOUR
 from handmocap.widgets.trajectory_plots import acceleration_spikes, kinematics
 
 pytestmark = pytest.mark.gui
@@ -135,7 +136,7 @@ def test_plots_follow_edits_gaps_and_fills_in_provenance_colours(shown):
     assert np.isfinite(trace.positions[100:130]).all()
     pens = [item.opts["pen"].color().getRgb()[:3] for _, item in plots._items if hasattr(item, "opts")
             and "pen" in item.opts and not isinstance(item.opts["pen"], str)]
-    assert METHOD_COLOURS["linear"] in pens
+    assert fill_method("linear").colour in pens
     document.undo()
     assert plots.traces[0].gaps == [(100, 130)]
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from two_hand_takes import LAYOUT, named_take, write_lab_template
 
+from handmocap.core.gaps import fill_codes
 from handmocap.core.io import save_take
 from handmocap.core.model import add_layout_folder, remove_layout_folder
-from handmocap.core.model.provenance import FILL_CODES
 
 pytestmark = pytest.mark.gui
 
@@ -93,7 +93,7 @@ def test_the_gap_dock_fills_either_hand_with_the_model(window, qtbot, tmp_path):
     assert "model" in controller.gap_list.rows()[index].errors_mm   # the left hand's model fill applies
     gap = controller.gap_list.rows()[index]
     assert controller.accept_fill(index, "model") is not None
-    assert (review.provenance[gap.start:gap.start + gap.length, gap.marker] == FILL_CODES["model"]).all()
+    assert (review.provenance[gap.start:gap.start + gap.length, gap.marker] == fill_codes()["model"]).all()
     qtbot.waitUntil(lambda: not controller.jobs.is_busy(), timeout=60_000)
     assert not window.messages, window.messages
 

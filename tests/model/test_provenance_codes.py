@@ -1,19 +1,19 @@
-"""One provenance code table (core.model.provenance): the gap filler, the review and the marker lanes use
-the same codes and names."""
+"""One provenance code per fill method (its registration, core.gaps.methods): the gap filler, the review and
+the marker lanes use the same codes and names."""
 
 from handmocap.core import gaps, review
-from handmocap.core.model.provenance import FILL_CODES, MEASURED, MISSING, PROVENANCE_NAMES
+from handmocap.core.model.provenance import MEASURED, MISSING
 
 
 def test_the_code_table_names_every_code_once():
     assert MEASURED == 0 and MISSING == -1
-    assert sorted(FILL_CODES.values()) == list(range(1, len(FILL_CODES) + 1))     # 1..6, none shared
-    expected = {MISSING: "missing", MEASURED: "measured", **{code: name for name, code in FILL_CODES.items()}}
-    assert expected == PROVENANCE_NAMES
-    assert tuple(FILL_CODES) == gaps.FILL_METHODS                               # every fill method has a code
+    codes = gaps.fill_codes()
+    assert codes == {"linear": 1, "spline": 2, "pattern": 3, "rigid": 4, "model": 5, "pca": 6}   # stored in files
+    assert tuple(codes) == gaps.fill_method_names()                                        # every method has a code
+    assert gaps.provenance_names() == {MISSING: "missing", MEASURED: "measured",
+                                       **{code: name for name, code in codes.items()}}
 
 
 def test_gaps_and_review_use_the_one_table():
-    assert gaps.METHOD_CODES is FILL_CODES and gaps.MISSING == MISSING
-    assert review.FILL_CODES is FILL_CODES and review.PROVENANCE_NAMES is PROVENANCE_NAMES
+    assert gaps.MISSING == MISSING
     assert (review.MEASURED, review.MISSING) == (MEASURED, MISSING)

@@ -49,7 +49,7 @@ class ReviewController(QObject, ReviewViews, FrameDrawing, ReviewActions, Review
     progressed = Signal(float)                    # its fraction 0..1
     progress_ended = Signal()
     auto_label_applied = Signal(object, object, object)  # document, hand models and marker sets it calibrated
-    exported = Signal(object, str, str)           # document, kind ("c3d", "csv" or "bvh"), path
+    exported = Signal(object, str, str)           # document, kind (an export format name: "c3d", "angles-csv"...), path
 
     def __init__(self, app: Application, host: QWidget, viewport: HandViewport, timeline: TimelineWidget) -> None:
         super().__init__(host)

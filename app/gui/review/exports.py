@@ -46,7 +46,7 @@ class ReviewExports:
         self._export("Export labelled C3D", "C3D (*.c3d)", "_labelled.c3d", self.export_c3d, "c3d")
 
     def choose_export_csv(self) -> None:
-        self._export("Export joint angles", "CSV (*.csv)", "_angles.csv", self.export_csv, "csv")
+        self._export("Export joint angles", "CSV (*.csv)", "_angles.csv", self.export_csv, "angles-csv")
 
     def choose_export_bvh(self) -> None:
         self._export("Export joint angles", "BVH (*.bvh)", ".bvh", self.export_bvh, "bvh")

@@ -9,7 +9,7 @@ import numpy as np
 from handmocap.app.gui.document import TakeDocument
 from handmocap.app.gui.workers import TaskRunner
 from handmocap.core.errors import HandMocapError
-from handmocap.core.gaps import FILL_METHODS, FillCheck
+from handmocap.core.gaps import FillCheck, fill_method_names
 from handmocap.core.review import AcceptFills, Command, FrameSpan, GapFill, RejectFills
 from handmocap.core.workflows import (
     GapGroup,
@@ -94,7 +94,7 @@ class GapFills:
         def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> tuple:
             check = check_review_gap(group, gap)
             previews = {}
-            for method in FILL_METHODS:
+            for method in fill_method_names():
                 if cancelled():
                     break
                 try:
