@@ -105,7 +105,7 @@ def parse_document(data: bytes | str, source: str, what: str, schema: dict | Non
         if kind == "toml":
             document: Any = tomllib.loads(text)
         else:
-            document = json.loads(text, parse_constant=_no_constant, parse_float=_finite)
+            document = finite_json(text)
     except (ValueError, RecursionError, MemoryError) as error:
         first = (str(error).splitlines() or [type(error).__name__])[0][:160]
         raise DocumentError(f"{source}: not a valid {'TOML' if kind == 'toml' else 'JSON'} {what} ({first})"
@@ -218,6 +218,11 @@ def _short(value: Any) -> str:
         return f"{'an object' if isinstance(value, dict) else 'a list'} of {len(value)}"
     text = repr(value)
     return text if len(text) <= 40 else text[:37] + "..."
+
+
+def finite_json(text: str | bytes) -> Any:
+    """``json.loads`` refusing NaN, Infinity and numbers too large for a float (ValueError)."""
+    return json.loads(text, parse_constant=_no_constant, parse_float=_finite)
 
 
 def _no_constant(name: str) -> Any:

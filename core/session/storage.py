@@ -31,6 +31,7 @@ import numpy as np
 from handmocap.core.errors import InputError
 from handmocap.core.io import Take
 from handmocap.core.io.c3d_events import TakeEvent
+from handmocap.core.io.documents import finite_json
 from handmocap.core.io.durable import write_atomic
 from handmocap.core.model import MarkerSet
 from handmocap.core.review.commands import Command, CompoundCommand, UndoStack, command_from_json
@@ -61,22 +62,11 @@ class SnapshotMismatch(InputError):
     """A readable snapshot made for a raw take of another shape (the raw file changed)."""
 
 
-def _no_constant(name: str) -> Any:
-    raise ValueError(f"{name} is not a number")
-
-
-def _finite(text: str) -> float:
-    value = float(text)
-    if not np.isfinite(value):
-        raise ValueError(f"{text[:20]} is too large")
-    return value
-
-
 def strict_json(data: str | bytes) -> Any:
     """Parse JSON without NaN or infinities; InputError (one line) for anything malformed, too deep or
     too large."""
     try:
-        return json.loads(data, parse_constant=_no_constant, parse_float=_finite)
+        return finite_json(data)
     except (ValueError, RecursionError) as error:
         text = str(error).splitlines()[0][:120] if str(error) else type(error).__name__
         raise InputError(f"malformed JSON ({text})") from None
