@@ -6,6 +6,8 @@ fixtures and are skipped when it is absent.
 
 from __future__ import annotations
 
+import itertools
+from collections.abc import Callable
 from dataclasses import replace
 from functools import lru_cache
 
@@ -44,3 +46,12 @@ def shared_data():
 def template() -> HandModel:
     """The shipped right template hand."""
     return load_template()
+
+
+@pytest.fixture
+def cancel_after():
+    """A factory of ``cancelled`` callbacks: ``cancel_after(n)`` answers False n times, then True."""
+    def make(calls: int) -> Callable[[], bool]:
+        counter = itertools.count(1)
+        return lambda: next(counter) > calls
+    return make

@@ -97,12 +97,18 @@ def test_a_failing_take_fails_alone_with_its_reason(tmp_path, cluster, capsys):
     assert "empty.c3d" in html and "memory.c3d" in html
 
 
-def test_a_damaged_take_id_fails_alone_and_nothing_is_written_for_it(tmp_path, cluster):
-    session = make_study(tmp_path, 2)
+def _study_with_a_damaged_take_id(folder, count):
+    """A study of ``count`` takes whose last take's id in the manifest is '../../evil'."""
+    session = make_study(folder, count)
     manifest = session.folder / "session.json"
     data = json.loads(manifest.read_text())
-    data["takes"][1]["id"] = "../../evil"
+    data["takes"][-1]["id"] = "../../evil"
     manifest.write_text(json.dumps(data))
+    return session
+
+
+def test_a_damaged_take_id_fails_alone_and_nothing_is_written_for_it(tmp_path, cluster):
+    session = _study_with_a_damaged_take_id(tmp_path, 2)
     before = set(os.listdir(tmp_path))
     plan, progress = run(session, tmp_path / "out", cluster[0])
     assert list(plan.failed) == ["../../evil"] and "not a valid take id" in plan.failed["../../evil"]
@@ -113,11 +119,7 @@ def test_a_damaged_take_id_fails_alone_and_nothing_is_written_for_it(tmp_path, c
 
 
 def test_only_damaged_take_ids_create_nothing(tmp_path, cluster):
-    session = make_study(tmp_path, 1)
-    manifest = session.folder / "session.json"
-    data = json.loads(manifest.read_text())
-    data["takes"][0]["id"] = "../../evil"
-    manifest.write_text(json.dumps(data))
+    session = _study_with_a_damaged_take_id(tmp_path, 1)
     before = sorted(path.relative_to(tmp_path) for path in tmp_path.rglob("*"))
     plan, progress = run(session, tmp_path / "out", cluster[0])
     assert progress.count("failed") == 1 and not plan.jobs

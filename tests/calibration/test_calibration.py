@@ -300,16 +300,10 @@ def test_metres_and_huge_scans_are_converted_and_subsampled(moved_scan):
     assert np.ptp(prepared.points, axis=0).max() > 100.0
 
 
-def test_cancel_stops_the_pipeline(moved_scan):
+def test_cancel_stops_the_pipeline(moved_scan, cancel_after):
     scan, landmarks, _, _ = moved_scan
-    calls = {"count": 0}
-
-    def cancelled() -> bool:
-        calls["count"] += 1
-        return calls["count"] > 3
-
     with pytest.raises(CancelledError):
-        calibrate_scan(scan, landmarks, cancelled=cancelled)
+        calibrate_scan(scan, landmarks, cancelled=cancel_after(3))
 
 
 def test_scan_without_colours_and_with_inverted_or_missing_normals(moved_scan):

@@ -6,19 +6,16 @@ import json
 import ezc3d
 import numpy as np
 import pytest
+from simulated_files import save_raw_take
 
 from handmocap.app.cli.main import main
 from handmocap.core.io import load_take, save_take
-from handmocap.core.simulate import simulate_take
 
 
 @pytest.fixture(scope="module")
 def raw(tmp_path_factory):
-    simulated = simulate_take(layout="dense", n_frames=250, seed=6, noise_mm=0.3, ghost_rate=0.05, occlusion=True,
-                              unlabelled=True)
     path = tmp_path_factory.mktemp("cli") / "raw.c3d"
-    save_take(simulated.take, path)
-    return path, simulated
+    return path, save_raw_take(path, n_frames=250, seed=6)
 
 
 def test_label_then_fill(raw, tmp_path, capsys):

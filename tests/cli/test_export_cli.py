@@ -9,16 +9,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from simulated_files import save_raw_take
 
 from handmocap.app.cli.main import main
-from handmocap.core.io import load_take, save_take
+from handmocap.core.io import load_take
 from handmocap.core.io.axes import Y_UP
 from handmocap.core.io.labelled_c3d import read_labelled_c3d
 from handmocap.core.model.bvh import read_bvh
 from handmocap.core.model.gltf import load_gltf_hand
 from handmocap.core.review import AcceptFills, GapFill, export_labelled_c3d, review_from_labelled_c3d
 from handmocap.core.session import Session
-from handmocap.core.simulate import simulate_take
 
 FRAMES = 150
 
@@ -26,9 +26,7 @@ FRAMES = 150
 @pytest.fixture(scope="module")
 def labelled(tmp_path_factory) -> Path:
     folder = tmp_path_factory.mktemp("export")
-    simulated = simulate_take(layout="dense", n_frames=FRAMES, seed=6, noise_mm=0.3, ghost_rate=0.05, occlusion=True,
-                              unlabelled=True)
-    save_take(simulated.take, folder / "raw.c3d")
+    save_raw_take(folder / "raw.c3d", n_frames=FRAMES, seed=6)
     assert main(["label", str(folder / "raw.c3d"), "--layout", "dense", "--out", str(folder / "labelled.c3d"),
                  "--quiet"]) == 0
     return folder / "labelled.c3d"

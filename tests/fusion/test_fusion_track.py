@@ -45,16 +45,10 @@ def test_fusion_fused_occluded_fingers_beat_markers_only(short_take, tmp_path):
         assert list(stored["energy_term_names"]) == ["marker", "silhouette", "depth", "edge", "smoothness"]
 
 
-def test_fusion_cancel_and_unregistered_camera(short_take):
+def test_fusion_cancel_and_unregistered_camera(short_take, cancel_after):
     simulated, take, _, frames = short_take
-    calls = {"count": 0}
-
-    def cancelled() -> bool:
-        calls["count"] += 1
-        return calls["count"] > 3
-
     with pytest.raises(CancelledError):
-        fuse_take(take, simulated.camera, frames, FAST, cancelled=cancelled)
+        fuse_take(take, simulated.camera, frames, FAST, cancelled=cancel_after(3))
     with pytest.raises(InputError, match="not registered"):
         fuse_take(take, replace(simulated.camera, registered=False), frames, FAST)
     with pytest.raises(InputError, match="unknown optimiser"):

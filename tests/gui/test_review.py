@@ -3,6 +3,7 @@ jump to problems, export a labelled C3D."""
 
 import numpy as np
 import pytest
+from simulated_files import save_raw_take
 
 from handmocap.app.gui.review.dialogs import AutoLabelSettings
 from handmocap.core.io import save_take
@@ -14,11 +15,8 @@ pytestmark = pytest.mark.gui
 @pytest.fixture(scope="module")
 def raw_take(tmp_path_factory):
     """A raw (unlabelled, per-frame shuffled) take with ghosts and occlusion gaps, and its truth."""
-    simulated = simulate_take(layout="dense", n_frames=300, seed=1, noise_mm=0.3, ghost_rate=0.05, occlusion=True,
-                              unlabelled=True)
     path = tmp_path_factory.mktemp("raw") / "raw.c3d"
-    save_take(simulated.take, path)
-    return path, simulated.truth
+    return path, save_raw_take(path, n_frames=300, seed=1).truth
 
 
 def open_and_wait(window, qtbot, path):

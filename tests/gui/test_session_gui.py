@@ -3,21 +3,18 @@ crash (the journal is replayed); a damaged manifest gives a message and is left 
 
 import numpy as np
 import pytest
+from simulated_files import save_raw_take
 
 from handmocap.app.gui.review.dialogs import AutoLabelSettings
-from handmocap.core.io import save_take
 from handmocap.core.session import Session
-from handmocap.core.simulate import simulate_take
 
 pytestmark = pytest.mark.gui
 
 
 @pytest.fixture(scope="module")
 def raw_file(tmp_path_factory):
-    simulated = simulate_take(layout="dense", n_frames=200, seed=4, noise_mm=0.3, ghost_rate=0.05, occlusion=True,
-                              unlabelled=True)
     path = tmp_path_factory.mktemp("raw") / "session_raw.c3d"
-    save_take(simulated.take, path)
+    save_raw_take(path, n_frames=200, seed=4)
     return path
 
 

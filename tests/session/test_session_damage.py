@@ -16,11 +16,10 @@ import zipfile
 
 import numpy as np
 import pytest
+from simulated_files import labelled_session
 
 from handmocap.core.errors import InputError
-from handmocap.core.io import save_take
-from handmocap.core.review import ApplyLabelling, SwapLabels, UndoStack, Unlabel
-from handmocap.core.review.synthetic import synthetic_labelling
+from handmocap.core.review import SwapLabels, UndoStack, Unlabel
 from handmocap.core.session import Session
 from handmocap.core.session.journal import JOURNAL_NAME
 from handmocap.core.session.storage import npz_bytes, read_npz
@@ -36,12 +35,7 @@ UNSAVED = [Unlabel(label=f"M{index % 5}", scope="range", start=100 + 15 * index,
 def saved(tmp_path_factory):
     """(session folder, expected review, review after the last save) of a session saved three times."""
     root = tmp_path_factory.mktemp("damage")
-    take, result, _ = synthetic_labelling(frames=FRAMES, labels=5, ghosts=1, seed=3)
-    save_take(take, root / "raw.c3d")
-    session = Session.create(root / "session")
-    session.add_take(root / "raw.c3d")
-    opened = session.open_take(TAKE)
-    opened.push(ApplyLabelling(result))
+    opened, _result = labelled_session(root, frames=FRAMES, seed=3)
     opened.save()
     opened.push(SwapLabels("M0", "M1", 0, 40))
     opened.push(Unlabel(label="M2", scope="range", start=10, stop=30))

@@ -4,13 +4,13 @@ refuse with one clear line, and nothing outside the session folder is written or
 import os
 import shutil
 import time
+from contextlib import contextmanager
 
 import pytest
+from simulated_files import labelled_session
 
 from handmocap.core.errors import InputError
-from handmocap.core.io import save_take
 from handmocap.core.review import ApplyLabelling, Unlabel
-from handmocap.core.review.synthetic import synthetic_labelling
 from handmocap.core.session import Session
 
 TAKE = "t0001"
@@ -19,12 +19,7 @@ TAKE = "t0001"
 @pytest.fixture
 def session_folder(tmp_path):
     """A saved session with one reviewed take (blobs, journal, snapshot, lock) and an outside folder."""
-    take, result, _ = synthetic_labelling(frames=200, labels=5, ghosts=1, seed=2)
-    save_take(take, tmp_path / "raw.c3d")
-    session = Session.create(tmp_path / "session")
-    session.add_take(tmp_path / "raw.c3d")
-    opened = session.open_take(TAKE)
-    opened.push(ApplyLabelling(result))
+    opened, result = labelled_session(tmp_path, frames=200, seed=2)
     opened.save()
     opened.push(ApplyLabelling(result))  # blobs and a journal line after the snapshot
     opened.close(save=False)
@@ -54,6 +49,16 @@ def _one_line_link_error(raised):
     assert "symbolic link" in text and "\n" not in text, text
 
 
+@contextmanager
+def _refused(outside):
+    """The block raises a one-line InputError about a symbolic link and leaves ``outside`` as it was."""
+    before = _contents(outside)
+    with pytest.raises(InputError) as raised:
+        yield
+    _one_line_link_error(raised)
+    assert _contents(outside) == before
+
+
 @pytest.mark.parametrize("entry, target", [
     ("takes/t0001/blobs", "outside"),
     ("takes/t0001/journal.jsonl", "outside/journal.jsonl"),
@@ -64,15 +69,12 @@ def _one_line_link_error(raised):
 ])
 def test_a_link_in_a_take_folder_is_refused_on_open(session_folder, entry, target):
     folder, outside, _ = session_folder
-    before = _contents(outside)
     _replace_by_link(folder / entry, folder.parent / target)
     session = Session.open(folder)
-    with pytest.raises(InputError) as raised:
+    with _refused(outside):
         session.open_take(TAKE)
-    _one_line_link_error(raised)
-    with pytest.raises(InputError):
+    with _refused(outside):
         Session.open(folder, read_only=True).open_take(TAKE)  # not even read through it
-    assert _contents(outside) == before
 
 
 @pytest.mark.parametrize("entry, target", [
@@ -85,14 +87,11 @@ def test_a_link_in_a_take_folder_is_refused_on_open(session_folder, entry, targe
 ])
 def test_a_link_where_the_session_keeps_its_files_is_refused_on_open(session_folder, entry, target):
     folder, outside, _ = session_folder
-    before = _contents(outside)
     if (folder / entry).exists():
         (folder / entry).rename(folder / f"{entry}.moved")
     (folder / entry).symlink_to(folder.parent / target)
-    with pytest.raises(InputError) as raised:
+    with _refused(outside):
         Session.open(folder)
-    _one_line_link_error(raised)
-    assert _contents(outside) == before
 
 
 def test_links_planted_while_a_take_is_open_are_not_followed(session_folder):
@@ -136,13 +135,10 @@ def test_a_models_folder_made_a_link_after_opening_is_refused_on_save(session_fo
     from handmocap.core.model import load_template
 
     folder, outside, _ = session_folder
-    before = _contents(outside)
     session = Session.open(folder)
     (folder / "models").symlink_to(outside)
-    with pytest.raises(InputError) as raised:
+    with _refused(outside):
         session.save_subject_model("S01", load_template())
-    _one_line_link_error(raised)
-    assert _contents(outside) == before
 
 
 def test_a_fifo_in_place_of_the_journal_is_refused_without_blocking(session_folder):
