@@ -18,11 +18,11 @@ try:
 except PackageNotFoundError:  # the sources without an installation (e.g. a frozen bundle's metadata missing)
     __version__ = "0+unknown"
 
+__all__ = ["__version__", "CancelledError", "FilledGap", "FillResult", "InputError", "LabTemplate", "LabelResult",
+           "SolvedHand", "Take", "evaluate_labelling", "export", "fill", "label", "learn_template", "read_take",
+           "save_take", "save_template", "simulate_take", "solve"]
 #: the names of the Python API, each read from handmocap.core.api when first asked for
-API = ("CancelledError", "FilledGap", "FillResult", "InputError", "LabTemplate", "LabelResult", "SolvedHand", "Take",
-       "evaluate_labelling", "export", "fill", "label", "learn_template", "read_take", "save_take",
-       "save_template", "simulate_take", "solve")
-__all__ = ["__version__", *API]
+API = frozenset(__all__) - {"__version__"}
 
 
 def __getattr__(name: str) -> object:

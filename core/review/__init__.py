@@ -16,7 +16,6 @@ from handmocap.core.review.commands import (
     Command,
     CompoundCommand,
     DefineHand,
-    FrameSpan,
     GapFill,
     LabellingArrays,
     MarkGhost,
@@ -30,7 +29,7 @@ from handmocap.core.review.commands import (
     command_from_json,
     resolve_track,
 )
-from handmocap.core.review.events import Change, ReviewChanged
+from handmocap.core.review.events import Change, FrameSpan, ReviewChanged
 from handmocap.core.review.export import (
     export_bvh,
     export_joint_angles_csv,

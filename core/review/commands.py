@@ -34,14 +34,14 @@ import json
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, NamedTuple, Protocol
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
 from handmocap.core.errors import InputError
 from handmocap.core.gaps.methods import fill_method
 from handmocap.core.model.provenance import MEASURED, MISSING
-from handmocap.core.review.events import Change, ReviewChanged
+from handmocap.core.review.events import EMPTY_SPAN, Change, FrameSpan, ReviewChanged
 from handmocap.core.review.take import (
     ReviewTake,
     copy_health,
@@ -51,27 +51,6 @@ from handmocap.core.review.take import (
 
 SCOPES = ("fragment", "range", "take")
 INLINE_ARRAY_LIMIT = 4096  # arrays with more elements go to the blob store when there is one
-
-
-class FrameSpan(NamedTuple):
-    """Frames ``start .. stop - 1`` (0-based) a command changed; empty when ``stop <= start``."""
-
-    start: int
-    stop: int
-
-    @property
-    def empty(self) -> bool:
-        return self.stop <= self.start
-
-    def union(self, other: FrameSpan) -> FrameSpan:
-        if self.empty:
-            return other
-        if other.empty:
-            return self
-        return FrameSpan(min(self.start, other.start), max(self.stop, other.stop))
-
-
-EMPTY_SPAN = FrameSpan(0, 0)
 
 
 class BlobStore(Protocol):
