@@ -25,15 +25,6 @@ LABEL_ONLY = {"steps": ["label", "export"], "layout": "glove-13", "hands": "righ
 distributed = pytest.importorskip("distributed")
 
 
-@pytest.fixture(scope="module")
-def cluster():
-    from distributed import Client, LocalCluster
-
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as local, \
-            Client(local) as client:
-        yield local.scheduler_address, client
-
-
 def run(session, output, scheduler, redo=False):
     pipeline = pipeline_from_dict(LABEL_ONLY | {"output": str(output)})
     plan = plan_batch(Session.open(session.folder), pipeline, redo=redo)

@@ -29,15 +29,6 @@ FULL = {"steps": ["label", "calibrate", "fill", "solve", "export"], "layout": "g
 distributed = pytest.importorskip("distributed")
 
 
-@pytest.fixture(scope="module")
-def cluster():
-    from distributed import Client, LocalCluster
-
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as local, \
-            Client(local) as client:
-        yield local.scheduler_address, client
-
-
 def run(session, settings, scheduler, **options):
     pipeline = pipeline_from_dict(settings | {"output": str(session.folder.parent / "out")})
     plan = plan_batch(Session.open(session.folder), pipeline)
