@@ -99,6 +99,28 @@ def screen_distances(plotter: QtInteractor, points: np.ndarray, x: float, y: flo
     return distance, ndc[:, 2]
 
 
+def finite_points(points: ArrayLike) -> np.ndarray:
+    """The rows of ``points`` (anything of N×3 numbers) without a NaN or infinity, ``(n,3)`` float."""
+    finite = np.asarray(points, dtype=float).reshape(-1, 3)
+    return finite[np.isfinite(finite).all(axis=1)]
+
+
+def aim_camera(plotter: QtInteractor, points: np.ndarray, min_radius: float, direction: np.ndarray,
+               up: tuple[float, float, float]) -> None:
+    """Point the ``plotter``'s camera at finite ``points (N,3)`` mm from the unit ``direction`` (from the
+    points towards the camera) with ``up``, so that a sphere of at least ``min_radius`` mm around the middle
+    98 % of them fills the view."""
+    low, high = np.percentile(points, 1, axis=0), np.percentile(points, 99, axis=0)
+    centre = (low + high) / 2.0
+    radius = max(float(np.linalg.norm(high - low)) / 2.0, min_radius)
+    camera = plotter.camera
+    camera.focal_point = tuple(centre)
+    camera.up = up
+    distance = radius / np.sin(np.radians(float(camera.view_angle)) / 2.0) * 1.05
+    camera.position = tuple(centre + direction * distance)
+    plotter.renderer.ResetCameraClippingRange()
+
+
 def _as_rgb_bytes(colours: ArrayLike) -> np.ndarray:
     """``(N,3)`` floats in [0, 1] to ``(N,3)`` uint8."""
     return np.clip(np.round(np.asarray(colours, dtype=float) * 255.0), 0, 255).astype(np.uint8)
@@ -664,8 +686,7 @@ class HandViewport(QWidget):
     # --------------------------------------------------------------------------------------- camera
     def set_ground(self, points: np.ndarray, height: float = 0.0) -> None:
         """Size the ground grid (plane ``z = height`` mm) to cover the XY extent of ``points (N,3)``."""
-        finite = np.asarray(points, dtype=float).reshape(-1, 3)
-        finite = finite[np.isfinite(finite).all(axis=1)]
+        finite = finite_points(points)
         if not len(finite):
             return
         low, high = finite.min(axis=0), finite.max(axis=0)
@@ -679,13 +700,9 @@ class HandViewport(QWidget):
         """Point the Z-up camera at ``points (N,3)`` mm so that a sphere of at least ``min_radius`` mm
         around them fills the view. The camera looks across the points' longest horizontal extent
         (a hand is seen side-on along its length), from the -Y side and 35° above."""
-        finite = np.asarray(points, dtype=float).reshape(-1, 3)
-        finite = finite[np.isfinite(finite).all(axis=1)]
+        finite = finite_points(points)
         if not len(finite):
             return
-        low, high = np.percentile(finite, 1, axis=0), np.percentile(finite, 99, axis=0)
-        center = (low + high) / 2.0
-        radius = max(float(np.linalg.norm(high - low)) / 2.0, min_radius)
         horizontal = np.array([-0.5, -0.866])
         if len(finite) >= 3:
             spread = finite[:, :2] - finite[:, :2].mean(axis=0)
@@ -696,12 +713,7 @@ class HandViewport(QWidget):
                 horizontal = across if across @ horizontal >= 0 else -across
         elevation = np.radians(35.0)
         direction = np.array([*(np.cos(elevation) * horizontal), np.sin(elevation)])
-        camera = self._plotter.camera
-        camera.focal_point = tuple(center)
-        camera.up = (0.0, 0.0, 1.0)
-        distance = radius / np.sin(np.radians(float(camera.view_angle)) / 2.0) * 1.05
-        camera.position = tuple(center + direction * distance)
-        self._plotter.renderer.ResetCameraClippingRange()
+        aim_camera(self._plotter, finite, min_radius, direction, (0.0, 0.0, 1.0))
 
     # ------------------------------------------------------------------------------------- output
     def render_now(self) -> None:

@@ -16,7 +16,7 @@ from PySide6.QtWidgets import QVBoxLayout, QWidget
 from pyvistaqt import QtInteractor
 from vtkmodules.util.numpy_support import vtk_to_numpy
 
-from handmocap.widgets.viewport import ClickFilter, close_plotter, screen_distances
+from handmocap.widgets.viewport import ClickFilter, aim_camera, close_plotter, finite_points, screen_distances
 
 # pyvista types the Plotter methods it defines through functools.wraps (set_background, enable_terrain_style,
 # add_axes, remove_actor, remove_scalar_bar) as unbound functions, so mypy wants ``self`` passed again: the
@@ -141,20 +141,10 @@ class CalibrationScene(QWidget):
 
     def frame(self, points: np.ndarray) -> None:
         """Look at ``points (N,3)`` from the back of the hand (+Z) and slightly from the wrist."""
-        points = np.asarray(points, dtype=float).reshape(-1, 3)
-        points = points[np.isfinite(points).all(axis=1)]
-        if not len(points):
-            return
-        low, high = np.percentile(points, 1, axis=0), np.percentile(points, 99, axis=0)
-        centre = (low + high) / 2.0
-        radius = max(float(np.linalg.norm(high - low)) / 2.0, 40.0)
-        camera = self._plotter.camera
-        camera.focal_point = tuple(centre)
-        camera.up = (0.0, 1.0, 0.0)
-        distance = radius / np.sin(np.radians(float(camera.view_angle)) / 2.0) * 1.05
-        direction = np.array([0.0, -0.35, 1.0]) / np.linalg.norm([0.0, -0.35, 1.0])
-        camera.position = tuple(centre + direction * distance)
-        self._plotter.renderer.ResetCameraClippingRange()
+        finite = finite_points(points)
+        if len(finite):
+            direction = np.array([0.0, -0.35, 1.0]) / np.linalg.norm([0.0, -0.35, 1.0])
+            aim_camera(self._plotter, finite, 40.0, direction, (0.0, 1.0, 0.0))
 
     # ------------------------------------------------------------------------------------ picking
     def eventFilter(self, watched: QObject, event: QEvent) -> bool:

@@ -6,6 +6,7 @@ import argparse
 import json
 import math
 import os
+from collections.abc import Callable
 from pathlib import Path
 
 from handmocap.app.cli.progress import ProgressLine
@@ -75,6 +76,17 @@ def progress_printer(what: str = "working", total: float | None = None, unit: st
 def add_json_flag(parser: argparse.ArgumentParser) -> None:
     """The ``--json`` flag of benchmarks and evaluations."""
     parser.add_argument("--json", action="store_true", help="print one JSON object as the last line")
+
+
+def add_frames_command(commands: argparse._SubParsersAction, name: str, help: str, frames_help: str,
+                       handler: Callable[..., object]) -> argparse.ArgumentParser:
+    """A benchmark or evaluation on simulated takes: subcommand ``name`` with ``--frames N`` (``frames_help``)
+    and ``--json``, run by ``handler``."""
+    parser = commands.add_parser(name, help=help)
+    parser.add_argument("--frames", type=int, help=frames_help)
+    add_json_flag(parser)
+    parser.set_defaults(handler=handler)
+    return parser
 
 
 def frame_rate_hz(text: str) -> float:

@@ -22,7 +22,7 @@ from handmocap.app.cli import layout as layout_commands
 from handmocap.app.cli import live as live_commands
 from handmocap.app.cli import review as review_commands
 from handmocap.app.cli.common import (
-    add_json_flag,
+    add_frames_command,
     add_outputs,
     add_rate_argument,
     check_output,
@@ -262,21 +262,15 @@ def build_parser() -> argparse.ArgumentParser:  # noqa: PLR0915 - a statement pe
 
     bench = commands.add_parser("bench", help="speed benchmarks (one JSON object as the last line with --json)")
     bench_commands = bench.add_subparsers(dest="bench_command", metavar="WHAT", required=True)
-    bench_ik = bench_commands.add_parser("ik", help="layered IK frames per second (dense layout, simulated take)")
-    bench_ik.add_argument("--frames", type=int, help="frames to solve (default 3000)")
-    add_json_flag(bench_ik)
-    bench_ik.set_defaults(handler=command_bench_ik)
-    bench_load = bench_commands.add_parser("load", help="seconds to read a generated 40-marker C3D")
-    bench_load.add_argument("--frames", type=int, help="frames in the generated file (default 100000)")
-    add_json_flag(bench_load)
-    bench_load.set_defaults(handler=command_bench_load)
+    add_frames_command(bench_commands, "ik", "layered IK frames per second (dense layout, simulated take)",
+                       "frames to solve (default 3000)", command_bench_ik)
+    add_frames_command(bench_commands, "load", "seconds to read a generated 40-marker C3D",
+                       "frames in the generated file (default 100000)", command_bench_load)
 
     evaluate = commands.add_parser("evaluate", help="accuracy evaluations on simulated data")
     evaluate_commands = evaluate.add_subparsers(dest="evaluate_command", metavar="WHAT", required=True)
-    evaluate_ik = evaluate_commands.add_parser("ik", help="layered against standard IK (grasp-4) and dense accuracy")
-    evaluate_ik.add_argument("--frames", type=int, help="frames per simulated take (default 1500)")
-    add_json_flag(evaluate_ik)
-    evaluate_ik.set_defaults(handler=command_evaluate_ik)
+    add_frames_command(evaluate_commands, "ik", "layered against standard IK (grasp-4) and dense accuracy",
+                       "frames per simulated take (default 1500)", command_evaluate_ik)
 
     template = commands.add_parser("template", help="regenerate the template hand mesh")
     template.add_argument("action", choices=["build"], help="build: generate the template hand mesh again")

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from handmocap.app.cli.common import (
+    add_frames_command,
     add_json_flag,
     add_outputs,
     add_rate_argument,
@@ -373,7 +374,5 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     add_json_flag(evaluate_gaps)
     evaluate_gaps.set_defaults(handler=command_evaluate_gaps)
 
-    bench = bench_commands.add_parser("label", help="labelling + IK frames per second (one hand; scene)")
-    bench.add_argument("--frames", type=int, help="frames per simulated take")
-    add_json_flag(bench)
-    bench.set_defaults(handler=command_bench_label)
+    add_frames_command(bench_commands, "label", "labelling + IK frames per second (one hand; scene)",
+                       "frames per simulated take", command_bench_label)
