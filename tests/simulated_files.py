@@ -5,10 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 
 from handmocap.core.io import save_take
-from handmocap.core.review import ApplyLabelling
+from handmocap.core.review import ApplyLabelling, ReviewTake
 from handmocap.core.review.synthetic import synthetic_labelling
 from handmocap.core.session import Session
 from handmocap.core.simulate import simulate_take
+from handmocap.core.simulate.motion import simulate_joint_angles
 
 
 def save_raw_take(path: Path, n_frames: int, seed: int):
@@ -18,6 +19,14 @@ def save_raw_take(path: Path, n_frames: int, seed: int):
                               occlusion=True, unlabelled=True)
     save_take(simulated.take, path)
     return simulated
+
+
+def solved_review(frames: int, seed: int, ghosts: int = 1):
+    """The review of a synthetic labelled take (5 labels, ``ghosts`` ghosts) with simulated joint angles as its
+    solve: ``(ReviewTake, true marker positions)``."""
+    take, result, truth = synthetic_labelling(frames=frames, labels=5, ghosts=ghosts, seed=seed)
+    result.joint_angles = simulate_joint_angles(frames, 0, "mixed", 100.0)
+    return ReviewTake.from_labelling(take, result, layout="test"), truth
 
 
 def labelled_session(root: Path, frames: int, seed: int):

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from simulated_files import solved_review
 
 from handmocap.core.batch.pipeline import pipeline_from_dict
 from handmocap.core.batch.steps import StepsResult, export_take, output_paths
@@ -18,17 +19,13 @@ from handmocap.core.review.export_formats import (
     register_export_format,
     unregister_export_format,
 )
-from handmocap.core.review.synthetic import synthetic_labelling
-from handmocap.core.simulate.motion import simulate_joint_angles
 
 FRAMES = 30
 
 
 @pytest.fixture
 def review() -> ReviewTake:
-    take, result, _ = synthetic_labelling(frames=FRAMES, labels=5, ghosts=1, seed=3)
-    result.joint_angles = simulate_joint_angles(FRAMES, 0, "mixed", 100.0)
-    return ReviewTake.from_labelling(take, result, layout="test")
+    return solved_review(FRAMES, seed=3)[0]
 
 
 def test_a_pipeline_takes_every_registered_format_and_only_those():

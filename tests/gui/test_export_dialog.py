@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PySide6.QtWidgets import QMessageBox
+from simulated_files import solved_review
 
 from handmocap.app.gui.export_dialog import ExportDialog
 from handmocap.core.io import load_take
@@ -17,17 +18,13 @@ from handmocap.core.model import load_template
 from handmocap.core.model.bvh import read_bvh
 from handmocap.core.model.gltf import load_gltf_hand
 from handmocap.core.review import ReviewTake
-from handmocap.core.review.synthetic import synthetic_labelling
-from handmocap.core.simulate.motion import simulate_joint_angles
 
 FRAMES = 40
 
 
 @pytest.fixture
 def review() -> ReviewTake:
-    take, result, _ = synthetic_labelling(frames=FRAMES, labels=5, ghosts=1, seed=3)
-    result.joint_angles = simulate_joint_angles(FRAMES, 0, "mixed", 100.0)
-    return ReviewTake.from_labelling(take, result, layout="test")
+    return solved_review(FRAMES, seed=3)[0]
 
 
 @pytest.fixture

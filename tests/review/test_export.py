@@ -6,6 +6,7 @@ import c3d
 import ezc3d
 import numpy as np
 import pytest
+from simulated_files import solved_review
 
 from handmocap.core.errors import InputError
 from handmocap.core.evaluation.data import REAL_RECORDING, VENDOR_C3D
@@ -36,9 +37,7 @@ FRAMES = 90
 @pytest.fixture
 def reviewed():
     """A review with a fill, a hand edit, a ghost and solved joint angles."""
-    take, result, truth = synthetic_labelling(frames=FRAMES, labels=5, ghosts=2, seed=4)
-    result.joint_angles = simulate_joint_angles(FRAMES, 0, "mixed", 100.0)
-    review = ReviewTake.from_labelling(take, result, layout="test")
+    review, truth = solved_review(FRAMES, seed=4, ghosts=2)
     stack = UndoStack(review)
     start, length = FRAMES // 3, FRAMES // 6
     stack.push(AcceptFills([GapFill("M0", start, "model", truth[start:start + length, 0] + 0.25)]))
