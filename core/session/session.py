@@ -533,19 +533,13 @@ class Session:
         ``layouts/<name>.json`` (replacing one of the same name)."""
         from handmocap.core.model import save_layout
 
-        self._check_writable_session()
-        folder = self.folder / "layouts"
-        path = folder / f"{_safe_name(layout.name)}.json"
-        try:
-            make_folder(self.folder, folder)
-            refuse_links(self.folder, path)
+        def write(path: Path) -> None:
             if isinstance(layout, LabTemplate):
                 save_lab_template(layout, path)
             else:
                 save_layout(layout, path)
-        except OSError as error:
-            raise InputError(f"cannot save layout '{layout.name}' ({error.strerror or error})") from None
-        relative = str(path.relative_to(self.folder))
+
+        path, relative = self._store("layouts", f"{_safe_name(layout.name)}.json", write, f"layout '{layout.name}'")
 
         def change() -> None:
             self.layouts = [item for item in self.layouts if item.name != layout.name] + [
@@ -553,6 +547,21 @@ class Session:
 
         self.update(change)
         return path
+
+    def _store(self, folder_name: str, file_name: str, write: Callable[[Path], object], what: str
+               ) -> tuple[Path, str]:
+        """Write a session file ``<folder_name>/<file_name>`` with ``write(path)`` (the folder made, links
+        refused): ``(path, path relative to the session folder)``; InputError "cannot save <what>" on failure."""
+        self._check_writable_session()
+        folder = self.folder / folder_name
+        path = folder / file_name
+        try:
+            make_folder(self.folder, folder)
+            refuse_links(self.folder, path)
+            write(path)
+        except OSError as error:
+            raise InputError(f"cannot save {what} ({error.strerror or error})") from None
+        return path, str(path.relative_to(self.folder))
 
     def layout_path(self, name: str) -> Path | None:
         """Path of a session layout by name, None when the session has none of that name."""
@@ -563,16 +572,8 @@ class Session:
 
     def save_subject_model(self, subject: str, model: HandModel) -> Path:
         """Store a subject's calibrated hand model as ``models/<subject>.npz`` and link it."""
-        self._check_writable_session()
-        folder = self.folder / "models"
-        path = folder / f"{_safe_name(subject)}.npz"
-        try:
-            make_folder(self.folder, folder)
-            refuse_links(self.folder, path)
-            model.save(path)
-        except OSError as error:
-            raise InputError(f"cannot save the model of '{subject}' ({error.strerror or error})") from None
-        relative = str(path.relative_to(self.folder))
+        path, relative = self._store("models", f"{_safe_name(subject)}.npz", model.save,
+                                     f"the model of '{subject}'")
 
         def change() -> None:
             for item in self.subjects:
