@@ -17,11 +17,13 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from functools import wraps
 from os import PathLike
 from pathlib import Path
 
 import numpy as np
 
+from handmocap.core.blas import blas_threads_limited
 from handmocap.core.errors import CancelledError, InputError
 from handmocap.core.evaluation.take_labelling import evaluate_take_labelling
 from handmocap.core.ik import IKResult
@@ -49,6 +51,17 @@ __all__ = [
     "evaluate_labelling", "export", "fill", "label", "learn_template", "read_take", "save_take",
     "save_template", "simulate_take", "solve",
 ]
+
+
+def _one_blas_thread(function: Callable) -> Callable:
+    """Run ``function`` with the BLAS thread count the program uses (:mod:`core.blas`), restored after."""
+
+    @wraps(function)
+    def run(*args, **kwargs):
+        with blas_threads_limited():
+            return function(*args, **kwargs)
+
+    return run
 
 
 @dataclass(frozen=True)
@@ -114,6 +127,7 @@ def simulate_take(frames: int = 600, seed: int = 0, layout: str = "dense", noise
                     occlusion=occlusion, unlabelled=unlabelled).take
 
 
+@_one_blas_thread
 def learn_template(takes: Sequence[Take | PathArg], name: str = "lab", rate: float | None = None,
                    progress: Progress = None, cancelled: Cancelled = None) -> LabTemplate:
     """Learn a lab's labelling template from its labelled takes (``Take`` objects or files read at ``rate``),
@@ -128,6 +142,7 @@ def save_template(template: LabTemplate, path: PathArg) -> None:
     save_lab_template(template, Path(path))
 
 
+@_one_blas_thread
 def label(take: Take, layout: str | PathArg | MarkerLayout | LabTemplate = "dense", hands: str = "auto",
           objects: str | PathArg | None = None, relabel: bool = False,
           progress: Progress = None, cancelled: Cancelled = None) -> LabelResult:
@@ -154,6 +169,7 @@ def _review(take: Take) -> ReviewTake:
     return review
 
 
+@_one_blas_thread
 def fill(take: Take, max_gap: int, method: str = "auto", progress: Progress = None,
          cancelled: Cancelled = None) -> FillResult:
     """Fill the gaps of a labelled take of at most ``max_gap`` frames, as ``handmocap fill``: ``method`` "auto"
@@ -173,6 +189,7 @@ def fill(take: Take, max_gap: int, method: str = "auto", progress: Progress = No
     return FillResult(result, filled, len(gaps), int((review.provenance == -1).sum()))
 
 
+@_one_blas_thread
 def solve(take: Take, layout: str | PathArg | MarkerLayout | LabTemplate | None = None, side: str | None = None,
           method: str = "layered", progress: Progress = None, cancelled: Cancelled = None) -> dict[str, SolvedHand]:
     """Inverse kinematics of each hand of a labelled take over the whole take, as ``handmocap solve``: per side
@@ -185,6 +202,7 @@ def solve(take: Take, layout: str | PathArg | MarkerLayout | LabTemplate | None 
                                        hand.result) for hand in solved}
 
 
+@_one_blas_thread
 def export(take: Take, path: PathArg, format: str = "c3d", units: str | None = None, up: str | None = None,
            hand: str | None = None, progress: Progress = None, cancelled: Cancelled = None) -> list[Path]:
     """Write a labelled take as ``format`` (``handmocap export --format``: c3d, trc, csv, bvh, gltf, ...),
@@ -202,6 +220,7 @@ def export(take: Take, path: PathArg, format: str = "c3d", units: str | None = N
                          subjects=subject_calibrations(take.parameters, take.source_path) or None)
 
 
+@_one_blas_thread
 def evaluate_labelling(take: Take, layout: str | PathArg | MarkerLayout | LabTemplate | None = None,
                        learn_on: int | None = None, hands: str = "auto", seed: int = 0, ghost_rate: float = 0.0,
                        progress: Progress = None) -> dict:
