@@ -33,6 +33,7 @@ from handmocap.app.cli.common import (
     progress_printer,
 )
 from handmocap.app.cli.progress import close_all as close_progress
+from handmocap.core.blas import limit_blas_threads
 from handmocap.core.errors import HandMocapError, InputError
 
 #: modules that add their own subcommands (``register(commands, bench_commands, evaluate_commands)``)
@@ -299,6 +300,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.command is None:
         args = parser.parse_args(["gui"])
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # past a file-size limit (ulimit -f) a write fails: one line
+    limit_blas_threads()
     try:
         try:
             check_outputs(args)
