@@ -42,6 +42,19 @@ def open_session_take(window, qtbot, folder):
     qtbot.waitUntil(lambda: not window.loader.is_busy() and window.document is not None, timeout=30_000)
 
 
+def run_step(wizard, qtbot, start):
+    """Start a step of the camera wizard (``start``) and wait until its worker is done."""
+    start()
+    qtbot.waitUntil(lambda: not wizard.runner.is_busy(), timeout=120_000)
+
+
+def registered_camera(wizard, qtbot):
+    """The camera the wizard's registration step gives (it must be registered)."""
+    run_step(wizard, qtbot, wizard.start_registration)
+    assert wizard.camera.registered, wizard.status_label.text()
+    return wizard.camera
+
+
 def session_with_camera(filmed, folder, with_camera=True):
     files, simulated = filmed
     session = Session.create(folder)
@@ -155,8 +168,7 @@ def test_wizard_calibrates_intrinsics_on_a_worker_and_can_be_cancelled(window, q
     wizard.cancel_button.click()
     qtbot.waitUntil(lambda: not wizard.runner.is_busy(), timeout=30_000)
     assert "cancelled" in wizard.status_label.text() and wizard.camera is None
-    wizard.start_intrinsics()
-    qtbot.waitUntil(lambda: not wizard.runner.is_busy(), timeout=120_000)
+    run_step(wizard, qtbot, wizard.start_intrinsics)
     assert "intrinsics from" in wizard.status_label.text(), wizard.status_label.text()
     assert abs(wizard.camera.focal[0] / truth.focal[0] - 1) < 0.005
     assert wizard.views_table.rowCount() == len(paths) and "Coverage" in wizard.coverage_label.text()
@@ -225,8 +237,7 @@ def test_wizard_estimates_the_offset_of_a_registered_camera(window, qtbot, filme
     open_session_take(window, qtbot, folder)
     wizard = CameraWizard(window, window.cameras)
     qtbot.addWidget(wizard)
-    wizard.start_offset()
-    qtbot.waitUntil(lambda: not wizard.runner.is_busy(), timeout=120_000)
+    run_step(wizard, qtbot, wizard.start_offset)
     assert abs(wizard.camera.clock.offset_s - OFFSET_S) < 0.01, wizard.status_label.text()
     assert wizard.save()
     assert window.cameras.camera.camera.clock.offset_s == wizard.camera.clock.offset_s
@@ -263,10 +274,7 @@ def test_wizard_registers_an_unregistered_camera_from_the_takes_markers(window, 
     assert frustum is None or not frustum.visibility                # not registered: no frustum
     wizard = CameraWizard(window, window.cameras)
     qtbot.addWidget(wizard)
-    wizard.start_registration()
-    qtbot.waitUntil(lambda: not wizard.runner.is_busy(), timeout=120_000)
-    camera = wizard.camera
-    assert camera.registered, wizard.status_label.text()
+    camera = registered_camera(wizard, qtbot)
     assert np.linalg.norm(camera.centre - truth.centre) < 5.0
     assert rotation_angle_deg(camera.rotation, truth.rotation) < 0.5
     assert wizard.save() and window.cameras.camera.camera.registered
@@ -306,10 +314,7 @@ def test_wizard_registers_from_a_marked_board_filmed_in_the_video(window, qtbot,
     wizard.start_registration()
     assert not wizard.runner.is_busy() and "missing.json" in wizard.status_label.text()
     wizard.board_file_edit.setText(str(tmp_path / "board_markers.json"))
-    wizard.start_registration()
-    qtbot.waitUntil(lambda: not wizard.runner.is_busy(), timeout=120_000)
-    camera = wizard.camera
-    assert camera.registered, wizard.status_label.text()
+    camera = registered_camera(wizard, qtbot)
     assert np.linalg.norm(camera.centre - truth.centre) < 2.0
     assert rotation_angle_deg(camera.rotation, truth.rotation) < 0.2
     assert "board corners" in wizard.register_label.text()
