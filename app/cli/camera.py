@@ -183,6 +183,16 @@ def command_evaluate_camera(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_take_video_camera(parser: argparse.ArgumentParser, take_help: str, video_help: str, camera_help: str
+                           ) -> None:
+    """The arguments of a command that reads a take, the video filmed with it and its camera: ``take``,
+    ``--rate``, ``video``, ``--camera CAMERA.json``."""
+    parser.add_argument("take", help=take_help)
+    add_rate_argument(parser)
+    parser.add_argument("video", help=video_help)
+    parser.add_argument("--camera", required=True, metavar="CAMERA.json", help=camera_help)
+
+
 def register(commands, bench_commands, evaluate_commands) -> None:
     """Add the camera subcommands to the ``handmocap`` parser."""
     camera = commands.add_parser("camera", help="calibrate a camera, register it to the mocap space, overlay")
@@ -207,10 +217,8 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     calibrate.set_defaults(handler=command_calibrate)
 
     registration = actions.add_parser("register", help="extrinsics and time offset from the take's markers")
-    registration.add_argument("take", help="labelled take (C3D, TSV, TRC, CSV)")
-    add_rate_argument(registration)
-    registration.add_argument("video", help="the camera's video (MP4/AVI) or folder of frames")
-    registration.add_argument("--camera", required=True, metavar="CAMERA.json", help="intrinsics (JSON/YAML/XML)")
+    _add_take_video_camera(registration, "labelled take (C3D, TSV, TRC, CSV)",
+                           "the camera's video (MP4/AVI) or folder of frames", "intrinsics (JSON/YAML/XML)")
     registration.add_argument("--depth", metavar="FOLDER", help="registered 16-bit depth frames (RGB-D)")
     registration.add_argument("--depth-unit", type=float, default=1.0, metavar="MM", help="depth unit (default 1)")
     registration.add_argument("--offset", type=float, metavar="S", help="guess of the clock offset (s)")
@@ -223,11 +231,8 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     registration.set_defaults(handler=command_register)
 
     overlay = actions.add_parser("overlay", help="write the video with the take's markers drawn on it")
-    overlay.add_argument("take", help="the take whose markers are drawn")
-    add_rate_argument(overlay)
-    overlay.add_argument("video", help="the camera's video or folder of frames")
-    overlay.add_argument("--camera", required=True, metavar="CAMERA.json",
-                         help="the camera (calibrated and registered)")
+    _add_take_video_camera(overlay, "the take whose markers are drawn", "the camera's video or folder of frames",
+                           "the camera (calibrated and registered)")
     overlay.add_argument("--out", required=True, metavar="OVERLAY.mp4|.avi", help="the video to write")
     add_outputs(overlay, "out")
     overlay.set_defaults(handler=command_overlay)
