@@ -42,12 +42,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_fuzzed_inputs_of_every_kind_load_or_fail_cleanly():
-    cases = [(fmt, index) for index in range(150) for fmt in fuzz.INPUT_FORMATS]
-    started = time.perf_counter()
-    report = fuzz.run(cases, seed=2200, timeout=30.0, memory_bytes=4 * 2 ** 30)
-    assert report["problems"] == []
-    assert sum(figures["cases"] for figures in report["formats"].values()) == len(cases)
-    assert time.perf_counter() - started < 60.0
+    fuzz.check_clean([(fmt, index) for index in range(150) for fmt in fuzz.INPUT_FORMATS], seed=2200)
 
 
 def one_line(call) -> str:
