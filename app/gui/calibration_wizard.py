@@ -53,6 +53,7 @@ from handmocap.core.calibration.scan import Scan, load_scan
 from handmocap.core.errors import HandMocapError, InputError
 from handmocap.core.model import HandModel
 from handmocap.core.model.template_mesh import LANDMARK_DESCRIPTIONS, LANDMARK_NAMES
+from handmocap.widgets.file_row import browse_row
 from handmocap.widgets.wizard_scene import CalibrationScene
 
 REMOVED_COLOUR = np.array([220, 40, 40], dtype=np.uint8)
@@ -121,14 +122,9 @@ class ScanPage(QWizardPage):
         self.setSubTitle("A PLY or OBJ point cloud or mesh of the subject's hand (mm or m, with or without "
                          "normals and colours), and the template to fit.")
         form = QFormLayout(self)
-        row = QHBoxLayout()
         self.path_edit = QLineEdit()
         self.path_edit.setPlaceholderText("hand scan .ply / .obj")
-        browse = QPushButton("Browse…")
-        browse.clicked.connect(self._browse)
-        row.addWidget(self.path_edit)
-        row.addWidget(browse)
-        form.addRow("Scan file", row)
+        form.addRow("Scan file", browse_row(self.path_edit, self._browse))
         self.template_combo = QComboBox()
         self.template_combo.addItems(TEMPLATE_CHOICES)
         self.template_edit = QLineEdit()

@@ -59,6 +59,7 @@ from handmocap.core.errors import CancelledError, HandMocapError, InputError
 from handmocap.core.io.documents import read_document
 from handmocap.core.io.input_schemas import BOARD_MARKERS
 from handmocap.core.session.cameras import TakeCamera
+from handmocap.widgets.file_row import browse_row
 
 
 class CameraHost(Protocol):
@@ -308,12 +309,7 @@ class CameraWizard(QDialog):
         form.addRow("Offset search (± s)", self.register_window_box)
         self.board_file_edit = QLineEdit(self)
         self.board_file_edit.setPlaceholderText('{"markers": {"<take marker name>": [x, y, z] mm on the board}}')
-        board_button = QPushButton("Browse…", self)
-        board_button.clicked.connect(self.choose_board_file)
-        board_row = QHBoxLayout()
-        board_row.addWidget(self.board_file_edit, 1)
-        board_row.addWidget(board_button)
-        form.addRow("Board marker file", board_row)
+        form.addRow("Board marker file", browse_row(self.board_file_edit, self.choose_board_file, self))
         page, self.register_button, self.register_label = self._step_page(
             "Registers the camera to the mocap space. From the take's markers: the bright marker blobs "
             "of every video frame are matched to the projected markers (P3P hypotheses, then PnP) and the "

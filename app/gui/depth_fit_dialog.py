@@ -38,6 +38,7 @@ from PySide6.QtWidgets import (
 from handmocap.app.gui.workers import TaskRunner, one_line
 from handmocap.core.errors import HandMocapError
 from handmocap.core.fusion.depth_fit import DepthFit
+from handmocap.widgets.file_row import browse_row
 
 #: the SR305's values (``../shared/data/rgbd``), a starting point the operator edits
 DEFAULT_INTRINSICS = (476.007, 476.007, 313.683, 242.755)
@@ -128,11 +129,7 @@ class DepthFitDialog(QDialog):
         """The frame, intrinsics, depth unit and hand fields."""
         self.frame_edit = QLineEdit(frame, self)
         self.frame_edit.setPlaceholderText("a 16-bit PNG depth frame")
-        browse = QPushButton("Browse…", self)
-        browse.clicked.connect(self.browse)
-        frame_row = QHBoxLayout()
-        frame_row.addWidget(self.frame_edit, 1)
-        frame_row.addWidget(browse)
+        frame_row = browse_row(self.frame_edit, self.browse, self)
         self.intrinsics_boxes = []
         intrinsics_row = QHBoxLayout()
         for label, value in zip(("fx", "fy", "cx", "cy"), DEFAULT_INTRINSICS, strict=True):

@@ -21,11 +21,9 @@ from PySide6.QtWidgets import (
     QDialogButtonBox,
     QFileDialog,
     QFormLayout,
-    QHBoxLayout,
     QLabel,
     QLineEdit,
     QMessageBox,
-    QPushButton,
     QVBoxLayout,
     QWidget,
 )
@@ -36,6 +34,7 @@ from handmocap.core.model import HandModel
 from handmocap.core.review import ReviewTake
 from handmocap.core.review.export import export_review
 from handmocap.core.review.export_formats import export_format, export_formats
+from handmocap.widgets.file_row import browse_row
 from handmocap.widgets.shortcuts import bind
 
 UNITS_HINT = "OpenSim: m, Y up · Blender: m, Y up · MotionBuilder: cm, Y up · as recorded: mm, Z up"
@@ -85,11 +84,7 @@ class ExportDialog(QDialog):
         self.fills_box = QCheckBox("Include accepted fills")
         self.fills_box.setChecked(True)
         self.path_edit = QLineEdit()
-        browse = QPushButton("Browse…")
-        browse.clicked.connect(self.choose_path)
-        row = QHBoxLayout()
-        row.addWidget(self.path_edit, 1)
-        row.addWidget(browse)
+        row = browse_row(self.path_edit, self.choose_path)
         form = QFormLayout()
         form.addRow("Format", self.format_box)
         form.addRow("Units", self.units_box)
