@@ -128,8 +128,8 @@ class FillPreview(QWidget):
             self._curves[method] = [plot.plot(path_frames, path[:, axis], connect="finite")
                                     for axis, plot in enumerate(self.plots)]
         for plot, axis in zip(self.plots, range(3), strict=True):
-            values = [shown[:, axis]] + [np.asarray(c[axis].yData) for c in self._curves.values()]
-            finite = np.concatenate([v[np.isfinite(v)] for v in values])
+            series = [shown[:, axis]] + [np.asarray(c[axis].yData) for c in self._curves.values()]
+            finite = np.concatenate([v[np.isfinite(v)] for v in series])
             if finite.size:
                 pad = max(1.0, 0.08 * float(finite.max() - finite.min()))
                 plot.setYRange(float(finite.min()) - pad, float(finite.max()) + pad, padding=0)

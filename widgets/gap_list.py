@@ -11,9 +11,10 @@ and :class:`core.gaps.FillCheck`) and asks for work by signal; it fills nothing 
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import TypedDict, Unpack
 
 import numpy as np
-from PySide6.QtCore import QModelIndex, QObject, QSortFilterProxyModel, Qt, Signal
+from PySide6.QtCore import QModelIndex, QObject, QPersistentModelIndex, QSortFilterProxyModel, Qt, Signal
 from PySide6.QtGui import QBrush, QColor, QFont, QIcon, QPixmap
 from PySide6.QtWidgets import (
     QAbstractItemView,
@@ -58,6 +59,14 @@ DEFAULT_MAX_FILL = 20
 REJECTED_COLOUR = QColor(150, 150, 155)
 
 
+class GapRowFields(TypedDict, total=False):
+    """The fields of a :class:`GapRow` that :meth:`GapRow.from_gap` takes as given."""
+
+    state: str
+    method: str | None
+    donors: tuple[int, ...]
+
+
 @dataclass
 class GapRow:
     """One gap as the list shows it.
@@ -85,7 +94,8 @@ class GapRow:
     donors: tuple[int, ...] = ()
 
     @classmethod
-    def from_gap(cls, gap: Gap, check: FillCheck | None = None, check_error: str = "", **fields: object) -> GapRow:
+    def from_gap(cls, gap: Gap, check: FillCheck | None = None, check_error: str = "",
+                 **fields: Unpack[GapRowFields]) -> GapRow:
         """A row for ``gap`` with the result of :func:`core.gaps.check_gap` (``check``) or the message of
         the InputError it raised (``check_error``); ``fields`` set the others (state, method, donors)."""
         errors = None if check is None and not check_error else dict(check.errors_mm) if check else {}
@@ -142,7 +152,7 @@ class GapTableModel(ColumnTableModel):
         self.rows[index] = row
         self.dataChanged.emit(self.index(index, 0), self.index(index, len(COLUMNS) - 1))
 
-    def rowCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008 - Qt signature
+    def rowCount(self, parent: QModelIndex | QPersistentModelIndex = QModelIndex()) -> int:  # noqa: B008 - Qt signature
         return 0 if parent.isValid() else len(self.rows)
 
     def _sort_value(self, row: GapRow, column: int) -> object:
@@ -159,7 +169,7 @@ class GapTableModel(ColumnTableModel):
             return np.inf if np.isnan(error) else error
         return GAP_STATES.index(row.state) if row.state in GAP_STATES else len(GAP_STATES)
 
-    def data(self, index: QModelIndex, role: int = Qt.ItemDataRole.DisplayRole) -> object:
+    def data(self, index: QModelIndex | QPersistentModelIndex, role: int = Qt.ItemDataRole.DisplayRole) -> object:
         if not index.isValid():
             return None
         row, column = self.rows[index.row()], index.column()
@@ -218,10 +228,12 @@ class GapTableModel(ColumnTableModel):
 
 
 class _GapFilter(QSortFilterProxyModel):
-    """Rows whose marker name holds the filter text and whose state matches the state filter."""
+    """Rows of ``gaps`` whose marker name holds the filter text and whose state matches the state filter."""
 
-    def __init__(self, parent: QObject | None = None) -> None:
+    def __init__(self, gaps: GapTableModel, parent: QObject | None = None) -> None:
         super().__init__(parent)
+        self.gaps = gaps
+        self.setSourceModel(gaps)
         self.text = ""
         self.state = ""
 
@@ -229,8 +241,9 @@ class _GapFilter(QSortFilterProxyModel):
         self.text, self.state = text.lower(), state
         self.invalidateFilter()
 
-    def filterAcceptsRow(self, source_row: int, source_parent: QModelIndex) -> bool:  # noqa: N802 - Qt
-        row = self.sourceModel().rows[source_row]
+    def filterAcceptsRow(self, source_row: int,  # noqa: N802 - Qt
+                         source_parent: QModelIndex | QPersistentModelIndex) -> bool:
+        row = self.gaps.rows[source_row]
         return self.text in row.name.lower() and (not self.state or row.state == self.state)
 
 
@@ -283,8 +296,7 @@ class GapList(QWidget):
     def _build_filters(self) -> QHBoxLayout:
         """The table model behind its sort/filter proxy, and the marker filter, state filter and count."""
         self.model = GapTableModel(self)
-        self.proxy = _GapFilter(self)
-        self.proxy.setSourceModel(self.model)
+        self.proxy = _GapFilter(self.model, self)
         self.proxy.setSortRole(SORT_ROLE)
         self.filter_edit = QLineEdit(self)
         self.filter_edit.setPlaceholderText("Filter markers…")
@@ -543,7 +555,8 @@ class GapList(QWidget):
         self.detail_title.setText(
             f"<b>{row.name}</b> · frames {first}–{first + row.length - 1} · {row.length} frames · "
             f"<span style='color:{self._state_css(row)}'>{row.state_text()}</span>")
-        ranking = sorted(row.errors_mm, key=row.errors_mm.get) if row.errors_mm else []
+        errors = row.errors_mm or {}
+        ranking = sorted(errors, key=lambda method: errors[method])
         for method in self.method_buttons:
             button, error_label = self.method_buttons[method], self.error_labels[method]
             button.setEnabled(row.applicable(method))
@@ -670,10 +683,11 @@ def gap_rows(gaps: list[Gap], provenance: np.ndarray | None = None,
     rows = []
     for index, gap in enumerate(gaps):
         check = checks.get(index)
-        fields: dict[str, object] = {"donors": tuple(donors.get(index, ()))}
+        fields: GapRowFields = {"donors": tuple(donors.get(index, ()))}
         codes = None if provenance is None else np.asarray(provenance)[gap.start:gap.end, gap.marker]
         if codes is not None and len(codes) and (codes > 0).all():
-            fields.update(state="filled", method=provenance_names().get(int(np.bincount(codes).argmax())))
+            fields["state"] = "filled"
+            fields["method"] = provenance_names().get(int(np.bincount(codes).argmax()))
         elif index in rejected:
             fields["state"] = "rejected"
         if isinstance(check, str):
