@@ -8,12 +8,13 @@ from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QComboBox, QLabel, QMenu, QToolBar
 
 from handmocap.app.gui.actions import make_action
+from handmocap.app.gui.review.part import ReviewPart
 
 SCOPE_TITLES = {"fragment": "to end of fragment", "range": "in the marked range", "take": "whole take"}
 
 
 
-class ReviewActions:
+class ReviewActions(ReviewPart):
     """Part of :class:`~app.gui.review.controller.ReviewController`: builds its actions and menus."""
 
     def _build_actions(self) -> None:

@@ -9,12 +9,13 @@ from PySide6.QtWidgets import QDialog
 
 from handmocap.app.gui.document import TakeDocument
 from handmocap.app.gui.review.dialogs import AutoLabelDialog, AutoLabelSettings
-from handmocap.core.workflows import auto_label
+from handmocap.app.gui.review.part import ReviewPart
+from handmocap.core.workflows import AutoLabelOutcome, auto_label
 
 _log = logging.getLogger(__name__)
 
 
-class AutoLabelling:
+class AutoLabelling(ReviewPart):
     """Part of :class:`~app.gui.review.controller.ReviewController`: auto-label."""
 
     def choose_auto_label(self) -> None:
@@ -42,7 +43,7 @@ class AutoLabelling:
 
         self._start_job("auto-label", task, document=document)
 
-    def _apply_auto_label(self, document: TakeDocument, result) -> None:
+    def _apply_auto_label(self, document: TakeDocument, result: AutoLabelOutcome) -> None:
         """Keep auto-label's subject calibrations on ``document`` and push its labelling (one undoable step)."""
         document.hand_models.update(result.models)
         document.marker_sets.update(result.marker_sets)
@@ -53,15 +54,16 @@ class AutoLabelling:
             self._rejected = set()
             self.app.clear_selection()
         document.push(result.command)
+        review = document.ensure_review()      # the review the labelling was pushed on
         report, known = result.report, result.report["file_labels"]
         kept = (f"; kept from the file: {len(known['kept_labels'])} labels outside the layout, its hand "
                 f"labels ({known['disagreed_samples']} samples differed from auto-label)"
                 if known["kept_labels"] or known["file_label_samples"] else "")
         self.status_message.emit(
-            document.review.health_summary() or
+            review.health_summary() or
             f"Auto-labelled {report['frames']} frames: {100 * report['labelled_share']:.1f} % of label "
             f"samples found, {report['ghost_points']} ghost points left unlabelled{kept}",
             0 if report["health"] else 10000)
-        for warning in document.review.health:      # into the message panel, not only the status bar
+        for warning in review.health:      # into the message panel, not only the status bar
             _log.warning("%s: auto-label: %s", document.title, warning.message)
         self.auto_label_applied.emit(document, result.models, result.marker_sets)

@@ -33,6 +33,7 @@ from handmocap.app.gui.review.resolve import Resolves
 from handmocap.app.gui.review.selection import ReviewSelection
 from handmocap.app.gui.review.take_events import TakeEvents
 from handmocap.app.gui.review.views import ReviewViews
+from handmocap.core.review import ReviewTake
 from handmocap.widgets.timeline import TimelineWidget
 from handmocap.widgets.viewport import HandViewport
 
@@ -69,7 +70,7 @@ class ReviewController(QObject, ReviewViews, FrameDrawing, ReviewActions, Review
         return self.app.document
 
     @property
-    def review(self):
+    def review(self) -> ReviewTake | None:
         return None if self.document is None else self.document.review
 
     @property

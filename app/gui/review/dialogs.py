@@ -47,7 +47,9 @@ class EventDialog(QDialog):
         self.name_box.setEditable(True)
         self.name_box.addItems(list(dict.fromkeys([*names, *EVENT_NAMES])))
         self.name_box.setCurrentText(names[0] if names else EVENT_NAMES[0])
-        self.name_box.lineEdit().selectAll()
+        line_edit = self.name_box.lineEdit()    # an editable box has one
+        if line_edit is not None:
+            line_edit.selectAll()
         self.context_box = QComboBox(self)
         self.context_box.addItems(list(CONTEXTS))
         self.context_box.setToolTip("Which side the event is about (the C3D EVENT group's context)")

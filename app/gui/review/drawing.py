@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from handmocap.app.gui.review.colours import label_colours, point_colours
+from handmocap.app.gui.review.part import ReviewPart
 from handmocap.core.model import marker_positions, skin_vertices
 
 FILL_COLOUR = (0.45, 0.95, 0.55)
@@ -13,7 +14,7 @@ TRAIL_FRAMES = 60                  # frames of trail on each side of the current
 
 
 
-class FrameDrawing:
+class FrameDrawing(ReviewPart):
     """Part of :class:`~app.gui.review.controller.ReviewController`: draws a frame of the review."""
 
     def draw_frame(self, frame: int) -> None:
@@ -21,7 +22,7 @@ class FrameDrawing:
         label it holds (grey when unlabelled, dark red for ghosts), accepted fills as green dots, the solved
         hands with their effectors and residual lines, and the trail of the selected label."""
         document, review = self.document, self.review
-        if document is None or not (document.has_labels() or document.is_raw):
+        if document is None or review is None or not (document.has_labels() or document.is_raw):
             return
         viewport = self.viewport
         labels = review.assignment[frame]
@@ -61,7 +62,7 @@ class FrameDrawing:
 
     def _draw_trail(self, frame: int) -> None:
         review, label = self.review, self.selection.label
-        if label < 0 or label >= review.n_labels:
+        if review is None or label < 0 or label >= review.n_labels:
             self.viewport.set_trails([])
             return
         first, last = max(0, frame - TRAIL_FRAMES), min(review.n_frames, frame + TRAIL_FRAMES + 1)
@@ -70,6 +71,8 @@ class FrameDrawing:
 
     def _set_hand_meshes(self) -> None:
         document = self.document
+        if document is None or document.review is None:
+            return
         meshes = []
         for hand in document.review.hands:
             model = document.model_for(hand.side)

@@ -8,12 +8,13 @@ import numpy as np
 from PySide6.QtGui import QCursor
 
 from handmocap.app.gui.document import TakeDocument
+from handmocap.app.gui.review.part import ReviewPart
 from handmocap.core.errors import HandMocapError
 from handmocap.core.review import AssignLabel, Command, FrameSpan, MarkGhost, SwapLabels, Unlabel
 from handmocap.widgets.label_picker import LabelPicker
 
 
-class LabelEdits:
+class LabelEdits(ReviewPart):
     """Part of :class:`~app.gui.review.controller.ReviewController`: edits on the undo stack."""
 
     def _scope(self) -> tuple[str, int | None, int | None]:
@@ -27,9 +28,11 @@ class LabelEdits:
 
     def _selected_point(self) -> tuple[int, int]:
         frame, label, column = self.app.frame, self.selection.label, self.selection.column
+        review = self.review
+        assert review is not None, "no take is shown"    # an edit's make(): run_edit checked
         if column < 0 and label >= 0:
-            column = int(self.review.assignment[frame, label])
-        if column < 0 or not np.isfinite(self.review.take.marker_positions[frame, column]).all():
+            column = int(review.assignment[frame, label])
+        if column < 0 or not np.isfinite(review.take.marker_positions[frame, column]).all():
             raise HandMocapError("select a point in the 3D view (or a label that has a point in this frame) first")
         return frame, column
 
@@ -61,8 +64,9 @@ class LabelEdits:
     def assign_label(self, new_label: str) -> FrameSpan | None:
         """Give ``new_label`` to the selected point over the chosen scope."""
         span = self._point_edit(AssignLabel, new_label)
-        if span is not None:
-            self.select_label(self.review.label_index(new_label))
+        review = self.review
+        if span is not None and review is not None:
+            self.select_label(review.label_index(new_label))
         return span
 
     def unlabel(self) -> FrameSpan | None:
@@ -76,15 +80,16 @@ class LabelEdits:
     def swap_labels(self, other: str) -> FrameSpan | None:
         """Swap the selected label with ``other`` over the marked range (or from here to the end)."""
         def make() -> Command:
-            selection = self.selection
+            selection, review = self.selection, self.review
+            assert review is not None, "no take is shown"    # run_edit checked
             if selection.label < 0:
                 raise HandMocapError("select the label to swap first (click its point, lane or row)")
             if selection.range_in is not None and selection.range_out is not None:
                 start, stop = sorted((selection.range_in, selection.range_out))
                 stop += 1
             else:
-                start, stop = self.app.frame, self.review.n_frames
-            return SwapLabels(self.review.label_names[selection.label], other, start, stop)
+                start, stop = self.app.frame, review.n_frames
+            return SwapLabels(review.label_names[selection.label], other, start, stop)
         return self.run_edit(make)
 
     def _label_menu(self, title: str, slot: Callable[[str], object], exclude: int = -1) -> None:

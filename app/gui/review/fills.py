@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import cast
 
 import numpy as np
+from PySide6.QtCore import QObject
 
 from handmocap.app.gui.document import TakeDocument
+from handmocap.app.gui.review.part import ReviewPart
 from handmocap.app.gui.workers import TaskRunner
 from handmocap.core.errors import HandMocapError
 from handmocap.core.gaps import FillCheck, fill_method_names
-from handmocap.core.review import AcceptFills, Command, FrameSpan, GapFill, RejectFills
+from handmocap.core.review import AcceptFills, Command, FrameSpan, GapFill, RejectFills, ReviewTake
 from handmocap.core.workflows import (
     GapGroup,
     ReviewGap,
@@ -24,7 +27,7 @@ from handmocap.core.workflows import (
 from handmocap.widgets.gap_list import GapRow
 
 
-class GapFills:
+class GapFills(ReviewPart):
     """Part of :class:`~app.gui.review.controller.ReviewController`: the gaps of the shown take."""
 
     def _init_fills(self) -> None:
@@ -35,13 +38,16 @@ class GapFills:
         self._rejected: set[tuple[int, int]] = set()
         self._previews: dict[tuple[int, int, str, int], np.ndarray] = {}
         self._check_key: tuple | None = None
-        self.checks = TaskRunner(self)
+        self.checks = TaskRunner(cast(QObject, self))     # the controller: a QObject
         self.checks.succeeded.connect(self._check_done)
         self.checks.failed.connect(self._check_failed)
 
     def _refresh_gaps(self) -> None:
         document, review = self.document, self.review
-        self._groups = gap_groups(review, document.hand_models, self._marker_sets()) if review.n_labels else []
+        if document is None or review is None:
+            return
+        self._groups = (gap_groups(review, document.hand_models, self._marker_sets(document, review))
+                        if review.n_labels else [])
         self._gaps = find_review_gaps(review, self._groups) if self._groups else []
         old = {(row.marker, row.start, row.length): row for row in self._rows}
         rows = []
@@ -63,12 +69,11 @@ class GapFills:
         else:
             self.preview.clear()
 
-    def _marker_sets(self) -> dict:
+    def _marker_sets(self, document: TakeDocument, review: ReviewTake) -> dict:
         """The marker set of each hand side of the shown take: the subject's calibrated one, else its layout
         resolved on the hand model once (the document keeps it) rather than at every refresh of the gaps."""
-        document = self.document
         sets = dict(document.marker_sets)
-        for hand in document.review.hands:
+        for hand in review.hands:
             if hand.side not in sets and hand.layout:
                 resolved = document.marker_set_for(hand.side, hand.layout)
                 if resolved is not None:
@@ -87,8 +92,11 @@ class GapFills:
             self._start_check(index)
 
     def _start_check(self, index: int) -> None:
+        review = self.review
+        if review is None:
+            return
         gap, group = self._gaps[index], self._groups[self._gaps[index].group]
-        key = (id(self.document), self.review.version, index)
+        key = (id(self.document), review.version, index)
         self._check_key = key
 
         def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> tuple:
@@ -106,11 +114,13 @@ class GapFills:
         self.checks.start(task)
 
     def _check_done(self, _request: int, outcome: tuple) -> None:
+        key: tuple[int, int, int]
+        check: FillCheck
+        previews: dict[str, np.ndarray]
         key, check, previews = outcome
         if key != self._check_key or self.review is None or key[1] != self.review.version:
             return
         index = key[2]
-        check: FillCheck
         row = self._rows[index]
         ranking = check.ranking()
         row.errors_mm, row.reasons = dict(check.errors_mm), dict(check.reasons)
@@ -133,6 +143,8 @@ class GapFills:
 
     def _show_preview(self, index: int) -> None:
         gap, review = self._gaps[index], self.review
+        if review is None:
+            return
         candidates = {method: values for (label, start, method, _donor), values in self._previews.items()
                       if label == gap.label and start == gap.start}
         trajectory = review.measured_positions()[:, gap.label]

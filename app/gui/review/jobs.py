@@ -3,17 +3,23 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import cast
+
+from PySide6.QtCore import QObject
 
 from handmocap.app.gui.application import Job
 from handmocap.app.gui.document import TakeDocument
+from handmocap.app.gui.review.part import ReviewPart
 from handmocap.app.gui.workers import TaskRunner
 from handmocap.core.errors import HandMocapError
+from handmocap.core.review import Command
+from handmocap.core.workflows import AutoLabelOutcome
 
 JOB_NAME = "review"                # the worker of auto-label, re-solves and fills in Application.jobs
 
 
 
-class ReviewJobs:
+class ReviewJobs(ReviewPart):
     """Part of :class:`~app.gui.review.controller.ReviewController`: runs its jobs."""
 
     def _init_jobs(self) -> None:
@@ -21,7 +27,7 @@ class ReviewJobs:
         self._job_document: TakeDocument | None = None
         self._job_kind = ""
         self._job_version = -1
-        self.jobs = TaskRunner(self)
+        self.jobs = TaskRunner(cast(QObject, self))     # the controller: a QObject
         self.jobs.progressed.connect(lambda _request, fraction: self.progressed.emit(fraction))
         self.jobs.succeeded.connect(self._job_succeeded)
         self.jobs.failed.connect(self._job_failed)
@@ -29,10 +35,13 @@ class ReviewJobs:
         self.jobs.busy_changed.connect(self._jobs_busy_changed)
 
     def _start_job(self, kind: str, task: Callable, document: TakeDocument | None = None) -> None:
-        self._job_document, self._job_kind = document or self.document, kind
-        self._job_version = self._job_document.review.version
+        job_document = document or self.document
+        if job_document is None or job_document.review is None:
+            return
+        self._job_document, self._job_kind = job_document, kind
+        self._job_version = job_document.review.version
         self.jobs.start(task)
-        self.app.job_started(JOB_NAME, Job(kind, self._job_document, self.jobs.cancel))
+        self.app.job_started(JOB_NAME, Job(kind, job_document, self.jobs.cancel))
         self.progress_started.emit(f"{kind.capitalize()}… %p %")
 
     def _jobs_busy_changed(self, busy: bool) -> None:
@@ -52,11 +61,12 @@ class ReviewJobs:
             return
         try:
             if kind == "auto-label":
-                self._apply_auto_label(document, result)
+                self._apply_auto_label(document, cast(AutoLabelOutcome, result))
             elif kind == "fill" and result is not None:
-                self._apply_fill(document, result)
+                self._apply_fill(document, cast(Command, result))
             elif kind == "re-solve" and document.review.version == self._job_version:
-                self._apply_resolve(document, result)   # else the review changed meanwhile: re-solved again
+                # (else the review changed meanwhile: re-solved again)
+                self._apply_resolve(document, cast(list[Command], result))
         except HandMocapError as error:
             self.error_raised.emit(f"Cannot apply the {kind}", str(error))
         self._job_finished()

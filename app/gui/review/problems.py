@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+from handmocap.app.gui.review.part import ReviewPart
 from handmocap.core.review import PROBLEM_KINDS
 
 
-class ReviewProblems:
+class ReviewProblems(ReviewPart):
     """Part of :class:`~app.gui.review.controller.ReviewController`: the problem count and next problem."""
 
     def _refresh_problem_count(self) -> None:

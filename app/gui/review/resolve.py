@@ -4,11 +4,12 @@
 from __future__ import annotations
 
 from handmocap.app.gui.document import TakeDocument
+from handmocap.app.gui.review.part import ReviewPart
 from handmocap.core.review import Command, FrameSpan
 from handmocap.core.workflows import resolve_jobs, run_resolve_jobs
 
 
-class Resolves:
+class Resolves(ReviewPart):
     """Part of :class:`~app.gui.review.controller.ReviewController`: re-solves after edits."""
 
     def _init_resolves(self) -> None:
@@ -39,7 +40,7 @@ class Resolves:
     def _start_resolve(self) -> None:
         """Re-solve the frames of the edits waiting for it, unless a review job is running."""
         review, document = self.review, self.document
-        if review is None or self.jobs.is_busy():
+        if review is None or document is None or self.jobs.is_busy():
             return
         covers = self._waiting_edits()
         span = FrameSpan(0, 0)

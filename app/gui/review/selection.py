@@ -7,11 +7,13 @@ from pathlib import Path
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QApplication, QInputDialog
 
+from handmocap.app.gui.document import TakeDocument
+from handmocap.app.gui.review.part import ReviewPart
 from handmocap.core.errors import HandMocapError
 from handmocap.core.model.objects import load_scene_spec, rigid_body_from_points, save_scene_spec
 
 
-class ReviewSelection:
+class ReviewSelection(ReviewPart):
     """Part of :class:`~app.gui.review.controller.ReviewController`: selecting, and rigid bodies from picked points."""
 
     def select_label(self, label: int) -> None:
@@ -47,14 +49,16 @@ class ReviewSelection:
     def define_rigid_body(self, name: str) -> Path | None:
         """Make a rigid body named ``name`` from the selected points in the current frame and add it to the
         scene spec auto-label uses (in the session folder, or next to the take file). Returns the spec."""
-        review, points = self.review, self.selection.rigid_points
+        document, review, points = self.document, self.review, self.selection.rigid_points
+        if document is None or review is None:
+            return None
         frame = self.app.frame
         try:
             if len(points) < 3:
                 raise HandMocapError("Ctrl+click at least 3 points of the object in the 3D view first")
             markers = [f"{name}{number + 1}" for number in range(len(points))]
             spec = rigid_body_from_points(name, markers, review.take.marker_positions[frame, points])
-            path = Path(self.auto_settings.objects) if self.auto_settings.objects else self._default_spec_path()
+            path = Path(self.auto_settings.objects) if self.auto_settings.objects else self._default_spec_path(document)
             objects = [item for item in (load_scene_spec(path) if path.exists() else []) if item.name != name]
             path.parent.mkdir(parents=True, exist_ok=True)
             save_scene_spec([*objects, spec], path)
@@ -67,8 +71,7 @@ class ReviewSelection:
                                  f"{path.name}; the next auto-label tracks it", 8000)
         return path
 
-    def _default_spec_path(self) -> Path:
-        document = self.document
+    def _default_spec_path(self, document: TakeDocument) -> Path:
         if document.open_take is not None:
             return document.open_take.folder / "scene_objects.json"
         source = document.take.source_path

@@ -5,11 +5,12 @@ from __future__ import annotations
 from PySide6.QtWidgets import QDialog
 
 from handmocap.app.gui.review.dialogs import EventDialog
+from handmocap.app.gui.review.part import ReviewPart
 from handmocap.core.errors import HandMocapError
 from handmocap.core.review import AddEvent, Command, FrameSpan, RemoveEvent, TrimTake
 
 
-class TakeEvents:
+class TakeEvents(ReviewPart):
     """Part of :class:`~app.gui.review.controller.ReviewController`: events and trim."""
 
     def _show_timeline_marks(self) -> None:

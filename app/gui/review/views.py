@@ -3,13 +3,16 @@ application's events: another take shown, a change of its review, another select
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
-from PySide6.QtCore import Qt, QTimer
+from PySide6.QtCore import QObject, Qt, QTimer
 from PySide6.QtWidgets import QScrollArea, QSplitter
 
 from handmocap.app.gui.application import CurrentDocumentChanged, DocumentClosing, JobsChanged, SelectionChanged
 from handmocap.app.gui.document import TakeDocument
 from handmocap.app.gui.review.colours import label_colours
+from handmocap.app.gui.review.part import ReviewPart
 from handmocap.core.review.events import Change, ReviewChanged
 from handmocap.widgets.fill_preview import FillPreview
 from handmocap.widgets.gap_list import GapList
@@ -17,11 +20,12 @@ from handmocap.widgets.marker_lanes import MarkerLanes, lanes_from_review
 from handmocap.widgets.review_table import ReviewTable
 
 
-class ReviewViews:
+class ReviewViews(ReviewPart):
     """Part of :class:`~app.gui.review.controller.ReviewController`: builds the views and keeps them up to date."""
 
     def _build_views(self) -> None:
-        self._views_timer = QTimer(self)     # the whole-take views after a change, once the change is drawn
+        owner = cast(QObject, self)          # the controller: a QObject
+        self._views_timer = QTimer(owner)    # the whole-take views after a change, once the change is drawn
         self._views_timer.setSingleShot(True)
         self._views_timer.setInterval(0)
         self._views_timer.timeout.connect(self._refresh_views)
@@ -82,7 +86,7 @@ class ReviewViews:
         if document is not None:
             self._refresh(structure=True)
             self._show_timeline_marks()
-            if document.review.health:
+            if document.review is not None and document.review.health:
                 self.status_message.emit(document.review.health_summary(), 0)
             return
         self.stop()
@@ -107,7 +111,8 @@ class ReviewViews:
             self._views_timer.stop()
             self._refresh_views(structure=True)
             return
-        if self.document.has_solved_hands() and self.viewport.hand_count() != len(review.hands):
+        document = self.document
+        if document is not None and document.has_solved_hands() and self.viewport.hand_count() != len(review.hands):
             self._set_hand_meshes()     # the first solve of a hand: the view showed another surface
         self.update_enabled()
         self._views_timer.start()

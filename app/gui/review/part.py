@@ -1,0 +1,153 @@
+"""What every part of the review controller shares: :class:`ReviewPart`, the base of the parts of
+:class:`~app.gui.review.controller.ReviewController`, declares for the type checker the controller's state and
+the methods one part calls on another. It holds no code: the controller and the parts define all of it."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import numpy as np
+from PySide6.QtCore import QTimer, SignalInstance
+from PySide6.QtGui import QAction
+from PySide6.QtWidgets import QComboBox, QLabel, QMenu, QWidget
+
+from handmocap.app.gui.application import Application, Selection
+from handmocap.app.gui.document import TakeDocument
+from handmocap.app.gui.review.dialogs import AutoLabelSettings
+from handmocap.app.gui.workers import TaskRunner
+from handmocap.core.review import Command, FrameSpan, ReviewTake
+from handmocap.core.workflows import AutoLabelOutcome
+from handmocap.widgets.fill_preview import FillPreview
+from handmocap.widgets.gap_list import GapList
+from handmocap.widgets.marker_lanes import MarkerLanes
+from handmocap.widgets.review_table import ReviewTable
+from handmocap.widgets.timeline import TimelineWidget
+from handmocap.widgets.viewport import HandViewport
+
+
+class ReviewPart:
+    """The base of each part of the review controller: annotations only (see the module docstring)."""
+
+    # the controller's (controller.py)
+    app: Application
+    host: QWidget
+    viewport: HandViewport
+    timeline: TimelineWidget
+    auto_settings: AutoLabelSettings
+    status_message: SignalInstance
+    error_raised: SignalInstance
+    progress_started: SignalInstance
+    progressed: SignalInstance
+    progress_ended: SignalInstance
+    auto_label_applied: SignalInstance
+    exported: SignalInstance
+
+    # the views (views.py) and actions (actions.py)
+    table: ReviewTable
+    lanes: MarkerLanes
+    gap_list: GapList
+    preview: FillPreview
+    _views_timer: QTimer
+    events_menu: QMenu
+    scope_box: QComboBox
+    range_label: QLabel
+    problem_label: QLabel
+    auto_label_action: QAction
+    undo_action: QAction
+    redo_action: QAction
+    assign_action: QAction
+    swap_action: QAction
+    ghost_action: QAction
+    unlabel_action: QAction
+    next_problem_action: QAction
+    previous_problem_action: QAction
+    rigid_body_action: QAction
+    fill_all_action: QAction
+    add_event_action: QAction
+    remove_event_action: QAction
+    next_event_action: QAction
+    previous_event_action: QAction
+    trim_action: QAction
+    untrim_action: QAction
+    cancel_job_action: QAction
+    export_c3d_action: QAction
+    export_csv_action: QAction
+    export_bvh_action: QAction
+
+    # the review's jobs (jobs.py), re-solves (resolve.py) and gap fills (fills.py)
+    jobs: TaskRunner
+    checks: TaskRunner
+    _job_document: TakeDocument | None
+    _job_kind: str
+    _job_version: int
+    _unsolved: dict[int, tuple[Command, FrameSpan]]
+    _carried: dict[int, list[tuple[Command, FrameSpan]]]
+    _rejected: set[tuple[int, int]]
+    _previews: dict[tuple[int, int, str, int], np.ndarray]
+
+    if TYPE_CHECKING:
+        # the controller's
+        @property
+        def document(self) -> TakeDocument | None: ...
+        @property
+        def review(self) -> ReviewTake | None: ...
+        @property
+        def selection(self) -> Selection: ...
+
+        # views.py, drawing.py
+        def update_enabled(self) -> None: ...
+        def flush_views(self) -> None: ...
+        def draw_frame(self, frame: int) -> None: ...
+        def _set_hand_meshes(self) -> None: ...
+
+        # selection.py
+        def select_label(self, label: int) -> None: ...
+        def _stretch_clicked(self, marker: int, first: int, last: int) -> None: ...
+        def set_range_in(self) -> None: ...
+        def set_range_out(self) -> None: ...
+        def clear_range(self) -> None: ...
+        def choose_rigid_body_name(self) -> None: ...
+
+        # edits.py
+        def run_edit(self, make: Callable[[], Command]) -> FrameSpan | None: ...
+        def undo(self) -> None: ...
+        def redo(self) -> None: ...
+        def choose_label_to_assign(self) -> None: ...
+        def choose_label_to_swap(self) -> None: ...
+        def mark_ghost(self) -> FrameSpan | None: ...
+        def unlabel(self) -> FrameSpan | None: ...
+
+        # take_events.py, problems.py
+        def _show_timeline_marks(self) -> None: ...
+        def choose_event_to_add(self) -> None: ...
+        def remove_event_here(self) -> FrameSpan | None: ...
+        def go_to_event(self, forward: bool = True) -> None: ...
+        def trim_to_range(self) -> FrameSpan | None: ...
+        def keep_whole_take(self) -> FrameSpan | None: ...
+        def _refresh_problem_count(self) -> None: ...
+        def go_to_problem(self, forward: bool = True) -> None: ...
+
+        # fills.py
+        def _refresh_gaps(self) -> None: ...
+        def _gap_selected(self, index: int) -> None: ...
+        def _preview_requested(self, index: int, method: str, donor: int) -> None: ...
+        def accept_fill(self, index: int, method: str, donor: int = -1) -> FrameSpan | None: ...
+        def reject_gap(self, index: int) -> None: ...
+        def fill_all(self, max_length: int) -> None: ...
+        def _apply_fill(self, document: TakeDocument, result: Command) -> None: ...
+
+        # auto_label.py, exports.py
+        def choose_auto_label(self) -> None: ...
+        def _apply_auto_label(self, document: TakeDocument, result: AutoLabelOutcome) -> None: ...
+        def choose_export_c3d(self) -> None: ...
+        def choose_export_csv(self) -> None: ...
+        def choose_export_bvh(self) -> None: ...
+
+        # jobs.py, resolve.py
+        def _start_job(self, kind: str, task: Callable, document: TakeDocument | None = None) -> None: ...
+        def stop(self) -> None: ...
+        def _needs_resolve(self, document: TakeDocument, span: FrameSpan) -> None: ...
+        def _start_resolve(self) -> None: ...
+        def _apply_resolve(self, document: TakeDocument, result: list[Command]) -> None: ...
+        def _step_moved(self, step: Command, undone: bool) -> None: ...
