@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs everything (system packages, .venv with the test tools), then runs the checks and tests:
-# ruff, the import contracts (core has no GUI dependencies), mypy on core, and pytest (GUI tests offscreen/Xvfb).
+# ruff, the import contracts (core has no GUI dependencies), mypy on core and widgets, and pytest (GUI tests
+# offscreen/Xvfb).
 # Usage: bash installer/test.sh [pytest arguments]
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
