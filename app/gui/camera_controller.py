@@ -216,7 +216,7 @@ class CameraController(QObject):
         self._close_sources()
         session, take_id = self.session_take()
         self.cameras = []
-        if session is not None:
+        if session is not None and take_id is not None:
             try:
                 self.cameras = take_cameras(session, take_id)
             except HandMocapError as error:
@@ -295,8 +295,9 @@ class CameraController(QObject):
 
     def camera_frame_at(self, frame: int) -> int:
         """The shown camera's frame index at mocap ``frame`` (0-based) of the shown take."""
-        source, camera = self.source(), self.camera.camera
-        return source.index_at(float(camera.clock.camera_time(frame / self.document.take.frame_rate)))
+        source, taken, document = self.source(), self.camera, self.document
+        assert source is not None and taken is not None and document is not None, "no camera frames are shown"
+        return source.index_at(float(taken.camera.clock.camera_time(frame / document.take.frame_rate)))
 
     def draw_now(self) -> None:
         """Show the camera frame at the current mocap frame with its overlay (nothing when unchanged)."""
@@ -346,9 +347,10 @@ class CameraController(QObject):
     def point_colours(self, frame: int) -> np.ndarray:
         """``(P,3)`` colours of the take's raw points at ``frame``, as the 3D view draws them."""
         document = self.document
+        assert document is not None, "no take is shown"     # (draw_now checked)
         review = document.review
         if review is None or not (document.has_labels() or document.is_raw):
-            return np.tile(RAW_COLOUR, (document.take.n_markers, 1))
+            return np.tile(np.array(RAW_COLOUR), (document.take.n_markers, 1))
         return point_colours(review, frame)
 
     def point_clicked(self, column: int) -> None:
@@ -377,7 +379,7 @@ class CameraController(QObject):
     def set_camera(self, camera: Camera) -> None:
         """Replace the shown camera (same name) by ``camera``, saved in the session, and show it."""
         session, take_id = self.session_take()
-        if session is None or self.camera is None:
+        if session is None or take_id is None or self.camera is None:
             raise InputError("the shown take is not kept in a session; its camera cannot be saved")
         camera = replace(camera, name=self.camera.name)
         save_take_camera(session, take_id, camera)
@@ -407,7 +409,7 @@ class CameraController(QObject):
         from ``camera_file``; the frames are opened first to check they decode at the camera's size."""
         session, take_id = self.session_take()
         try:
-            if session is None:
+            if session is None or take_id is None:
                 raise InputError("open a take first (cameras are kept with a take in its session)")
             if not camera_file:
                 raise InputError("choose the camera file (JSON, or OpenCV YAML/XML)")
@@ -423,7 +425,9 @@ class CameraController(QObject):
             self.error_raised.emit("Cannot add the camera", str(error))
             return False
         self.load_cameras(select=stored.name)
-        self.status_message.emit(f"camera '{stored.name}' added to {self.document.title}", 8000)
+        document = self.document
+        title = document.title if document is not None else "the take"     # (a session take is shown)
+        self.status_message.emit(f"camera '{stored.name}' added to {title}", 8000)
         return True
 
     # ------------------------------------------------------------------------------------ wizard

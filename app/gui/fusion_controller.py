@@ -167,14 +167,19 @@ class FusionController(QObject):
             self.error_raised.emit("Cannot fuse with RGB-D", reason)
             return
         document, taken = self.document, self.cameras.camera
+        review = None if document is None else document.review
+        if (document is None or review is None or not document.layout_name or taken is None
+                or taken.depth is None or taken.depth_unit_mm is None):
+            return      # (unavailable() said so)
+        depth_path, depth_unit_mm = taken.depth, taken.depth_unit_mm
         side, layout_name, settings = document.side, document.layout_name, self.settings
         if side not in ("right", "left"):  # "both": the fusion fits one hand, the first of the take
-            side = document.review.hands[0].side if document.review.hands else "right"
-        take = document.review.labelled_take()
+            side = review.hands[0].side if review.hands else "right"
+        take = review.labelled_take()
         model = document.model_for(side)
 
         def task(progress: Callable[[float], None], cancelled: Callable[[], bool]) -> tuple[FusionResult, np.ndarray]:
-            depth = open_frames(taken.depth, depth_unit_mm=taken.depth_unit_mm)
+            depth = open_frames(depth_path, depth_unit_mm=depth_unit_mm)
             colour = open_frames(taken.media) if taken.media is not None else None
             try:
                 if depth.size != taken.camera.size:
@@ -191,7 +196,7 @@ class FusionController(QObject):
                     colour.close()
             return result, fused_residuals(model, layout_name, take, result.joint_angles)
 
-        self._running = (document, document.review.version, side, layout_name)
+        self._running = (document, review.version, side, layout_name)
         self.runner.start(task)
         self.app.job_started(JOB_NAME, Job("fusion", document, self.runner.cancel))
         self.progress_started.emit("Fusing with RGB-D… %p %")
@@ -208,6 +213,8 @@ class FusionController(QObject):
 
     def _succeeded(self, _request: int, outcome: tuple[FusionResult, np.ndarray]) -> None:
         running, self._running = self._running, None
+        if running is None:
+            return
         document, version, side, layout_name = running
         result, residuals = outcome
         if document not in self.app.documents or document.review is None:
@@ -252,8 +259,10 @@ class FusionController(QObject):
     # ----------------------------------------------------------------------------------- showing
     def fused_result(self, document: TakeDocument | None) -> FusionResult | None:
         """The fusion whose step is done (not undone) in ``document``'s review, else None."""
-        command, result = self.results.get(document, (None, None))
-        if command is None or document.stack is None:
+        if document is None or document not in self.results:
+            return None
+        command, result = self.results[document]
+        if document.stack is None:
             return None
         return result if command in document.stack.commands[:document.stack.index] else None
 
@@ -261,7 +270,7 @@ class FusionController(QObject):
         """Show the shown take's fusion energy terms under the video (hidden without a done fusion)."""
         document = self.document
         result = self.fused_result(document)
-        if result is None:
+        if document is None or result is None:
             self.strip.hide()
             return
         self.strip.set_terms(TERMS, result.rgbd_mocap_frames, result.energy_terms, document.take.n_frames)

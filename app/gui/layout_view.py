@@ -15,6 +15,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 from PySide6.QtCore import QObject, Qt, Signal
@@ -42,7 +43,7 @@ from PySide6.QtWidgets import (
 from handmocap.app.gui.palette import visible_check_boxes
 from handmocap.app.gui.workers import TaskRunner
 from handmocap.core.errors import HandMocapError, InputError
-from handmocap.core.layout import PSOSettings, default_subspace_dims, evaluate_layout, motion_set
+from handmocap.core.layout import OptimisationResult, PSOSettings, default_subspace_dims, evaluate_layout, motion_set
 from handmocap.core.layout.placement_sheet import placement_sheet
 from handmocap.core.layout.workflow import GENERIC_MOTIONS, error_against_markers, optimise_layout
 from handmocap.core.model import (
@@ -54,6 +55,7 @@ from handmocap.core.model import (
     resolve_layout,
     save_layout,
 )
+from handmocap.core.session import Session
 from handmocap.widgets.layout_compare import MAX_VIEWS, LayoutCompareView
 from handmocap.widgets.layout_plots import EnergyPlot, ErrorPlot, LayoutMetricsTable
 from handmocap.widgets.placement_sheet import save_placement_sheet
@@ -88,7 +90,7 @@ class LayoutWindow(QMainWindow):
 
     layout_saved = Signal(object)        # MarkerLayout saved into the session or to a file
 
-    def __init__(self, parent: QWidget | None = None, session: object | None = None,
+    def __init__(self, parent: QWidget | None = None, session: Session | None = None,
                  save_to_session: Callable[[MarkerLayout], object] | None = None,
                  model: HandModel | None = None, off_screen: bool | None = None) -> None:
         super().__init__(parent)
@@ -315,9 +317,12 @@ class LayoutWindow(QMainWindow):
 
     def _add_session_layouts(self) -> None:
         """The session's layouts (objects with ``layouts`` entries and ``layout_path(name)``)."""
-        for item in getattr(self.session, "layouts", []) or []:
+        session = self.session
+        if session is None:
+            return
+        for item in getattr(session, "layouts", []) or []:
             try:
-                path = self.session.layout_path(item.name)
+                path = session.layout_path(item.name)
                 if path is not None:
                     self._add_entry(LayoutEntry(load_layout(path), "session"), select=False)
             except (HandMocapError, AttributeError) as error:
@@ -354,18 +359,19 @@ class LayoutWindow(QMainWindow):
     def motion_key(self) -> str:
         return self.motion_combo.currentData()
 
-    def motion_source(self) -> str | list[str]:
+    def motion_source(self) -> str | list[str | Path]:
         """What :func:`motion_set` gets: a set name or the chosen result files (InputError when none)."""
         if self.motion_key() == "results":
             if not self.result_files:
                 raise InputError("the motion set is empty: choose solved-take result files (.npz) first")
-            return list(self.result_files)
+            files: list[str | Path] = list(self.result_files)
+            return files
         return self.motion_key()
 
     def _motion(self) -> np.ndarray:
         """The motion played and evaluated in the comparison (cached per source)."""
         source = self.motion_source()
-        key = "|".join(source) if isinstance(source, list) else source
+        key = "|".join(map(str, source)) if isinstance(source, list) else source
         if key not in self._motion_cache:
             self._motion_cache[key] = (motion_set(source) if isinstance(source, list)
                                        else motion_set(source, n_frames=COMPARE_FRAMES))
@@ -444,7 +450,7 @@ class LayoutWindow(QMainWindow):
             self.energy_label.setToolTip("the optimiser's energy E = 0.1 E_cond + 100 E_dist of the best layout")
 
     def _optimised(self, _request: int, outcome: object) -> None:
-        layout, result = outcome
+        layout, result = cast(tuple[MarkerLayout, OptimisationResult], outcome)   # optimise_layout's
         self._add_entry(LayoutEntry(layout, "optimised", result.energy))
         self.progress.setVisible(False)
         self.status.setText(f"{layout.name}: score {result.energy:.3f} ({result.evaluations} layouts evaluated): "
@@ -521,7 +527,7 @@ class LayoutWindow(QMainWindow):
             self.error_plot.add_row(row)
 
     def _evaluated(self, _request: int, outcome: object) -> None:
-        kind, payload = outcome
+        kind, payload = cast(tuple[str, list], outcome)     # ("metrics", metrics) or ("errors", error rows)
         self.progress.setVisible(False)
         if kind == "metrics":
             self.metrics_table.set_metrics(payload)
@@ -661,7 +667,7 @@ def run_layout_view(screenshot: str | None = None, compare: list[str] | None = N
 
     from handmocap.app.gui.palette import apply_dark_palette
 
-    app = QApplication.instance() or QApplication(sys.argv[:1])
+    app = cast(QApplication, QApplication.instance()) or QApplication(sys.argv[:1])    # (a QApplication if any)
     app.setStyle("Fusion")
     apply_dark_palette(app)
     window = open_layout_view()
@@ -678,7 +684,7 @@ def run_layout_view(screenshot: str | None = None, compare: list[str] | None = N
     return code
 
 
-def open_layout_view(parent: QWidget | None = None, session: object | None = None,
+def open_layout_view(parent: QWidget | None = None, session: Session | None = None,
                      save_to_session: Callable[[MarkerLayout], object] | None = None,
                      off_screen: bool | None = None) -> LayoutWindow:
     """Open the layout tools as a top-level window (shown). ``session``: a :class:`core.session.Session`

@@ -13,9 +13,10 @@ from __future__ import annotations
 
 import html
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (
@@ -120,6 +121,7 @@ def learn_task(sources: list[TakeSource], name: str) -> Task:
             if source.take is not None:
                 takes.append(source.take)
             else:
+                assert source.path is not None, "a take source has a take or a path"
                 try:
                     takes.append(load_take(source.path, frame_rate=source.frame_rate))
                 except FrameRateMissingError:
@@ -288,7 +290,7 @@ class LearnTemplateDialog(QDialog):
         item.setCheckState(Qt.CheckState.Checked if checked else Qt.CheckState.Unchecked)
         self.take_list.addItem(item)
 
-    def add_files(self, paths: list[str | Path]) -> None:
+    def add_files(self, paths: Sequence[str | Path]) -> None:
         """List take files (ticked) to learn from; a file listed already is ticked."""
         for path in map(Path, paths):
             listed = next((item for item in self._items() if item.data(SOURCE_ROLE).path == path), None)
@@ -338,12 +340,13 @@ class LearnTemplateDialog(QDialog):
         if isinstance(result, RateNeeded):
             self._ask_rate(self._learning[result.index])
             return
-        self.learned = result
+        learned = self.learned = cast(LearnedTemplate, result)     # the task's result when no rate was needed
         self._show_result()
-        self._ended(f"Learned '{result.template.name}': check where each marker sits, then save it")
+        self._ended(f"Learned '{learned.template.name}': check where each marker sits, then save it")
 
     def _ask_rate(self, source: TakeSource) -> None:
         """A file stated no frame rate: ask for it and learn again (nothing learned when the operator declines)."""
+        assert source.path is not None, "only a file needs its rate"
         rate = self.rate_prompt.ask(source.path)
         if rate is None:
             self._ended(f"Nothing learned: {source.path.name} needs its frame rate")
@@ -396,9 +399,9 @@ class LearnTemplateDialog(QDialog):
             header.setSectionResizeMode(1, QHeaderView.ResizeMode.ResizeToContents)
             header.setStretchLastSection(True)
             table.verticalHeader().setDefaultSectionSize(table.fontMetrics().height() + 6)
-            column = QVBoxLayout(box)
-            column.setContentsMargins(4, 4, 4, 4)
-            column.addWidget(table)
+            box_layout = QVBoxLayout(box)
+            box_layout.setContentsMargins(4, 4, 4, 4)
+            box_layout.addWidget(table)
             self.hands_row.addWidget(box, 1)
             self.hand_boxes[side], self.hand_tables[side] = box, table
         takes = len(self._learning)
@@ -415,7 +418,11 @@ class LearnTemplateDialog(QDialog):
     def sits_on(self, side: str) -> dict[str, str]:
         """{marker: where it sits} as the ``side`` table shows it."""
         table = self.hand_tables[side]
-        return {table.item(row, 0).text(): table.item(row, 1).text() for row in range(table.rowCount())}
+
+        def text(row: int, column: int) -> str:
+            item = table.item(row, column)      # every cell has one (_show_result)
+            return item.text() if item is not None else ""
+        return {text(row, 0): text(row, 1) for row in range(table.rowCount())}
 
     # ------------------------------------------------------------------------------------- saving
     def save(self, path: str | Path | None = None) -> Path | None:

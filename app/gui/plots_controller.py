@@ -119,13 +119,16 @@ class PlotsController(QObject):
     def _trace(self, label: int) -> Trace:
         """The trace of ``label`` in the shown review, computed again only when the review changed and
         with it the label's samples or swap suspects."""
-        review = self.app.document.review
+        document = self.app.document
+        review = None if document is None else document.review
+        assert review is not None, "no review shown"     # self.labels are labels of the shown review
         cached = self._traces.get(label)
         if cached is not None and cached[0] == review.version:
             return cached[1]
         swaps = [(problem.start, problem.stop) for problem in review.problems(("swap",))
                  if label in (problem.label, problem.other)]
-        colour = tuple(int(round(255 * channel)) for channel in label_colours(review.n_labels)[label])
+        red, green, blue = (int(round(255 * channel)) for channel in label_colours(review.n_labels)[label])
+        colour = (red, green, blue)
         trace = make_trace(review.label_names[label], colour, review.labelled_positions()[:, label],
                            review.provenance[:, label], review.unfilled_gaps()[:, label], swaps,
                            review.take.frame_rate)
