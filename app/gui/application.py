@@ -181,6 +181,7 @@ class Application:
         self.frame = 0
         if document is not None:
             document.ensure_review()
+            assert document.stack is not None, "made with the review"
             document.stack.add_listener(self._announce)
             self.frame = min(max(document.current_frame, 0), max(document.take.n_frames - 1, 0))
         self._announce(CurrentDocumentChanged(document, previous))
@@ -301,6 +302,7 @@ class Application:
     def save_document(self, document: TakeDocument) -> None:
         """Write the snapshot of a take kept in a session (its own, for a file opened outside one) now (a raw
         take with labels becomes "labelled")."""
+        assert document.open_take is not None, "a take kept in a session"
         document.open_take.save()
         if document.session_take_id is not None:
             self._announce(SessionFolderChanged(SessionPart.TAKE_STATE, document.session_take_id))

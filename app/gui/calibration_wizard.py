@@ -11,6 +11,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 from PySide6.QtCore import Qt, QTimer, Signal
@@ -38,9 +39,11 @@ from PySide6.QtWidgets import (
 
 from handmocap.app.gui.actions import make_action
 from handmocap.app.gui.workers import TaskRunner
+from handmocap.core.calibration.align import Alignment
 from handmocap.core.calibration.cleaning import clean_scan, skin_mask
 from handmocap.core.calibration.landmarks import MIN_LANDMARKS, load_landmarks, save_landmarks
 from handmocap.core.calibration.pipeline import (
+    CalibrationInput,
     CalibrationResult,
     finish_calibration,
     load_template_file,
@@ -93,8 +96,8 @@ class CalibrationState:
         self.landmarks: dict[str, np.ndarray | None] = dict.fromkeys(LANDMARK_NAMES)
         self.skipped: set[str] = set()
         self.undo: list[tuple[str, np.ndarray | None, bool]] = []
-        self.data = None
-        self.alignment = None
+        self.data: CalibrationInput | None = None
+        self.alignment: Alignment | None = None
         self.fitted: np.ndarray | None = None
         self.result: CalibrationResult | None = None
 
@@ -176,7 +179,7 @@ class ScanPage(QWizardPage):
         return True
 
     def nextId(self) -> int:
-        wizard = self.wizard()
+        wizard = cast(CalibrationWizard, self.wizard())     # the calibration wizard's page
         if self.state.raw_scan is not None and self.state.raw_scan.colors is None:
             return wizard.page_ids["landmarks"]
         return wizard.page_ids["clean"]
@@ -213,6 +216,7 @@ class CleanPage(QWizardPage):
 
     def initializePage(self) -> None:
         scan = self.state.raw_scan
+        assert scan is not None and scan.colors is not None, "a colour scan was read (the scan page's next)"
         step = max(1, len(scan) // 150_000)
         self._display = np.arange(0, len(scan), step)
         self.scene.set_points(scan.points[self._display], scan.colors[self._display])
@@ -235,6 +239,7 @@ class CleanPage(QWizardPage):
     def validatePage(self) -> bool:
         self.error.clear()
         self.state.strictness = self.slider.value() / 100.0
+        assert self.state.raw_scan is not None, "read on the scan page"
         try:
             self.state.scan, report = clean_scan(self.state.raw_scan, strictness=self.state.strictness)
         except HandMocapError as error:
@@ -298,10 +303,10 @@ class LandmarksPage(QWizardPage):
             self.list.addItem(QListWidgetItem(name))
 
     def initializePage(self) -> None:
-        template = self.state.template
+        template, scan = self.state.template, self.state.scan
+        assert template is not None and scan is not None, "read on the scan page"
         self.template_scene.set_surface(template.vertices, template.faces)
         self.template_scene.frame(template.vertices)
-        scan = self.state.scan
         step = max(1, len(scan) // 150_000)
         self._display = np.arange(0, len(scan), step)
         self.scan_scene.set_points(scan.points[self._display],
@@ -327,8 +332,9 @@ class LandmarksPage(QWizardPage):
 
     def pick_point(self, index: int) -> None:
         """Place the current landmark at shown scan point ``index`` (what a click does)."""
-        if 0 <= index < len(self._display):
-            self.assign(self.current_name(), self.state.scan.points[self._display[index]])
+        scan = self.state.scan
+        if scan is not None and 0 <= index < len(self._display):     # (the shown points are the scan's)
+            self.assign(self.current_name(), scan.points[self._display[index]])
 
     def _picked(self, index: int) -> None:
         if index >= 0:
@@ -460,6 +466,7 @@ class _RunPage(QWizardPage):
 
     def initializePage(self) -> None:
         scan = self.state.scan
+        assert scan is not None, "read on the scan page"
         step = max(1, len(scan) // 100_000)
         self.scene.set_points(scan.points[::step], None if scan.colors is None else scan.colors[::step])
         self.scene.frame(scan.points[::step])
@@ -478,8 +485,10 @@ class _RunPage(QWizardPage):
     def _show_live(self) -> None:
         vertices = self.live.take()
         if vertices is not None:
+            template = self.state.template
+            assert template is not None, "read on the scan page"
             if len(self.scene.surface_points()) != len(vertices):
-                self.scene.set_surface(vertices, self.state.template.faces, opacity=0.8, colour=TEMPLATE_COLOUR)
+                self.scene.set_surface(vertices, template.faces, opacity=0.8, colour=TEMPLATE_COLOUR)
             else:
                 self.scene.update_surface(vertices)
             self.scene.render_now()
@@ -529,6 +538,7 @@ class AlignPage(_RunPage):
 
     def align(self, progress, cancelled):
         state = self.state
+        assert state.scan is not None, "read on the scan page"
         data = prepare_calibration(state.scan, dict(state.landmarks), state.template, clean=False)
         data.notes[:0] = state.notes
         data.scan_name = state.scan_path.stem if state.scan_path else "scan"
@@ -536,14 +546,16 @@ class AlignPage(_RunPage):
         return data, alignment
 
     def keep(self, result) -> None:
-        self.state.data, self.state.alignment = result
+        data, alignment = result
+        self.state.data, self.state.alignment = data, alignment
         self.state.fitted = self.state.result = None
-        self.live.put(self.state.alignment.vertices)
+        self.live.put(alignment.vertices)
 
     def describe(self) -> str:
-        alignment = self.state.alignment
+        alignment, data = self.state.alignment, self.state.data
+        assert alignment is not None and data is not None, "aligned"      # (described after keep)
         return (f"aligned: scale {alignment.scale:.3f}, landmark RMS {alignment.landmark_rms_mm[-1]:.1f} mm"
-                + "".join(f"<br>warning: {w}" for w in self.state.data.warnings))
+                + "".join(f"<br>warning: {w}" for w in data.warnings))
 
 
 class FitPage(_RunPage):
@@ -555,7 +567,9 @@ class FitPage(_RunPage):
                         "regularisation weight λ_reg halved from 1 to 1e-6, then from 1e-6 to 1e-8")
 
     def fit(self, progress, cancelled):
-        return run_fit(self.state.data, self.state.alignment, progress=progress, cancelled=cancelled,
+        data, alignment = self.state.data, self.state.alignment
+        assert data is not None and alignment is not None, "aligned on the align page"
+        return run_fit(data, alignment, progress=progress, cancelled=cancelled,
                        on_iteration=self.live.put)
 
     def keep(self, result) -> None:
@@ -598,6 +612,7 @@ class ReviewPage(QWizardPage):
     def initializePage(self) -> None:
         state = self.state
         if state.result is None:
+            assert state.data is not None and state.alignment is not None and state.fitted is not None, "fitted"
             state.result = finish_calibration(state.data, state.alignment, state.fitted)
         result = state.result
         report = result.report
@@ -666,6 +681,7 @@ class SavePage(QWizardPage):
         from handmocap.core.model.gltf import save_gltf_hand
 
         result = self.state.result
+        assert result is not None, "calibrated on the review page"
         written = []
         try:
             subject = self.subject.currentText().strip() or "subject"
@@ -686,8 +702,8 @@ class SavePage(QWizardPage):
             return False
         self.status.setText("saved: " + ", ".join(written))
         self.done = True
-        for path in written:
-            self.saved.emit(path)
+        for saved_path in written:
+            self.saved.emit(saved_path)
         return True
 
     def validatePage(self) -> bool:
@@ -711,14 +727,13 @@ class CalibrationWizard(QWizard):
         self.resize(1180, 760)
         self.state = CalibrationState()
         self.runner = TaskRunner(self)
-        self.pages = {
-            "scan": ScanPage(self.state), "clean": CleanPage(self.state), "landmarks": LandmarksPage(self.state),
-            "align": AlignPage(self.state, self.runner), "fit": FitPage(self.state, self.runner),
-            "review": ReviewPage(self.state), "save": SavePage(self.state, session, save_subject),
-        }
+        scan, clean, landmarks = ScanPage(self.state), CleanPage(self.state), LandmarksPage(self.state)
+        align, fit = AlignPage(self.state, self.runner), FitPage(self.state, self.runner)
+        review, save = ReviewPage(self.state), SavePage(self.state, session, save_subject)
+        self.pages: dict[str, QWizardPage] = {"scan": scan, "clean": clean, "landmarks": landmarks, "align": align,
+                                              "fit": fit, "review": review, "save": save}
         self.page_ids = {name: self.addPage(page) for name, page in self.pages.items()}
-        self.pages["save"].saved.connect(self.model_saved)
-        landmarks = self.pages["landmarks"]
+        save.saved.connect(self.model_saved)
         # Ctrl+Z anywhere in the wizard undoes the last landmark picked, skipped, re-picked or loaded
         self.undo_action = make_action(self, "Undo landmark", landmarks.undo, "wizard_undo")
         self.addAction(self.undo_action)

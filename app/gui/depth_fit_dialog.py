@@ -99,7 +99,7 @@ class DepthFitDialog(QDialog):
     def __init__(self, parent: QWidget | None = None, frame: str = "") -> None:
         super().__init__(parent)
         self.setWindowTitle("Fit a hand to a depth frame")
-        self.result: DepthFitResult | None = None
+        self.fit_result: DepthFitResult | None = None
         self._overlay: QPixmap | None = None
         self.runner = TaskRunner(self)
         self.runner.progressed.connect(lambda _request, fraction: self.progress_bar.setValue(round(100 * fraction)))
@@ -200,7 +200,7 @@ class DepthFitDialog(QDialog):
 
     def _succeeded(self, _request: int, result: object) -> None:
         assert isinstance(result, DepthFitResult)
-        self.result = result
+        self.fit_result = result
         self.status_label.setText(describe(result.fit))
         self.save_button.setEnabled(True)
         self._overlay = _pixmap(result.overlay)
@@ -233,10 +233,10 @@ class DepthFitDialog(QDialog):
 
     def save(self, path: str | Path | None = None) -> Path | None:
         """Write the result JSON (and the overlay next to it, ``NAME.png``); asks for the path when not given."""
-        if self.result is None:
+        if self.fit_result is None:
             return None
         if path is None:
-            chosen, _ = QFileDialog.getSaveFileName(self, "Save the fit", f"{self.result.frame.stem}_fit.json",
+            chosen, _ = QFileDialog.getSaveFileName(self, "Save the fit", f"{self.fit_result.frame.stem}_fit.json",
                                                     "Fit JSON (*.json)")
             if not chosen:
                 return None
@@ -247,10 +247,10 @@ class DepthFitDialog(QDialog):
 
             from handmocap.core.io.durable import write_atomic
 
-            document = {"frame": str(self.result.frame), "intrinsics": self.result.intrinsics,
-                        "depth_unit_mm": self.result.unit_mm, **self.result.fit.to_dict()}
+            document = {"frame": str(self.fit_result.frame), "intrinsics": self.fit_result.intrinsics,
+                        "depth_unit_mm": self.fit_result.unit_mm, **self.fit_result.fit.to_dict()}
             write_atomic(target, (json.dumps(document, indent=1) + "\n").encode())
-            ok, data = cv2.imencode(".png", self.result.overlay)
+            ok, data = cv2.imencode(".png", self.fit_result.overlay)
             if ok:
                 write_atomic(target.with_suffix(".png"), data.tobytes())
         except (HandMocapError, OSError) as error:

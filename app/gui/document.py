@@ -113,17 +113,29 @@ class TakeDocument:
     def push(self, command: Command) -> FrameSpan:
         """Do ``command`` on the review (undoable; journalled when the take is in a session)."""
         self.ensure_review()
-        return self.open_take.push(command) if self.open_take is not None else self.stack.push(command)
+        if self.open_take is not None:
+            return self.open_take.push(command)
+        assert self.stack is not None, "the take has no review yet"     # (the stack is made with the review)
+        return self.stack.push(command)
 
     def attach(self, command: Command) -> FrameSpan:
         """Do ``command`` as part of the last step (a re-solve after an edit)."""
-        return self.open_take.attach(command) if self.open_take is not None else self.stack.attach(command)
+        if self.open_take is not None:
+            return self.open_take.attach(command)
+        assert self.stack is not None, "the take has no review yet"     # (the stack is made with the review)
+        return self.stack.attach(command)
 
     def undo(self) -> FrameSpan:
-        return self.open_take.undo() if self.open_take is not None else self.stack.undo()
+        if self.open_take is not None:
+            return self.open_take.undo()
+        assert self.stack is not None, "the take has no review yet"     # (the stack is made with the review)
+        return self.stack.undo()
 
     def redo(self) -> FrameSpan:
-        return self.open_take.redo() if self.open_take is not None else self.stack.redo()
+        if self.open_take is not None:
+            return self.open_take.redo()
+        assert self.stack is not None, "the take has no review yet"     # (the stack is made with the review)
+        return self.stack.redo()
 
     def has_labels(self) -> bool:
         """Whether the review has labels (after auto-label, or a labelled take)."""

@@ -10,10 +10,11 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 from PySide6.QtCore import Signal
-from PySide6.QtGui import QAction
+from PySide6.QtGui import QAction, QStandardItemModel
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -67,7 +68,8 @@ class ExportDialog(QDialog):
         for registered in export_formats():
             self.format_box.addItem(registered.label, registered.name)
             if registered.joint_angles and not solved:
-                item = self.format_box.model().item(self.format_box.count() - 1)
+                items = cast(QStandardItemModel, self.format_box.model())    # a combo box's own model
+                item = items.item(self.format_box.count() - 1)
                 item.setEnabled(False)
                 item.setToolTip("needs a solved hand (Solve the take first)")
         self.units_box = QComboBox()

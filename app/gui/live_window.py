@@ -51,6 +51,10 @@ from pyvistaqt import QtInteractor
 from handmocap.core.errors import InputError
 from handmocap.widgets.dialog_buttons import ok_cancel_buttons
 
+# pyvista types the Plotter methods it defines through functools.wraps (set_background, add_axes, reset_camera)
+# as unbound functions, so mypy wants ``self`` passed again: the ``type: ignore``s marked "pyvista wraps" are
+# that gap in pyvista's typing.
+
 DRAW_HZ = 30
 PANEL_HZ = 5
 #: Python's thread switch interval while a live window is open (5 ms by default): the window's thread gets the
@@ -141,8 +145,8 @@ class LiveWindow(QMainWindow):
         self.renders = 0
         self._new_frame = False
         self.view.GetRenderWindow().AddObserver("EndEvent", self._rendered)
-        self.view.set_background("#20242a")
-        self.view.add_axes()
+        self.view.set_background("#20242a")  # type: ignore[arg-type]  # pyvista wraps
+        self.view.add_axes()  # type: ignore[call-arg]  # pyvista wraps
         self.cloud = pv.PolyData(np.zeros((1, 3)))
         self.cloud["colour"] = np.zeros((1, 3), dtype=np.uint8)
         self.view.add_mesh(self.cloud, scalars="colour", rgb=True, point_size=8, render_points_as_spheres=False)
@@ -216,7 +220,7 @@ class LiveWindow(QMainWindow):
             cloud["colour"] = colours[:len(points)]
             self.cloud.shallow_copy(cloud)
             if not self._framed:
-                self.view.reset_camera()
+                self.view.reset_camera()  # type: ignore[call-arg]  # pyvista wraps
                 self._framed = True
             self._new_frame = True
             self._paint()

@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any, TypeVar
 
 from PySide6.QtCore import QObject, QTimer, Signal
 
 from handmocap.app.gui.workers import Task, TaskRunner
+
+Result = TypeVar("Result")
 
 
 class LoadQueue(QObject):
@@ -20,14 +23,16 @@ class LoadQueue(QObject):
 
     def __init__(self, parent: QObject | None = None) -> None:
         super().__init__(parent)
-        self._pending: list[tuple[str, Task, Callable[[object], None]]] = []
-        self._on_success: Callable[[object], None] = lambda _result: None
+        # each task with the on_success that takes its result
+        self._pending: list[tuple[str, Task, Callable[[Any], None]]] = []
+        self._on_success: Callable[[Any], None] = lambda _result: None
         self.runner = TaskRunner(self)
         self.runner.succeeded.connect(self._succeeded)
         self.runner.failed.connect(self._failed)
         self.runner.busy_changed.connect(self.busy_changed)
 
-    def queue(self, text: str, task: Task, on_success: Callable[[object], None]) -> None:
+    def queue(self, text: str, task: Callable[[Callable[[float], None], Callable[[], bool]], Result],
+              on_success: Callable[[Result], None]) -> None:
         """Run ``task`` after those queued before it; ``on_success(result)`` when it succeeds."""
         self._pending.append((text, task, on_success))
         self._start_next()

@@ -10,7 +10,7 @@ follows it like every other view.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -384,7 +384,11 @@ class MainWindow(QMainWindow):
         self.messages_button = QToolButton(self)
         self.messages_button.setAutoRaise(True)
         self.messages_button.setToolTip("Warnings of reading and labelling the takes: show the message panel")
-        self.messages_button.clicked.connect(lambda: (self.messages_dock.show(), self.messages_dock.raise_()))
+
+        def show_messages() -> None:
+            self.messages_dock.show()
+            self.messages_dock.raise_()
+        self.messages_button.clicked.connect(show_messages)
         self.messages_button.hide()
         self.statusBar().insertPermanentWidget(0, self.messages_button)
         self.message_panel.count_changed.connect(self._messages_counted)
@@ -419,7 +423,7 @@ class MainWindow(QMainWindow):
         if paths:
             self.open_files(paths)
 
-    def open_files(self, paths: list[str | Path], solve: bool = False, frame_rate: float | None = None) -> None:
+    def open_files(self, paths: Sequence[str | Path], solve: bool = False, frame_rate: float | None = None) -> None:
         """Open take files on the loader thread; each good one becomes a take in the take list (solved
         at once when ``solve``), reviewed in an automatic session of its own (:mod:`app.gui.loose_takes`),
         each bad one a one-line message; what is open stays open (a file open already is shown).
@@ -447,7 +451,7 @@ class MainWindow(QMainWindow):
                           self._demo_ready)
 
     def _demo_ready(self, folder: Path) -> None:
-        if self.sessions.open_session(folder):
+        if self.sessions.open_session(folder) and self.sessions.session is not None:
             for entry in self.sessions.session.takes:
                 self.sessions.open_take(entry.id, automatic=True)
 
@@ -582,8 +586,9 @@ class MainWindow(QMainWindow):
 
     def _show_review_residuals(self) -> None:
         """The timeline's residual curve from the review's solved hands, when it has some."""
-        if self.document.has_solved_hands():
-            self.timeline.set_residuals(self.document.review_residual_per_frame())
+        document = self.document
+        if document is not None and document.has_solved_hands():
+            self.timeline.set_residuals(document.review_residual_per_frame())
 
     def _marker_colours(self, document: TakeDocument) -> np.ndarray:
         colours = np.tile(OTHER_MARKER_COLOUR, (document.take.n_markers, 1))
@@ -628,7 +633,9 @@ class MainWindow(QMainWindow):
             theta = document.result.joint_angles[frame]
             if np.isfinite(theta).all():
                 self.viewport.update_hand_vertices(skin_vertices(document.model_for(document.result.hand_side), theta))
-            self.viewport.set_effectors(*document.effector_targets(frame))
+            targets = document.effector_targets(frame)
+            assert targets is not None, "a solve has effectors"     # (document.result: it has results)
+            self.viewport.set_effectors(*targets)
         self.viewport.request_render()
 
     def _show_result_geometry(self) -> None:

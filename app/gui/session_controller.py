@@ -288,6 +288,7 @@ class SessionController(QObject):
 
     def _load_take_models(self, document: TakeDocument) -> None:
         """The hand models, markers and subject calibrations auto-label kept in the take's folder."""
+        assert document.open_take is not None, "the take is open in a session"
         folder = document.open_take.folder
         for side in ("right", "left"):
             path = folder / TAKE_MODEL_NAME.format(side=side)
@@ -308,6 +309,7 @@ class SessionController(QObject):
         """A file opened outside a session: the models kept with its review, what recovery found, or why its
         edits will not be kept (what became of its review is told when it is first shown)."""
         loose = document.loose
+        assert loose is not None, "a loose take"      # (the caller checked)
         if loose.opened is None:
             self.status_message.emit(f"{loose.source.name}: {loose.warning}", 0)
             self.error_raised.emit("Edits will not be kept", f"{loose.source.name}: {loose.warning}")

@@ -143,7 +143,7 @@ class TaskRunner(QObject):
         and the runner is idle at once (a task may be started next); its thread ends by itself at the task's
         next check of ``cancelled()``. For an operator's action that must take effect now (undo during a
         re-solve)."""
-        if self._thread is None:
+        if self._thread is None or self._worker is None:     # (set together)
             return
         self._cancel_event.set()
         thread, worker = self._thread, self._worker
@@ -177,7 +177,8 @@ class TaskRunner(QObject):
 
     def _join(self, request_id: int | None = None) -> None:
         """End the worker thread (only the current request's, when ``request_id`` is given)."""
-        if self._thread is None or (request_id is not None and request_id != self._next_id):
+        if (self._thread is None or self._worker is None      # (set together)
+                or (request_id is not None and request_id != self._next_id)):
             return
         thread, worker = self._thread, self._worker   # both stay alive until the thread has ended
         self._thread = self._worker = None

@@ -35,7 +35,7 @@ def test_depth_fit_dialog_from_the_tools_menu_fits_shows_and_saves(window, qtbot
     titles = [action.text() for action in window.tools_menu.actions()]
     assert "Fit a hand to a &depth frame…" in titles
     dialog = _fitted_dialog(qtbot)
-    assert dialog.result is not None and dialog.result.fit.trusted
+    assert dialog.fit_result is not None and dialog.fit_result.fit.trusted
     assert dialog.status_label.text().startswith("Trusted.") and "Palm centre at" in dialog.status_label.text()
     assert not dialog.image_label.pixmap().isNull() and dialog.save_button.isEnabled()
     saved = dialog.save(tmp_path / "fit.json")
@@ -46,7 +46,7 @@ def test_depth_fit_dialog_from_the_tools_menu_fits_shows_and_saves(window, qtbot
 
 def test_depth_fit_dialog_bad_frame_is_one_line(qtbot, tmp_path):
     dialog = _fitted_dialog(qtbot, tmp_path / "missing.png")
-    assert dialog.result is None and "does not exist" in dialog.status_label.text()
+    assert dialog.fit_result is None and "does not exist" in dialog.status_label.text()
     assert "\n" not in dialog.status_label.text() and not dialog.save_button.isEnabled()
     dialog.close()
 
