@@ -15,6 +15,7 @@ import numpy as np
 from handmocap.core.errors import InputError
 from handmocap.core.gaps.context import ModelContext
 from handmocap.core.model.provenance import MEASURED, MISSING
+from handmocap.core.registry import Registry
 
 AUTO = "auto"
 
@@ -48,45 +49,42 @@ class FillMethod:
     needs_model: bool = False
 
 
-_METHODS: dict[str, FillMethod] = {}
+_METHODS: Registry[FillMethod] = Registry("fill method", lambda method: method.name,
+                                         lambda method: {"provenance code": method.code})
 
 
 def register_fill_method(method: FillMethod) -> FillMethod:
     """Make ``method`` known to every list of fill methods; ValueError when its name or code is taken."""
-    if method.name == AUTO or method.name in _METHODS:
-        raise ValueError(f"fill method name '{method.name}' is taken")
-    if not 0 < method.code < 128 or method.code in {other.code for other in _METHODS.values()}:
-        raise ValueError(f"fill method '{method.name}': provenance code {method.code} is taken or not in 1..127")
-    _METHODS[method.name] = method
-    return method
+    if method.name == AUTO:
+        raise ValueError(f"fill method name '{AUTO}' is taken")
+    if not 0 < method.code < 128:
+        raise ValueError(f"fill method '{method.name}': provenance code {method.code} is not in 1..127")
+    return _METHODS.add(method)
 
 
 def unregister_fill_method(name: str) -> None:
     """Forget the fill method ``name`` (tests, plug-ins)."""
-    del _METHODS[name]
+    _METHODS.remove(name)
 
 
 def fill_method(name: str) -> FillMethod:
     """The registered method ``name``; InputError naming the known ones otherwise."""
-    try:
-        return _METHODS[name]
-    except KeyError:
-        raise InputError(f"unknown fill method '{name}' (use {', '.join(fill_method_names())})") from None
+    return _METHODS.get(name)
 
 
 def fill_methods() -> tuple[FillMethod, ...]:
     """Every registered method, in the order the fill check tries them."""
-    return tuple(_METHODS.values())
+    return _METHODS.entries()
 
 
 def fill_method_names() -> tuple[str, ...]:
     """The names of :func:`fill_methods`."""
-    return tuple(_METHODS)
+    return _METHODS.names()
 
 
 def fill_choices() -> tuple[str, ...]:
     """What a user may ask for: "auto" and every method's name."""
-    return (AUTO, *_METHODS)
+    return (AUTO, *_METHODS.names())
 
 
 def check_fill_choice(name: str) -> str:
@@ -98,12 +96,12 @@ def check_fill_choice(name: str) -> str:
 
 def menu_fill_methods() -> tuple[FillMethod, ...]:
     """Every registered method in the order the GUI lists them (:attr:`FillMethod.menu_rank`)."""
-    return tuple(sorted(_METHODS.values(), key=lambda method: method.menu_rank))
+    return tuple(sorted(_METHODS.entries(), key=lambda method: method.menu_rank))
 
 
 def fill_codes() -> dict[str, int]:
     """Provenance code of each method: ``{name: code}``."""
-    return {method.name: method.code for method in _METHODS.values()}
+    return {method.name: method.code for method in _METHODS.entries()}
 
 
 def provenance_names() -> dict[int, str]:

@@ -11,9 +11,9 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from handmocap.core.errors import InputError
 from handmocap.core.io.labelled_c3d import SubjectCalibration
 from handmocap.core.model import HandModel
+from handmocap.core.registry import Registry
 from handmocap.core.review.take import ReviewTake
 
 
@@ -65,38 +65,31 @@ class ExportFormat:
         return f"{self.label} ({' '.join('*' + suffix for suffix in self.suffixes)})"
 
 
-_FORMATS: dict[str, ExportFormat] = {}
+_FORMATS: Registry[ExportFormat] = Registry("export format", lambda export_format: export_format.name,
+                                           lambda export_format: {"batch ending": export_format.batch_ending})
 
 
 def register_export_format(export_format: ExportFormat) -> ExportFormat:
     """Make ``export_format`` known to every list of export formats; ValueError when its name or batch ending
     is taken."""
-    if export_format.name in _FORMATS:
-        raise ValueError(f"export format name '{export_format.name}' is taken")
-    if export_format.batch_ending in {other.batch_ending for other in _FORMATS.values()}:
-        raise ValueError(f"export format '{export_format.name}': batch ending '{export_format.batch_ending}' is taken")
-    _FORMATS[export_format.name] = export_format
-    return export_format
+    return _FORMATS.add(export_format)
 
 
 def unregister_export_format(name: str) -> None:
     """Forget the export format ``name`` (tests, plug-ins)."""
-    del _FORMATS[name]
+    _FORMATS.remove(name)
 
 
 def export_format(name: str) -> ExportFormat:
     """The registered format ``name``; InputError naming the known ones otherwise."""
-    try:
-        return _FORMATS[name]
-    except KeyError:
-        raise InputError(f"unknown export format '{name}' (use {', '.join(export_format_names())})") from None
+    return _FORMATS.get(name)
 
 
 def export_formats() -> tuple[ExportFormat, ...]:
     """Every registered format, in registration order (the order of menus and choices)."""
-    return tuple(_FORMATS.values())
+    return _FORMATS.entries()
 
 
 def export_format_names() -> tuple[str, ...]:
     """The names of :func:`export_formats`."""
-    return tuple(_FORMATS)
+    return _FORMATS.names()
