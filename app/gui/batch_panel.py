@@ -319,7 +319,7 @@ class BatchPanel(QDialog):
             if undone:
                 document.redo()         # the take keeps its earlier batch result
             self._set_state(take_id, "failed", {"status": "failed", "reason": error})
-        elif document.review.version != version:
+        elif document.review is None or document.review.version != version:
             self._set_state(take_id, "skipped", {"status": "skipped", "reason": "not applied: the take was edited "
                                                  "while it was processed; process it again"})
         else:
@@ -329,6 +329,7 @@ class BatchPanel(QDialog):
 
     def _apply_open(self, document: TakeDocument, job: TakeJob, outcome: OpenTakeResult) -> None:
         take_id, session = job.take_id, self.app.session
+        assert session is not None, "open takes are processed in the open session"
         try:
             if outcome.command is not None:
                 document.push(outcome.command)

@@ -13,7 +13,7 @@ camera file chosen by the operator; both are durable writes.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Protocol, TypeVar
@@ -56,6 +56,7 @@ from handmocap.core.camera.overlay import markers_at
 from handmocap.core.camera.registration import TakeRegistration, register_take
 from handmocap.core.camera.sync import SyncResult, sync_markers
 from handmocap.core.errors import CancelledError, HandMocapError, InputError
+from handmocap.core.io import Take
 from handmocap.core.io.documents import read_document
 from handmocap.core.io.input_schemas import BOARD_MARKERS
 from handmocap.core.session.cameras import TakeCamera
@@ -202,6 +203,8 @@ def offset_task(camera: Camera, media: Path, positions: np.ndarray, mocap_rate: 
 class CameraWizard(QDialog):
     """The wizard (module docstring); ``controller`` gives the shown take and camera and keeps the result."""
 
+    progress_bar: QProgressBar     # (made with the pages, after the worker that reports to it)
+
     def __init__(self, parent: QWidget, controller: CameraHost) -> None:
         super().__init__(parent)
         self.controller = controller
@@ -265,10 +268,10 @@ class CameraWizard(QDialog):
         squares.addWidget(self.rows_box)
         squares.addStretch(1)
         self.square_box, self.marker_box = QDoubleSpinBox(page), QDoubleSpinBox(page)
-        for box, value in ((self.square_box, 30.0), (self.marker_box, 22.0)):
-            box.setRange(0.1, 1000.0)
-            box.setValue(value)
-            box.setSuffix(" mm")
+        for length_box, length in ((self.square_box, 30.0), (self.marker_box, 22.0)):
+            length_box.setRange(0.1, 1000.0)
+            length_box.setValue(length)
+            length_box.setSuffix(" mm")
         self.dictionary_edit = QLineEdit("DICT_4X4_50", page)
         self.images_button = QPushButton("Choose board images…", page)
         self.images_button.clicked.connect(self.choose_images)
@@ -364,7 +367,7 @@ class CameraWizard(QDialog):
         if paths:
             self.set_images(paths)
 
-    def set_images(self, paths: list[str | Path]) -> None:
+    def set_images(self, paths: Sequence[str | Path]) -> None:
         self.image_paths = [Path(path) for path in paths]
         self.images_label.setText(f"{len(paths)} images" + (f" ({self.image_paths[0].parent})" if paths else ""))
 
@@ -383,12 +386,14 @@ class CameraWizard(QDialog):
         name = self.camera.name if self.camera is not None else "camera"
         self._start("intrinsics", intrinsics_task(list(self.image_paths), spec, name), "Calibrating intrinsics")
 
-    def _take_inputs(self) -> tuple[np.ndarray, float] | None:
+    def _take_inputs(self) -> tuple[Camera, Path, Take, tuple[np.ndarray, float]] | None:
+        """The camera, its video, the shown take and what a registration task reads of it (marker positions,
+        frame rate); None (and why, in the status line) when one is missing."""
         document = self.controller.document
         if document is None or self.camera is None or self.media is None:
             self.status_label.setText("the shown take needs a camera with a video (File ▸ Add camera…)")
             return None
-        return document.take.marker_positions.copy(), document.take.frame_rate
+        return self.camera, self.media, document.take, (document.take.marker_positions.copy(), document.take.frame_rate)
 
     def choose_board_file(self) -> None:
         path, _ = QFileDialog.getOpenFileName(self, "Board marker file", "", "Board markers (*.json)")
@@ -396,31 +401,33 @@ class CameraWizard(QDialog):
             self.board_file_edit.setText(path)
 
     def start_registration(self) -> None:
-        inputs = self._take_inputs()
-        if inputs is None:
+        taken = self._take_inputs()
+        if taken is None:
             return
+        camera, media, take, inputs = taken
         if self.method_box.currentText() == METHODS[0]:
-            self._start("extrinsics", registration_task(self.camera, self.media, *inputs,
+            self._start("extrinsics", registration_task(camera, media, *inputs,
                                                         self.register_window_box.value()), "Registering")
             return
         try:
             spec = self.board_spec()
             columns, points = read_board_markers(self.board_file_edit.text().strip(),
-                                                 self.controller.document.take.marker_names)
+                                                 take.marker_names)
         except InputError as error:
             self.status_label.setText(str(error))
             return
-        self._start("extrinsics", board_task(self.camera, self.media, spec, columns, points, *inputs),
+        self._start("extrinsics", board_task(camera, media, spec, columns, points, *inputs),
                     "Registering from the board")
 
     def start_offset(self) -> None:
-        inputs = self._take_inputs()
-        if inputs is None:
+        taken = self._take_inputs()
+        if taken is None:
             return
-        if not self.camera.registered:
+        camera, media, _take, inputs = taken
+        if not camera.registered:
             self.status_label.setText("register the camera first (step 2)")
             return
-        self._start("offset", offset_task(self.camera, self.media, *inputs, self.offset_window_box.value()),
+        self._start("offset", offset_task(camera, media, *inputs, self.offset_window_box.value()),
                     "Estimating the offset")
 
     def _start(self, step: str, task: Callable, text: str) -> None:
@@ -454,6 +461,7 @@ class CameraWizard(QDialog):
                                         f"board corners; board markers fit to {report['residual_mm']:.2f} mm RMS")
             self._ended("registered from the board: Save camera keeps it", done=True)
         elif isinstance(result, SyncResult):
+            assert self.camera is not None, "the offset task had a camera"
             self.camera = self.camera.with_clock(result.clock)
             self.offset_label.setText(f"offset {result.offset_s:+.4f} s = {result.offset_frames:+.2f} mocap frames, "
                                       f"rate ratio {result.rate_ratio:.5f}, quality {result.quality:.2f}")

@@ -90,6 +90,7 @@ def _add_camera_take(session: Session, files: Path) -> None:
     def colours():
         for index in range(len(filmed.camera_times)):
             colour, depth = filmed.render(index)
+            assert depth is not None, "rendered with depth"      # (render's default)
             depths.append(np.round(depth).astype(np.uint16))
             yield colour
 

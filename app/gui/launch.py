@@ -6,6 +6,7 @@ import hashlib
 import os
 import sys
 from pathlib import Path
+from typing import cast
 
 from PySide6.QtCore import QElapsedTimer, Qt, QTimer
 from PySide6.QtGui import QColor, QIcon, QPainter, QPixmap
@@ -44,7 +45,7 @@ def run_gui(files: list[str], screenshot: str | None = None, frame: int | None =
     ``screenshot``, wait until everything is opened and solved, go to ``frame`` (the file's frame number, as
     the timeline shows it; default a third into the take), save a PNG and quit. Returns the process exit code."""
     requested = window_size(size) if size else None
-    app = QApplication.instance() or QApplication(sys.argv[:1])
+    app = cast(QApplication, QApplication.instance()) or QApplication(sys.argv[:1])    # (a QApplication if any)
     icon = application_icon()
     app.setWindowIcon(icon)
     splash = QSplashScreen(_splash_picture(icon))

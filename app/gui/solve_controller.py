@@ -102,9 +102,11 @@ class SolveController(QObject):
             for number, hand in enumerate(hands):
                 model = models[hand.side]
                 markers = hand_marker_set(hand, names, model, calibrated[hand.side])
-                results.append(solve_labelled_take(
-                    take, model, markers, method=method, cancelled=cancelled,
-                    progress=lambda fraction, number=number: progress((number + fraction) / len(hands))))
+
+                def hand_progress(fraction: float, number: int = number) -> None:
+                    progress((number + fraction) / len(hands))
+                results.append(solve_labelled_take(take, model, markers, method=method, cancelled=cancelled,
+                                                   progress=hand_progress))
                 skin_vertices(model, results[-1].joint_angles[0])  # compiles the skinning kernel off the GUI thread
             return results
 
