@@ -37,8 +37,9 @@ class _ProgressLine:
         self.dashboard_told = False
 
     def __call__(self, progress) -> None:
-        if progress.dashboard and not self.dashboard_told and self.line.enabled:
-            self.line.console.print(f"Dask dashboard: {progress.dashboard}")
+        console = self.line.console         # (set when the line is enabled)
+        if progress.dashboard and not self.dashboard_told and self.line.enabled and console is not None:
+            console.print(f"Dask dashboard: {progress.dashboard}")
             self.dashboard_told = True
         done, failed, skipped = (progress.count(state) for state in ("done", "failed", "skipped"))
         self.line.describe(f"takes {done + failed + skipped}/{progress.total}: {done} done, {failed} failed, "

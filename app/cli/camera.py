@@ -124,10 +124,9 @@ def command_overlay(args: argparse.Namespace) -> int:
     if not camera.registered:
         raise InputError(f"{args.camera} has no extrinsics; run 'handmocap camera register' first")
     take = load_take(args.take, frame_rate=args.rate)
-    labelled = [is_marker_label(name) for name in take.marker_names]
     import numpy as np
 
-    labelled = np.array(labelled, dtype=bool)
+    labelled = np.array([is_marker_label(name) for name in take.marker_names], dtype=bool)
     with open_frames(args.video) as video:
         frames = (draw_overlay(video.frame(k), project_take(camera, take.marker_positions, take.frame_rate,
                                                             video.time(k)), labelled)
@@ -160,7 +159,8 @@ def command_simulate(args: argparse.Namespace) -> int:
     write_video(folder / "video.avi", (colour for colour, _ in rendered), simulated.frame_rate, camera.size)
     if args.depth:
         (folder / "depth").mkdir(exist_ok=True)
-        write_depth_frames(folder / "depth", (depth for _, depth in rendered), 1.0)
+        # (rendered with depth: none is None)
+        write_depth_frames(folder / "depth", (depth for _, depth in rendered if depth is not None), 1.0)
     save_camera(camera, folder / "camera_truth.json")
     (folder / "board").mkdir(exist_ok=True)
     import cv2

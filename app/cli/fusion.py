@@ -51,7 +51,7 @@ def _recording(folder: Path, depth_unit: float, rate: float, background: str | N
         if colour is not None and (plate.shape[1], plate.shape[0]) != colour.size:
             raise InputError(f"{background} is {plate.shape[1]}×{plate.shape[0]} px but the colour frames are "
                              f"{colour.size[0]}×{colour.size[1]}")
-    return RGBDFrames(depth, colour, plate, tuple(hue) if hue else None)
+    return RGBDFrames(depth, colour, plate, (hue[0], hue[1]) if hue else None)   # (--wristband-hue: 2 values)
 
 
 def command_fuse(args: argparse.Namespace) -> int:

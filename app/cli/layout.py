@@ -16,9 +16,12 @@ from handmocap.app.cli.common import (
 from handmocap.core.errors import InputError
 
 
-def _motions(values: list[str]) -> str | list[str]:
+def _motions(values: list[str]) -> str | list[str | Path]:
     """A motion-set name (grasps, gestures, all) or a list of solved-take result files."""
-    return values[0] if len(values) == 1 and not values[0].endswith(".npz") else values
+    if len(values) == 1 and not values[0].endswith(".npz"):
+        return values[0]
+    files: list[str | Path] = list(values)
+    return files
 
 
 def command_layout_optimise(args: argparse.Namespace) -> int:
