@@ -19,7 +19,6 @@ import os
 import statistics
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 from PySide6.QtCore import QEventLoop, QTimer
@@ -27,9 +26,9 @@ from PySide6.QtWidgets import QApplication
 
 from handmocap.app.gui.main_window import MainWindow
 from handmocap.app.gui.review.dialogs import AutoLabelSettings
+from handmocap.core.evaluation.data import REAL_RECORDING
 
-REAL = (Path(__file__).resolve().parents[3] / "shared" / "data" / "real"
-        / "dfki_glove_right_hand_frames_0001_3000.tsv")
+REAL = REAL_RECORDING
 WAIT_S = 300.0
 
 
