@@ -252,7 +252,7 @@ def save_placement_sheet(sheet: PlacementSheet, path: str | Path, dpi: int = PNG
     ensure_gui_application()
     with durable_path(path) as temporary:  # Qt writes by file name; the rename keeps the old file on failure
         if suffix == ".png":
-            # PySide6's stub types the format as bytes, but the binding takes only a str ("PNG")
+            # PySide6's type hints want the format as bytes, but the binding takes only a str ("PNG")
             if not render_sheet_image(sheet, dpi).save(str(temporary), "PNG"):  # type: ignore[call-overload]
                 raise InputError(f"{path}: could not write the image")
         else:
