@@ -108,3 +108,15 @@ def test_the_readme_api_example_runs_as_written(tmp_path):
     correct = float(re.search(r"([0-9.]+) % correct", lines[-1]).group(1))
     assert correct > 90
     assert (tmp_path / "take.bvh").stat().st_size > 1000 and (tmp_path / "take.c3d").stat().st_size > 1000
+
+
+def test_resources_are_found_in_a_frozen_bundles_multiplexed_folder(tmp_path):
+    """PyInstaller's bundle gives handmocap.resources as a MultiplexedPath (joinpath takes one name in 3.11)."""
+    from importlib.resources.readers import MultiplexedPath
+
+    from handmocap.core.io.resources import joined_path
+
+    (tmp_path / "template").mkdir()
+    (tmp_path / "template" / "right_hand.npz").write_bytes(b"")
+    found = joined_path(MultiplexedPath(tmp_path), ("template", "right_hand.npz"))
+    assert found == tmp_path / "template" / "right_hand.npz" and found.is_file()
