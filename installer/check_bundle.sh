@@ -24,7 +24,7 @@ if [ -z "${DISPLAY:-}" ]; then screen=(xvfb-run -a -s "-screen 0 1600x1000x24");
 # every command line of the CLI ("gui", "bench ik", ...), read from its parser
 commands_py='
 import argparse
-from app.cli.main import build_parser
+from handmocap.app.cli.main import build_parser
 def walk(parser, prefix):
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):
@@ -48,6 +48,7 @@ check() {  # check NAME EXECUTABLE PYTHON: the executable's CLI and GUI, run fro
     "$exe" $line --help >/dev/null || { echo "$name: 'handmocap $line --help' failed" >&2; return 1; }
     count=$((count + 1))
   done < <("$python" -c "$commands_py")
+  [ "$count" -gt 20 ] || { echo "$name: only $count subcommands were listed from the parser" >&2; return 1; }
   echo "   --version and the --help of $count subcommands"
   "$exe" simulate --layout dense --frames 300 --seed 2 --noise 0.3 --unlabelled --out raw.c3d --truth truth.npz >/dev/null
   "$exe" label raw.c3d --layout dense --out labelled.c3d --report report.json --quiet >label.log
