@@ -50,16 +50,12 @@ def _file_review(path: str, frame_rate: float | None = None):
 
 
 def _solve_missing_hands(review, models: dict, marker_sets: dict, quiet: bool) -> None:
-    """Solve, in memory, every hand of ``review`` that has no solved frame (layered IK over the take)."""
-    from handmocap.core.workflows.resolve import resolve_jobs, run_resolve_jobs
+    """Solve, in memory, every hand of ``review`` that has no solved frame (layered IK over the take), with the
+    progress line."""
+    from handmocap.core.workflows.resolve import solve_unsolved_hands
 
-    if all(np.isfinite(hand.joint_angles).all(axis=1).any() for hand in review.hands):
-        return
-    jobs = [job for job in resolve_jobs(review, (0, review.n_frames), models, pad=0, marker_sets=marker_sets)
-            if not np.isfinite(review.hands[job.hand].joint_angles).all(axis=1).any()]
-    with progress_printer("solving the hands for the export", sum(len(job.targets) for job in jobs)) as line:
-        for command in run_resolve_jobs(jobs, progress=None if quiet else line):
-            command.do(review)
+    with progress_printer("solving the hands for the export", review.n_frames * len(review.hands)) as line:
+        solve_unsolved_hands(review, models, marker_sets, progress=None if quiet else line)
 
 
 def command_export(args: argparse.Namespace) -> int:
