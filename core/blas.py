@@ -30,9 +30,10 @@ def limit_blas_threads() -> None:
     is kept)."""
     from threadpoolctl import threadpool_limits
 
+    threads = blas_threads()
     for variable in BLAS_VARIABLES:
-        os.environ.setdefault(variable, str(blas_threads()))
-    threadpool_limits(limits=blas_threads(), user_api="blas")
+        os.environ.setdefault(variable, str(threads))
+    threadpool_limits(limits=threads, user_api="blas")
 
 
 @contextmanager
