@@ -93,6 +93,56 @@ def _energy(points, targets, observed, posture, prior_matrix, prior_mean, prior_
 
 
 @njit(cache=True)
+def normal_equations(jacobian, points, targets, observed):
+    """``JᵀJ (26,26)`` and ``Jᵀr (26,)`` of the observed markers (``r = t − x``), from the Jacobian
+    ``(M,3,26)``: each marker's row moves only the global parameters and its own digit's, so only its
+    non-zero columns are multiplied (a dense product would be ~6× the work)."""
+    size = jacobian.shape[2]
+    system = np.zeros((size, size))
+    rhs = np.zeros(size)
+    columns = np.empty(size, dtype=np.int64)
+    for i in range(jacobian.shape[0]):
+        if not observed[i]:
+            continue
+        used = 0
+        for d in range(size):
+            if jacobian[i, 0, d] != 0.0 or jacobian[i, 1, d] != 0.0 or jacobian[i, 2, d] != 0.0:
+                columns[used] = d
+                used += 1
+        for c in range(3):
+            residual = targets[i, c] - points[i, c]
+            for a in range(used):
+                column = columns[a]
+                value = jacobian[i, c, column]
+                rhs[column] += value * residual
+                for b in range(a, used):
+                    system[column, columns[b]] += value * jacobian[i, c, columns[b]]
+    for a in range(size):
+        for b in range(a):
+            system[a, b] = system[b, a]
+    return system, rhs
+
+
+@njit(cache=True)
+def _reduced_normal_equations(jacobian, points, targets, observed, basis, identity_basis):
+    """The normal equations in the solved parameters (6 global + ``basis (20,n)`` posture coordinates)."""
+    system, rhs = normal_equations(jacobian, points, targets, observed)
+    if identity_basis:
+        return system, rhs
+    n = basis.shape[1]
+    reduced = np.empty((6 + n, 6 + n))
+    reduced_rhs = np.empty(6 + n)
+    reduced[:6, :6] = system[:6, :6]
+    coupling = np.ascontiguousarray(system[:6, 6:]) @ basis
+    reduced[:6, 6:] = coupling
+    reduced[6:, :6] = coupling.T
+    reduced[6:, 6:] = basis.T @ (np.ascontiguousarray(system[6:, 6:]) @ basis)
+    reduced_rhs[:6] = rhs[:6]
+    reduced_rhs[6:] = basis.T @ np.ascontiguousarray(rhs[6:])
+    return reduced, reduced_rhs
+
+
+@njit(cache=True)
 def frame_energy_kernel(theta, targets, observed, relative_rest, offsets, abduction_sign, influence_joints,
                         influence_weights, local_points, prior_matrix, prior_mean, prior_weights):
     """The IK energy E (mm²) of ``theta (26,)`` for one frame (see module docstring)."""
@@ -113,7 +163,6 @@ def solve_frame_kernel(theta, targets, observed, relative_rest, offsets, abducti
     ``global_free`` False holds the six global parameters at their start values.
     """
     n = basis.shape[1]
-    size = 6 + n
     params = basis.T @ (theta[6:] - centre)
     params = np.minimum(np.maximum(params, param_lower), param_upper)
     current = theta.copy()
@@ -124,23 +173,13 @@ def solve_frame_kernel(theta, targets, observed, relative_rest, offsets, abducti
     points, jacobian = points_and_jacobian_kernel(current, relative_rest, offsets, abduction_sign, ancestor,
                                                   influence_joints, influence_weights, local_points)
     energy = _energy(points, targets, observed, current[6:], prior_matrix, prior_mean, prior_weights)
-    count = points.shape[0]
-    mask = np.zeros((count, 3))
-    for i in range(count):
-        if observed[i]:
-            mask[i, :] = 1.0
     identity_basis = n == 20 and np.all(basis == np.eye(20))
+    prior_normal = prior_jacobian.T @ prior_jacobian
     for _ in range(max_iterations):
-        residual = (targets - points) * mask
-        reduced = np.empty((3 * count, size))
-        flat = jacobian.reshape(3 * count, 26) * mask.reshape(3 * count, 1)
-        reduced[:, :6] = flat[:, :6]
-        reduced[:, 6:] = flat[:, 6:] if identity_basis else np.ascontiguousarray(flat[:, 6:]) @ basis
-        system = reduced.T @ reduced
-        rhs = reduced.T @ residual.reshape(3 * count)
+        system, rhs = _reduced_normal_equations(jacobian, points, targets, observed, basis, identity_basis)
         if use_prior:
             prior_residual = -prior_weights * (prior_matrix @ (current[6:] - prior_mean))
-            system[6:, 6:] += prior_jacobian.T @ prior_jacobian
+            system[6:, 6:] += prior_normal
             rhs[6:] += prior_jacobian.T @ prior_residual
         for k in range(n):
             system[6 + k, 6 + k] += damping ** 2
