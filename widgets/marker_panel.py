@@ -119,13 +119,20 @@ class MarkerTableModel(ColumnTableModel):
         self.endResetModel()
 
     def set_frame_values(self, positions: np.ndarray, residuals: np.ndarray | None) -> None:
-        """Current frame: ``positions (M,3)`` mm (NaN missing), ``residuals (M,)`` mm or None."""
+        """Current frame: ``positions (M,3)`` mm (NaN missing), ``residuals (M,)`` mm or None. Only the chips
+        of the markers that appeared or vanished are redrawn."""
+        was_observed = np.isfinite(self._positions).all(axis=1)
         self._positions = np.asarray(positions, dtype=float)
         self._residuals = (np.full(len(self._names), np.nan) if residuals is None
                            else np.asarray(residuals, dtype=float))
         if self._names:
             last = len(self._names) - 1
-            self.dataChanged.emit(self.index(0, 0), self.index(last, 0), [Qt.ItemDataRole.DecorationRole])
+            observed = np.isfinite(self._positions).all(axis=1)
+            changed = (np.flatnonzero(was_observed != observed) if len(was_observed) == len(observed)
+                       else np.arange(len(observed)))
+            if len(changed):
+                self.dataChanged.emit(self.index(int(changed[0]), 0), self.index(int(changed[-1]), 0),
+                                      [Qt.ItemDataRole.DecorationRole])
             self.dataChanged.emit(self.index(0, 2), self.index(last, len(COLUMNS) - 1))
 
     def rowCount(self, parent: QModelIndex | QPersistentModelIndex = QModelIndex()) -> int:  # noqa: B008 - Qt signature
@@ -177,6 +184,8 @@ class MarkerPanel(QWidget):
         super().__init__(parent)
         self.model = MarkerTableModel(self)
         self.proxy, self.filter_edit, self.table = filtered_table(self, self.model, minimum_section=48)
+        # the names column is sized when the markers change, not measured again with every frame's values
+        self.table.horizontalHeader().setSectionResizeMode(0, QHeaderView.ResizeMode.Interactive)
         self.filter_edit.textChanged.connect(self.proxy.setFilterFixedString)
         self.table.selectionModel().selectionChanged.connect(self._selection_changed)
         layout = QVBoxLayout(self)
@@ -189,6 +198,7 @@ class MarkerPanel(QWidget):
         """Show a new marker list (see :meth:`MarkerTableModel.set_markers`); clears the selection."""
         self.table.clearSelection()
         self.model.set_markers(names, observed_fraction, colours)
+        self.table.resizeColumnToContents(0)
 
     def set_frame_values(self, positions: np.ndarray, residuals: np.ndarray | None) -> None:
         """Current frame's positions ``(M,3)`` mm and residuals ``(M,)`` mm (or None)."""

@@ -15,6 +15,7 @@ from PySide6.QtGui import QAction
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
+    QGraphicsItem,
     QHBoxLayout,
     QLabel,
     QSpinBox,
@@ -143,6 +144,9 @@ class TimelineWidget(QWidget):
         item.vb.sigResized.connect(lambda: self._residual_box.setGeometry(item.vb.sceneBoundingRect()))
         self._residual_curve = pg.PlotDataItem(pen=pg.mkPen(RESIDUAL_PEN, width=1.2))
         self._residual_box.addItem(self._residual_curve)
+        for curve in (self._observed_curve, self._residual_curve):     # the cursor moves over cached pixmaps:
+            for part in (curve, *curve.childItems()):                 # a frame step repaints no curve
+                part.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
         self._cursor = pg.InfiniteLine(angle=90, movable=True, pen=pg.mkPen((255, 200, 60), width=2),
                                        hoverPen=pg.mkPen((255, 230, 120), width=3))
         self._cursor.sigPositionChanged.connect(self._cursor_moved)

@@ -26,9 +26,10 @@ from PySide6.QtWidgets import QVBoxLayout, QWidget
 from pyvistaqt import QtInteractor
 from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
 from vtkmodules.vtkCommonCore import vtkStringArray
-from vtkmodules.vtkFiltersCore import vtkPolyDataNormals
 from vtkmodules.vtkRenderingCore import vtkActor2D, vtkGlyph3DMapper, vtkPolyDataMapper
 from vtkmodules.vtkRenderingLabel import vtkLabeledDataMapper
+
+from handmocap.core.model.hand_model import mesh_vertex_normals
 
 # pyvista types the Plotter methods it defines through functools.wraps (set_background, enable_terrain_style,
 # add_axes, remove_actor, remove_scalar_bar) as unbound functions, so mypy wants ``self`` passed again: the
@@ -249,7 +250,7 @@ class HandViewport(QWidget):
 
     def _build_mesh(self) -> None:
         self._meshes: list[pv.PolyData] = []
-        self._normal_filters: list[vtkPolyDataNormals] = []
+        self._mesh_faces: list[np.ndarray] = []
         self._mesh_actors: list[pv.Actor] = []
         self._mesh_count = 0
         self._add_mesh_slot()
@@ -257,15 +258,8 @@ class HandViewport(QWidget):
     def _add_mesh_slot(self) -> None:
         """One more hand surface actor (hidden), for scenes with more hands than slots."""
         mesh = pv.PolyData()
-        normals = vtkPolyDataNormals()
-        normals.SetInputData(mesh)
-        normals.ComputePointNormalsOn()
-        normals.ComputeCellNormalsOff()
-        normals.SplittingOff()
-        normals.ConsistencyOff()
-        normals.AutoOrientNormalsOff()
         mapper = vtkPolyDataMapper()
-        mapper.SetInputConnection(normals.GetOutputPort())
+        mapper.SetInputData(mesh)
         mapper.ScalarVisibilityOff()
         actor = pv.Actor(mapper=mapper)
         prop = actor.prop
@@ -277,9 +271,9 @@ class HandViewport(QWidget):
         prop.specular_power = 18.0
         actor.visibility = False
         actor.SetPickable(False)
-        self._normal_filters.append(normals)     # keep the filter alive with its input
         self._plotter.add_actor(actor, name=f"hand-mesh-{len(self._meshes)}", reset_camera=False)
         self._meshes.append(mesh)
+        self._mesh_faces.append(np.zeros((0, 3), dtype=np.int64))
         self._mesh_actors.append(actor)
 
     def _glyph_actor(self, data: pv.PolyData, radius: float, name: str) -> pv.Actor:
@@ -547,22 +541,30 @@ class HandViewport(QWidget):
         """Show one surface per hand: ``meshes`` of ``(vertices (V,3) mm, faces (T,3))``; [] hides all."""
         while len(self._meshes) < len(meshes):
             self._add_mesh_slot()
-        for mesh, (vertices, faces) in zip(self._meshes, meshes, strict=False):
+        for number, (vertices, faces) in enumerate(meshes):
             # copies: the widget updates these points in place, the caller's arrays must stay untouched
+            self._mesh_faces[number] = np.array(faces, dtype=np.int64)
             # pyvista annotates faces as ndarray[dtype[int]], a dtype no numpy array has
             surface = pv.PolyData.from_regular_faces(np.array(vertices, dtype=float),
-                                                     np.array(faces, dtype=np.int64))  # type: ignore[arg-type]
-            mesh.ShallowCopy(surface)
+                                                     self._mesh_faces[number])  # type: ignore[arg-type]
+            normals = numpy_to_vtk(mesh_vertex_normals(surface.points, self._mesh_faces[number]), deep=True)
+            normals.SetName("Normals")
+            surface.GetPointData().SetNormals(normals)
+            self._meshes[number].ShallowCopy(surface)
         self._mesh_count = len(meshes)
         self._refresh_mesh_visibility()
 
     def update_hand_vertices(self, vertices: np.ndarray, hand: int = 0) -> None:
-        """Move the shown surface of ``hand`` to ``vertices (V,3)`` mm, in place."""
+        """Move the shown surface of ``hand`` to ``vertices (V,3)`` mm, in place, with its smooth-shading
+        normals (computed here: VTK's normals filter would rebuild the mesh's topology on every frame)."""
         if hand >= self._mesh_count:
             return
         mesh = self._meshes[hand]
         vtk_to_numpy(mesh.GetPoints().GetData())[:] = vertices
+        normals = mesh.GetPointData().GetNormals()
+        vtk_to_numpy(normals)[:] = mesh_vertex_normals(vertices, self._mesh_faces[hand])
         mesh.GetPoints().Modified()
+        normals.Modified()
         mesh.Modified()
 
     def hand_count(self) -> int:

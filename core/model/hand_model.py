@@ -7,6 +7,7 @@ from functools import cached_property
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
 from handmocap.core.errors import InputError
 from handmocap.core.io.durable import durable_stream, verify_zip
@@ -120,25 +121,52 @@ class HandModel:
 
 
 def mesh_vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Area-weighted unit vertex normals (V,3) of a triangle mesh."""
-    corners = vertices[faces]
-    face_normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    """Area-weighted unit vertex normals (V,3) of a triangle mesh ``vertices (V,3)``, ``faces (T,3)``."""
+    return _vertex_normals_kernel(np.ascontiguousarray(vertices, dtype=np.float64),
+                                  np.ascontiguousarray(faces, dtype=np.int64))
+
+
+@njit(cache=True)
+def _vertex_normals_kernel(vertices, faces):
     normals = np.zeros_like(vertices)
-    for k in range(3):
-        np.add.at(normals, faces[:, k], face_normals)
-    length = np.linalg.norm(normals, axis=1, keepdims=True)
-    return normals / np.where(length > 0, length, 1.0)
+    for face in range(faces.shape[0]):
+        a, b, c = faces[face, 0], faces[face, 1], faces[face, 2]
+        ux, uy, uz = vertices[b, 0] - vertices[a, 0], vertices[b, 1] - vertices[a, 1], vertices[b, 2] - vertices[a, 2]
+        vx, vy, vz = vertices[c, 0] - vertices[a, 0], vertices[c, 1] - vertices[a, 1], vertices[c, 2] - vertices[a, 2]
+        nx, ny, nz = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+        for corner in (a, b, c):
+            normals[corner, 0] += nx
+            normals[corner, 1] += ny
+            normals[corner, 2] += nz
+    for vertex in range(normals.shape[0]):
+        length = np.sqrt(normals[vertex, 0] ** 2 + normals[vertex, 1] ** 2 + normals[vertex, 2] ** 2)
+        if length > 0.0:
+            normals[vertex] /= length
+    return normals
 
 
 def skin_vertices(model: HandModel, theta: np.ndarray) -> np.ndarray:
     """Posed mesh vertices (V,3) in mm by linear blend skinning at ``theta (26,)``."""
     linear, translation = model.chain.skinning_matrices(theta)
-    posed = np.zeros_like(model.vertices)
-    for k in range(MAX_INFLUENCES):
-        joints = model.skin_joints[:, k]
-        weights = model.skin_weights[:, k:k + 1]
-        moved = np.einsum("vab,vb->va", linear[joints], model.vertices) + translation[joints]
-        posed += weights * moved
+    return _skin_kernel(np.ascontiguousarray(linear), np.ascontiguousarray(translation), model.skin_joints,
+                        model.skin_weights, model.vertices)
+
+
+@njit(cache=True)
+def _skin_kernel(linear, translation, joints, weights, vertices):
+    """Σ_k w_vk (A_j v + b_j) per vertex ``vertices (V,3)`` with joints ``(V,4)``, weights ``(V,4)`` and
+    the joints' skinning matrices ``linear (16,3,3)``, ``translation (16,3)``."""
+    posed = np.zeros_like(vertices)
+    for vertex in range(vertices.shape[0]):
+        x, y, z = vertices[vertex, 0], vertices[vertex, 1], vertices[vertex, 2]
+        for k in range(joints.shape[1]):
+            weight = weights[vertex, k]
+            if weight == 0.0:
+                continue
+            joint = joints[vertex, k]
+            for row in range(3):
+                posed[vertex, row] += weight * (linear[joint, row, 0] * x + linear[joint, row, 1] * y
+                                                + linear[joint, row, 2] * z + translation[joint, row])
     return posed
 
 

@@ -202,3 +202,26 @@ def test_left_hand_is_the_mirror_image() -> None:
     right, left = load_template("right"), load_template("left")
     np.testing.assert_allclose(left.vertices, right.vertices * [-1.0, 1.0, 1.0])
     assert signed_volume(left.vertices, left.faces) > 0
+
+
+def test_compiled_skinning_and_normals_match_their_numpy_definition(model: HandModel) -> None:
+    """The per-vertex kernels give the blend of ``A_j v + b_j`` over the influences and the area-weighted
+    normals, as the vectorised numpy definitions do, for random poses."""
+    rng = np.random.default_rng(7)
+    for _ in range(3):
+        theta = np.concatenate([rng.normal(0.0, 50.0, 3), rng.normal(0.0, 1.0, 3), rng.normal(0.0, 0.4, 20)])
+        linear, translation = model.chain.skinning_matrices(theta)
+        expected = np.zeros_like(model.vertices)
+        for k in range(model.skin_joints.shape[1]):
+            joints = model.skin_joints[:, k]
+            moved = np.einsum("vab,vb->va", linear[joints], model.vertices) + translation[joints]
+            expected += model.skin_weights[:, k:k + 1] * moved
+        posed = skin_vertices(model, theta)
+        np.testing.assert_allclose(posed, expected, atol=1e-9)
+        corners = posed[model.faces]
+        face_normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        summed = np.zeros_like(posed)
+        for k in range(3):
+            np.add.at(summed, model.faces[:, k], face_normals)
+        np.testing.assert_allclose(mesh_vertex_normals(posed, model.faces),
+                                   summed / np.linalg.norm(summed, axis=1, keepdims=True), atol=1e-12)
