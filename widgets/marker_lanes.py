@@ -27,6 +27,7 @@ from pyqtgraph.GraphicsScene.mouseEvents import MouseClickEvent
 from PySide6.QtCore import QPointF, QRectF, Qt, QTimer, Signal
 from PySide6.QtGui import QBrush, QColor, QCursor, QFont, QFontMetrics, QPen
 from PySide6.QtWidgets import (
+    QGraphicsItem,
     QGraphicsRectItem,
     QHBoxLayout,
     QLabel,
@@ -239,6 +240,8 @@ class MarkerLanes(QWidget):
         self.plot.addItem(self._image)
         self._separators = pg.PlotCurveItem(pen=pg.mkPen(BACKGROUND, width=2), connect="pairs")
         self.plot.addItem(self._separators)
+        for lanes_item in (self._image, self._separators):    # the cursor moves over cached pixmaps: a frame
+            lanes_item.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)   # step redraws no lane
         self._selection = QGraphicsRectItem()
         selection_pen = QPen(QColor(*SELECTION_COLOUR))
         selection_pen.setCosmetic(True)
