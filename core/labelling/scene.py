@@ -399,7 +399,7 @@ class _Run:
         kept = self._window_cost(frame, number, current, state)
         hypotheses = [(_columns_of(labels, free), start) for start, labels in
                       [(candidate.state, candidate.point_index), *candidate.alternatives]]
-        costs = [self._window_cost(frame, number, labels, start) for labels, start in hypotheses]
+        costs = self._window_costs(frame, number, hypotheses, kept)
         return hypotheses[int(np.argmin(costs))] if min(costs) < kept else None
 
     def _start_with(self, frame: int, number: int, columns: np.ndarray, labels: np.ndarray, state: np.ndarray,
@@ -436,8 +436,8 @@ class _Run:
         index, state = candidate.point_index, candidate.state
         if candidate.alternatives and self.make_track is not None:
             hypotheses = [(candidate.state, candidate.point_index), *candidate.alternatives]
-            costs = [self._window_cost(frame, candidate.track_index, _columns_of(labels, columns), start)
-                     for start, labels in hypotheses]
+            costs = self._window_costs(frame, candidate.track_index,
+                                       [(_columns_of(labels, columns), start) for start, labels in hypotheses])
             state, index = hypotheses[int(np.argmin(costs))]
         state, effectors, residuals = self._solve(track, points, index, state)
         observed = index >= 0
@@ -447,9 +447,20 @@ class _Run:
         confidence = _margins(pair_distances(effectors, points), index, track.thresholds())
         self.record(frame, [candidate.track_index], columns, index, confidence, residuals, [state])
 
-    def _window_cost(self, frame: int, number: int, labels: np.ndarray, state: np.ndarray) -> float:
+    def _window_cost(self, frame: int, number: int, labels: np.ndarray, state: np.ndarray,
+                     bound: float = np.inf) -> float:
         assert self.make_track is not None
-        return window_cost(self.make_track(number), self.positions, frame, labels, state, self.settings)
+        return window_cost(self.make_track(number), self.positions, frame, labels, state, self.settings, bound)
+
+    def _window_costs(self, frame: int, number: int, hypotheses: list[tuple[np.ndarray, np.ndarray]],
+                      bound: float = np.inf) -> list[float]:
+        """:func:`window_cost` of each (labels, state) hypothesis of model ``number`` in ``frame``. Only the
+        lowest cost, and whether it is below ``bound``, is ever used: a hypothesis is tracked only until it
+        cannot be below ``bound`` or the lowest so far (its value is then a lower bound above them)."""
+        costs: list[float] = []
+        for labels, state in hypotheses:
+            costs.append(self._window_cost(frame, number, labels, state, min([bound, *costs])))
+        return costs
 
     def start_at(self, frame: int, track_index: int, state: np.ndarray) -> None:
         """Start a track from a given state (e.g. a known first posture) and label ``frame``."""
@@ -744,17 +755,34 @@ def _columns_of(index: np.ndarray, columns: np.ndarray) -> np.ndarray:
 
 
 def window_cost(track: Track, positions: np.ndarray, frame: int, labels: np.ndarray, state: np.ndarray,
-                settings: SceneSettings) -> float:
+                settings: SceneSettings, bound: float = np.inf) -> float:
     """Mean eq. 2 cost per frame (mean residual mm + α · markers unlabelled) of ``track`` (fresh) started
     in ``frame`` of ``positions (F,P,3)`` with ``labels (K,)`` (point columns, -1 none) and ``state``,
-    tracked alone over the next ``settings.hypothesis_frames`` frames: how well a hypothesis holds up."""
+    tracked alone over the next ``settings.hypothesis_frames`` frames: how well a hypothesis holds up.
+    The tracking stops once the cost is sure to exceed ``bound`` (no frame's cost is negative); the value
+    returned then is the part tracked so far, itself above ``bound``."""
     stop = min(frame + settings.hypothesis_frames, len(positions))
+    frames = stop - frame
     trial = _Run([track], positions[frame:stop], settings)
     trial.scheduled[0] = [(0, labels, state)]
-    trial.forward(0, stop - frame, lambda _frame: None)
-    labelled = trial.assignment >= 0
-    residuals = np.where(labelled, trial.residuals, 0.0).sum(axis=1) / np.maximum(labelled.sum(axis=1), 1)
-    return float((residuals + settings.alpha * (~labelled).sum(axis=1)).mean())
+    limit = bound * frames
+    partial = [0.0]
+
+    def frame_cost(rows: slice) -> np.ndarray:
+        labelled = trial.assignment[rows] >= 0
+        residuals = np.where(labelled, trial.residuals[rows], 0.0).sum(axis=1) / np.maximum(labelled.sum(axis=1), 1)
+        return residuals + settings.alpha * (~labelled).sum(axis=1)
+
+    def check(tracked: int) -> None:
+        partial[0] += float(frame_cost(slice(tracked, tracked + 1))[0])
+        if partial[0] > limit:
+            raise _WindowDone
+
+    try:
+        trial.forward(0, frames, lambda _frame: None, check if np.isfinite(limit) else None)
+    except _WindowDone:
+        return partial[0] / frames
+    return float(frame_cost(slice(None)).mean())
 
 
 @njit(cache=True)
@@ -1112,7 +1140,7 @@ def _decide_sides(positions: np.ndarray, layouts: dict[str, MarkerLayout], setti
 
 
 class _WindowDone(Exception):
-    """Internal: the calibration window has been tracked."""
+    """Internal: a window has been tracked far enough (the calibration window, a hypothesis out of the running)."""
 
 
 def _seed(run: _Run, tracks: list[Track], initial_states: dict[str, object] | None) -> None:

@@ -37,3 +37,41 @@ def test_a_degraded_hand_whose_fresh_fits_do_not_help_is_refitted_ever_less_ofte
     assert len(waits) >= 4
     assert (waits[:3] >= hypothesis_frames * 2 ** np.arange(1, 4)).all(), waits
     assert len(main[0]) < FRAMES / hypothesis_frames / 4       # without the back-off: one every ~55 frames
+
+
+def test_a_hypothesis_is_tracked_only_while_it_can_still_win(monkeypatch):
+    """``window_cost`` with a bound: a hypothesis whose cost stays below it gets its exact cost; one that
+    exceeds it stops being tracked early and reports a value above the bound (a lower bound of its cost), so
+    the refit's choice is the same as with every hypothesis tracked to the end."""
+    from handmocap.core.labelling.models import HandTracker
+    from handmocap.core.model import load_layout, load_template, resolve_layout
+
+    simulated = simulate_take(layout="dense", n_frames=200, seed=5, noise_mm=0.3)
+    positions = np.asarray(simulated.take.marker_positions, dtype=float)
+    settings = SceneSettings()
+    model = load_template("right")
+    markers = resolve_layout(model, load_layout("dense"))
+
+    def track() -> HandTracker:
+        return HandTracker("right", "right", model, markers, settings)
+
+    theta = simulated.truth["joint_angles"][10]
+    right = np.arange(len(markers.names))          # the simulated (labelled) take: column k is marker k
+    wrong = right.copy()
+    wrong[[3, 4, 5, 6]] = wrong[[6, 5, 4, 3]]                        # two fingers' markers exchanged
+    tracked: list[int] = []
+    original = scene_module._Run.track_frame
+    monkeypatch.setattr(scene_module._Run, "track_frame",
+                        lambda self, frame: (tracked.append(frame), original(self, frame))[1])
+    exact_right = scene_module.window_cost(track(), positions, 10, right, theta, settings)
+    exact_wrong = scene_module.window_cost(track(), positions, 10, wrong, theta, settings)
+    assert exact_right < exact_wrong
+    full = len(tracked)
+    tracked.clear()
+    assert scene_module.window_cost(track(), positions, 10, right, theta, settings, bound=exact_wrong) == exact_right
+    assert len(tracked) == settings.hypothesis_frames
+    tracked.clear()
+    cut = scene_module.window_cost(track(), positions, 10, wrong, theta, settings, bound=exact_right)
+    assert exact_right < cut <= exact_wrong
+    assert len(tracked) < settings.hypothesis_frames
+    assert full == 2 * settings.hypothesis_frames
