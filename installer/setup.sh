@@ -74,3 +74,6 @@ if [ "$(cat "$kernels_stamp" 2>/dev/null || true)" != "$kernels_key" ]; then
   .venv/bin/python -m handmocap.core.workflows.warm_up
   echo "$kernels_key" > "$kernels_stamp"
 fi
+# Python's byte code of our own sources, written now: an environment with PYTHONDONTWRITEBYTECODE set (common in
+# containers) would otherwise compile every module again at each start (about 1 s of the window's start-up).
+.venv/bin/python -m compileall -q "$PWD"/.venv/src/handmocap/{__init__.py,app,core,widgets}

@@ -33,8 +33,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import distance_transform_edt
-from scipy.spatial import cKDTree
 
 from handmocap.core.camera.model import Camera
 from handmocap.core.fusion.hand_render import HandRenderer, Rendering
@@ -308,6 +306,8 @@ class ArticulatedICP:
         if facing.sum() < 3:
             return None
         candidates = np.nonzero(facing)[0]
+        from scipy.spatial import cKDTree  # imported when first needed (start-up)
+
         distance, nearest = cKDTree(positions[candidates]).query(targets)
         keep = np.asarray(distance < settings.max_distance_mm, dtype=bool)
         if not keep.any():
@@ -328,7 +328,7 @@ class ArticulatedICP:
         missed = observation.silhouette & ~rendering.silhouette
         if not missed.any():
             return None
-        _, (near_rows, near_columns) = distance_transform_edt(~rendering.silhouette, return_indices=True)
+        _, (near_rows, near_columns) = _nearest_pixels(~rendering.silhouette)
         rows, columns = np.nonzero(missed)
         vertices = self.renderer.faces[rendering.face[near_rows[rows, columns], near_columns[rows, columns]], 0]
         crop = observation.crop
@@ -373,7 +373,7 @@ class ArticulatedICP:
         outside = rendering.silhouette & ~observation.silhouette
         if not outside.any():
             return None
-        _, (near_rows, near_columns) = distance_transform_edt(~observation.silhouette, return_indices=True)
+        _, (near_rows, near_columns) = _nearest_pixels(~observation.silhouette)
         rows, columns = np.nonzero(outside)
         vertices = self.renderer.faces[rendering.face[rows, columns], 0]
         crop = observation.crop
@@ -436,3 +436,11 @@ def _rows_system(residual: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np
 
 def _squared(residual: np.ndarray) -> float:
     return float(residual @ residual)
+
+
+def _nearest_pixels(background: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Euclidean distance (px) from each pixel of ``background (H,W)`` bool to the nearest False pixel, and
+    that pixel's (rows, columns) index arrays (scipy's exact distance transform)."""
+    from scipy.ndimage import distance_transform_edt  # imported when first needed (start-up)
+
+    return distance_transform_edt(background, return_indices=True)

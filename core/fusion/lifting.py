@@ -11,8 +11,6 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
-from scipy.spatial.transform import Rotation, Slerp
 
 from handmocap.core.fusion.pose import left_compose
 from handmocap.core.model import HandModel, MarkerSet, marker_jacobian
@@ -32,6 +30,8 @@ def interpolate_poses(key_frames: np.ndarray, key_poses: np.ndarray, n_frames: i
     if len(key_frames) == 1:
         poses[:, 3:6] = key_poses[0, 3:6]
     else:
+        from scipy.spatial.transform import Rotation, Slerp  # imported when first needed (start-up)
+
         poses[:, 3:6] = Slerp(key_frames, Rotation.from_rotvec(key_poses[:, 3:6]))(frames).as_rotvec()
     return poses
 
@@ -64,6 +64,8 @@ def lift(model: HandModel, markers: MarkerSet, targets: np.ndarray, key_frames: 
     """Poses (F,26) for every mocap frame of ``targets (F,M,3)`` mm from the RGB-D poses ``key_poses (K,26)`` at
     fractional mocap frames ``key_frames (K,)`` (steps in the module docstring; ``filter_frames``: σ of the
     Gaussian filter in mocap frames)."""
+    from scipy.ndimage import gaussian_filter1d  # imported when first needed (start-up)
+
     interpolated = interpolate_poses(key_frames, key_poses, len(targets))
     guess = interpolated
     for _ in range(passes):
