@@ -27,7 +27,6 @@ from pyqtgraph.GraphicsScene.mouseEvents import MouseClickEvent
 from PySide6.QtCore import QPointF, QRectF, Qt, QTimer, Signal
 from PySide6.QtGui import QBrush, QColor, QCursor, QFont, QFontMetrics, QPen
 from PySide6.QtWidgets import (
-    QGraphicsItem,
     QGraphicsRectItem,
     QHBoxLayout,
     QLabel,
@@ -40,6 +39,7 @@ from PySide6.QtWidgets import (
 from handmocap.core.gaps import fill_method, fill_methods
 from handmocap.core.model.provenance import MEASURED, MISSING
 from handmocap.core.review import LANE_EDITED, LANE_FILLED, LANE_GAP, LANE_LOW_CONFIDENCE, LANE_NONE, LANE_OBSERVED
+from handmocap.widgets.cached_drawing import paint_from_cache
 
 NO_DATA = -2                  # before the first or after the last sample of the marker
 GAP = MISSING                 # -1: no sample (not filled)
@@ -235,13 +235,11 @@ class MarkerLanes(QWidget):
         self.name_axis.setTextPen(pg.mkPen((205, 210, 218)))
         self._name_font = font
 
-        self._image = pg.ImageItem(axisOrder="col-major")
-        self._image.setAutoDownsample(False)
+        self._image = pg.ImageItem(axisOrder="col-major", autoDownsample=False)
         self.plot.addItem(self._image)
         self._separators = pg.PlotCurveItem(pen=pg.mkPen(BACKGROUND, width=2), connect="pairs")
         self.plot.addItem(self._separators)
-        for lanes_item in (self._image, self._separators):    # the cursor moves over cached pixmaps: a frame
-            lanes_item.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)   # step redraws no lane
+        paint_from_cache(self._image, self._separators)
         self._selection = QGraphicsRectItem()
         selection_pen = QPen(QColor(*SELECTION_COLOUR))
         selection_pen.setCosmetic(True)

@@ -121,13 +121,13 @@ class MarkerTableModel(ColumnTableModel):
     def set_frame_values(self, positions: np.ndarray, residuals: np.ndarray | None) -> None:
         """Current frame: ``positions (M,3)`` mm (NaN missing), ``residuals (M,)`` mm or None. Only the chips
         of the markers that appeared or vanished are redrawn."""
-        was_observed = np.isfinite(self._positions).all(axis=1)
+        was_observed = np.asarray(np.isfinite(self._positions).all(axis=1))
         self._positions = np.asarray(positions, dtype=float)
         self._residuals = (np.full(len(self._names), np.nan) if residuals is None
                            else np.asarray(residuals, dtype=float))
         if self._names:
             last = len(self._names) - 1
-            observed = np.isfinite(self._positions).all(axis=1)
+            observed = np.asarray(np.isfinite(self._positions).all(axis=1))
             changed = (np.flatnonzero(was_observed != observed) if len(was_observed) == len(observed)
                        else np.arange(len(observed)))
             if len(changed):

@@ -15,7 +15,6 @@ from PySide6.QtGui import QAction
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
-    QGraphicsItem,
     QHBoxLayout,
     QLabel,
     QSpinBox,
@@ -25,6 +24,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from handmocap.widgets.cached_drawing import paint_from_cache
 from handmocap.widgets.shortcuts import bind
 
 SPEEDS = (0.1, 0.25, 0.5, 1.0, 2.0, 4.0)
@@ -144,9 +144,7 @@ class TimelineWidget(QWidget):
         item.vb.sigResized.connect(lambda: self._residual_box.setGeometry(item.vb.sceneBoundingRect()))
         self._residual_curve = pg.PlotDataItem(pen=pg.mkPen(RESIDUAL_PEN, width=1.2))
         self._residual_box.addItem(self._residual_curve)
-        for curve in (self._observed_curve, self._residual_curve):     # the cursor moves over cached pixmaps:
-            for part in (curve, *curve.childItems()):                 # a frame step repaints no curve
-                part.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
+        paint_from_cache(self._observed_curve, self._residual_curve)
         self._cursor = pg.InfiniteLine(angle=90, movable=True, pen=pg.mkPen((255, 200, 60), width=2),
                                        hoverPen=pg.mkPen((255, 230, 120), width=3))
         self._cursor.sigPositionChanged.connect(self._cursor_moved)

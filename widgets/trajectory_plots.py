@@ -26,6 +26,7 @@ from PySide6.QtWidgets import QCheckBox, QGraphicsItem, QHBoxLayout, QLabel, QPu
 
 from handmocap.core.gaps import fill_method, fill_methods
 from handmocap.core.review.take import runs
+from handmocap.widgets.cached_drawing import paint_from_cache
 from handmocap.widgets.marker_lanes import BACKGROUND, CURSOR_PEN, GAP_COLOUR, SELECTION_COLOUR, css
 
 #: spike threshold: median + SPIKE_MADS × (1.4826 × MAD) of a label's |acceleration|. 1.4826 × MAD is the
@@ -352,8 +353,7 @@ class TrajectoryPlots(QWidget):
     def _add(self, plot: pg.PlotItem, item: pg.GraphicsObject, z: float, ignore_bounds: bool = False) -> None:
         """Add a drawn item; it and its parts (a PlotDataItem's curve) paint from a cached pixmap, so
         moving the cursor over them repaints no curve."""
-        for part in (item, *item.childItems()):
-            part.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
+        paint_from_cache(item)
         item.setZValue(z)
         plot.addItem(item, ignoreBounds=ignore_bounds)
         self._items.append((plot, item))

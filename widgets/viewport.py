@@ -544,9 +544,7 @@ class HandViewport(QWidget):
         for number, (vertices, faces) in enumerate(meshes):
             # copies: the widget updates these points in place, the caller's arrays must stay untouched
             self._mesh_faces[number] = np.array(faces, dtype=np.int64)
-            # pyvista annotates faces as ndarray[dtype[int]], a dtype no numpy array has
-            surface = pv.PolyData.from_regular_faces(np.array(vertices, dtype=float),
-                                                     self._mesh_faces[number])  # type: ignore[arg-type]
+            surface = pv.PolyData.from_regular_faces(np.array(vertices, dtype=float), self._mesh_faces[number])
             normals = numpy_to_vtk(mesh_vertex_normals(surface.points, self._mesh_faces[number]), deep=True)
             normals.SetName("Normals")
             surface.GetPointData().SetNormals(normals)
