@@ -54,6 +54,19 @@ def window(qtbot, monkeypatch):
     release(main_window)
 
 
+@pytest.fixture
+def viewport(qtbot):
+    """A 3D view of its own, 640×480, shown; closed after the test."""
+    from handmocap.widgets.viewport import HandViewport
+
+    view = HandViewport()
+    qtbot.addWidget(view)
+    view.resize(640, 480)
+    view.show()
+    yield view
+    view.close_viewport()
+
+
 def release(widget) -> None:
     """Delete a top-level widget now, while Qt runs: a closed window's 3D views left alive keep the GUI
     thread busy in later tests (a Cancel then arrives too late), and pyqtgraph items left to the

@@ -12,13 +12,8 @@ from handmocap.core.model.hand_model import mesh_vertex_normals
 pytestmark = pytest.mark.gui
 
 
-def test_the_hand_surface_normals_follow_the_pose(qtbot):
-    from handmocap.widgets.viewport import HandViewport
-
-    view = HandViewport()
-    qtbot.addWidget(view)
-    view.resize(480, 360)
-    view.show()
+def test_the_hand_surface_normals_follow_the_pose(viewport):
+    view = viewport
     model = load_template()
     view.set_hand_mesh(model.vertices, model.faces)
     mesh = view._meshes[0]
@@ -35,7 +30,6 @@ def test_the_hand_surface_normals_follow_the_pose(qtbot):
     np.testing.assert_allclose(normals, mesh_vertex_normals(posed, model.faces), atol=1e-12)
     assert np.abs(normals - rest_normals).max() > 0.5
     np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-9)
-    view.close_viewport()
 
 
 def test_the_marker_table_redraws_only_the_chips_that_changed(qtbot):

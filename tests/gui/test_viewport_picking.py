@@ -6,13 +6,8 @@ import pytest
 pytestmark = pytest.mark.gui
 
 
-def test_marker_at_finds_the_clicked_marker(qtbot):
-    from handmocap.widgets.viewport import HandViewport
-
-    view = HandViewport()
-    qtbot.addWidget(view)
-    view.resize(640, 480)
-    view.show()
+def test_marker_at_finds_the_clicked_marker(viewport):
+    view = viewport
     positions = np.array([[0.0, 0.0, 0.0], [60.0, 0.0, 0.0], [0.0, 60.0, 30.0], [np.nan, np.nan, np.nan]])
     view.set_markers(["a", "b", "c", "gone"], positions)
     view.frame_bounds(positions[:3])
@@ -24,19 +19,13 @@ def test_marker_at_finds_the_clicked_marker(qtbot):
         display_x, display_y, _ = renderer.GetDisplayPoint()
         assert view.marker_at(display_x / ratio, (height - display_y) / ratio) == index
     assert view.marker_at(2.0, 2.0) == -1
-    view.close_viewport()
 
 
-def test_a_click_picks_a_drag_does_not_and_keys_stay_away_from_vtk(qtbot):
+def test_a_click_picks_a_drag_does_not_and_keys_stay_away_from_vtk(viewport, qtbot):
     from PySide6.QtCore import QEvent, QPointF, Qt
     from PySide6.QtGui import QKeyEvent, QMouseEvent
 
-    from handmocap.widgets.viewport import HandViewport
-
-    view = HandViewport()
-    qtbot.addWidget(view)
-    view.resize(640, 480)
-    view.show()
+    view = viewport
     positions = np.array([[0.0, 0.0, 0.0], [60.0, 0.0, 0.0]])
     view.set_markers(["a", "b"], positions)
     view.frame_bounds(positions)
@@ -61,4 +50,3 @@ def test_a_click_picks_a_drag_does_not_and_keys_stay_away_from_vtk(qtbot):
     key = QKeyEvent(QEvent.Type.KeyPress, Qt.Key.Key_W, Qt.KeyboardModifier.NoModifier, "w")
     assert view.eventFilter(view.plotter, key) and not key.isAccepted()
     assert not view.eventFilter(view, key)                     # only the 3D view's own events are filtered
-    view.close_viewport()
