@@ -14,6 +14,7 @@ linked. Forward extension is causal (usable online); backward extension needs th
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 FIRST_LINK_FACTOR = 3.0
 """A free point's second sample is linked within this times ``link_mm`` of its first (no velocity is
@@ -90,29 +91,106 @@ def free_fragments(points: np.ndarray, assignment: np.ndarray, link_mm: float, m
     and the point column per frame ``(L,)``, linked frame to frame like :func:`extend_trajectories`
     (unambiguous constant-velocity continuation within ``link_mm``; the second sample within
     :data:`FIRST_LINK_FACTOR` × ``link_mm`` of the first); only those of at least
-    ``min_frames`` frames are returned."""
+    ``min_frames`` frames are returned, in the order they ended (those open at the last frame last)."""
     free = _free_points(points, assignment)
-    open_tracks: list[list] = []          # [first frame, columns, previous point, last point]
-    done: list[tuple[int, np.ndarray]] = []
-    for frame in range(len(points)):
-        candidates = np.flatnonzero(free[frame])
-        used: set[int] = set()
-        still_open = []
-        for track in open_tracks:
-            # no velocity yet after one sample: the point may have moved a marker's frame-to-frame distance
-            gate = FIRST_LINK_FACTOR * link_mm if track[2] is None else link_mm
-            link = _continuation(points[frame, candidates], track[3], track[2], gate)
-            column = None if link is None else int(candidates[link[0]])
-            if column is not None and column not in used:
-                used.add(column)
-                track[1].append(column)
-                track[2], track[3] = track[3], points[frame, column]
-                still_open.append(track)
-            elif len(track[1]) >= min_frames:
-                done.append((track[0], np.array(track[1])))
-        for unlinked in candidates.tolist():
-            if unlinked not in used:
-                still_open.append([frame, [unlinked], None, points[frame, unlinked]])
-        open_tracks = still_open
-    done += [(track[0], np.array(track[1])) for track in open_tracks if len(track[1]) >= min_frames]
-    return done
+    ended, first, length, sample_fragment, sample_column = _link_free_points(
+        np.ascontiguousarray(points, dtype=np.float64), free, float(link_mm), FIRST_LINK_FACTOR)
+    columns = sample_column[np.argsort(sample_fragment, kind="stable")]      # each fragment's samples in frame order
+    starts = np.concatenate([[0], np.cumsum(length)])
+    return [(int(first[fragment]), columns[starts[fragment]:starts[fragment + 1]])
+            for fragment in ended.tolist() if length[fragment] >= min_frames]
+
+
+@njit(cache=True, inline="always")
+def _nearest_two(points, candidates, predicted):
+    """Of the points ``points[candidates] (C,3)``: the index into ``candidates`` of the nearest to
+    ``predicted (3,)`` (-1 none), its distance and the next-nearest distance (mm; inf when missing)."""
+    best, nearest, runner_up = -1, np.inf, np.inf
+    for k in range(candidates.shape[0]):
+        column = candidates[k]
+        dx = points[column, 0] - predicted[0]
+        dy = points[column, 1] - predicted[1]
+        dz = points[column, 2] - predicted[2]
+        distance = np.sqrt(dx * dx + dy * dy + dz * dz)
+        if distance < nearest:
+            best, nearest, runner_up = k, distance, nearest
+        elif distance < runner_up:
+            runner_up = distance
+    return best, nearest, runner_up
+
+
+@njit(cache=True)
+def _link_free_points(points, free, link_mm, first_factor):
+    """The frame-to-frame linking of :func:`free_fragments` over ``free (F,P)`` samples of ``points (F,P,3)``:
+    each open fragment, in order, takes the :func:`_continuation` of its last samples among the frame's free
+    points unless an earlier fragment took that point; a point no fragment took starts one. Returns the
+    fragments in the order they ended (K,), each fragment's first frame and length, and per sample (S,) its
+    fragment and point column (in the order linked)."""
+    frames, width = free.shape
+    capacity = max(int(free.sum()), 1)
+    sample_fragment = np.empty(capacity, dtype=np.int64)
+    sample_column = np.empty(capacity, dtype=np.int64)
+    first = np.empty(capacity, dtype=np.int64)
+    length = np.zeros(capacity, dtype=np.int64)
+    ended = np.empty(capacity, dtype=np.int64)
+    open_ids = np.empty(width, dtype=np.int64)
+    open_previous = np.empty((width, 3))
+    open_last = np.empty((width, 3))
+    open_moving = np.zeros(width, dtype=np.bool_)      # a fragment with two samples has a velocity
+    next_ids = np.empty(width, dtype=np.int64)
+    next_previous = np.empty((width, 3))
+    next_last = np.empty((width, 3))
+    next_moving = np.zeros(width, dtype=np.bool_)
+    candidates = np.empty(width, dtype=np.int64)
+    used = np.zeros(width, dtype=np.bool_)
+    n_open = n_samples = n_fragments = n_ended = 0
+    for frame in range(frames):
+        n_candidates = 0
+        for column in range(width):
+            used[column] = False
+            if free[frame, column]:
+                candidates[n_candidates] = column
+                n_candidates += 1
+        n_next = 0
+        for track in range(n_open):
+            gate = link_mm if open_moving[track] else first_factor * link_mm
+            predicted = 2.0 * open_last[track] - open_previous[track] if open_moving[track] else open_last[track]
+            best, nearest, runner_up = _nearest_two(points[frame], candidates[:n_candidates], predicted)
+            linked = best >= 0 and nearest <= gate and runner_up >= 2.0 * gate and not used[candidates[best]]
+            fragment = open_ids[track]
+            if not linked:
+                ended[n_ended] = fragment
+                n_ended += 1
+                continue
+            column = candidates[best]
+            used[column] = True
+            sample_fragment[n_samples], sample_column[n_samples] = fragment, column
+            n_samples += 1
+            length[fragment] += 1
+            next_ids[n_next] = fragment
+            next_previous[n_next] = open_last[track]
+            next_last[n_next] = points[frame, column]
+            next_moving[n_next] = True
+            n_next += 1
+        for k in range(n_candidates):
+            column = candidates[k]
+            if used[column]:
+                continue
+            first[n_fragments], length[n_fragments] = frame, 1
+            sample_fragment[n_samples], sample_column[n_samples] = n_fragments, column
+            n_samples += 1
+            next_ids[n_next] = n_fragments
+            next_last[n_next] = points[frame, column]
+            next_moving[n_next] = False
+            n_next += 1
+            n_fragments += 1
+        n_open = n_next
+        open_ids[:n_open] = next_ids[:n_open]
+        open_previous[:n_open] = next_previous[:n_open]
+        open_last[:n_open] = next_last[:n_open]
+        open_moving[:n_open] = next_moving[:n_open]
+    for track in range(n_open):
+        ended[n_ended] = open_ids[track]
+        n_ended += 1
+    return (ended[:n_ended], first[:n_fragments], length[:n_fragments], sample_fragment[:n_samples],
+            sample_column[:n_samples])

@@ -202,3 +202,26 @@ def test_a_fast_free_trajectory_is_one_fragment_from_its_first_sample():
     fragments = free_fragments(points, np.full((frames, 1), -1), 4.0, 20)
     assert [(first, len(columns)) for first, columns in fragments] == [(0, frames)]
     assert (fragments[0][1] == 0).all()
+
+
+def test_free_fragments_end_at_ambiguity_and_are_listed_in_the_order_they_end():
+    """Two free trajectories that come within ``2 · link_mm`` of each other stop being linked there (neither
+    continuation is unambiguous) and start afresh after; fragments are listed as they end, those still open at
+    the last frame last, each with its point column per frame."""
+    frames, link = 40, 4.0
+    t = np.arange(frames, dtype=float)
+    points = np.full((frames, 3, 3), np.nan)
+    points[:, 0] = np.column_stack([2.0 * t, np.zeros(frames), np.zeros(frames)])
+    points[:, 1] = np.column_stack([2.0 * t, np.abs(t - 20.0) * 1.5 + 1.0, np.zeros(frames)])   # meets column 0
+    points[:8, 2] = np.column_stack([np.full(8, 200.0), np.zeros(8), np.zeros(8)])           # a still point, 8 frames
+    fragments = free_fragments(points, np.full((frames, 1), -1), link, 3)
+    summary = [(first, len(columns), int(columns[0])) for first, columns in fragments]
+    assert summary[0] == (0, 8, 2)                                # the still point ends first
+    near = np.linalg.norm(points[:, 0] - points[:, 1], axis=1) < 2.0 * link
+    assert near.any()
+    ended_before_meeting = [entry for entry in summary[1:] if entry[0] == 0]
+    assert sorted(entry[2] for entry in ended_before_meeting) == [0, 1]
+    assert all(entry[1] <= int(np.argmax(near)) for entry in ended_before_meeting)
+    assert summary[-2:] and all(first + length == frames for first, length, _ in summary[-2:])
+    for first, columns in fragments:
+        assert np.isfinite(points[first + np.arange(len(columns)), columns]).all()
