@@ -102,7 +102,7 @@ def free_fragments(points: np.ndarray, assignment: np.ndarray, link_mm: float, m
 
 
 @njit(cache=True, inline="always")
-def _nearest_two(points, candidates, predicted):
+def _nearest_two(points: np.ndarray, candidates: np.ndarray, predicted: np.ndarray) -> tuple[int, float, float]:
     """Of the points ``points[candidates] (C,3)``: the index into ``candidates`` of the nearest to
     ``predicted (3,)`` (-1 none), its distance and the next-nearest distance (mm; inf when missing)."""
     best, nearest, runner_up = -1, np.inf, np.inf
@@ -120,7 +120,8 @@ def _nearest_two(points, candidates, predicted):
 
 
 @njit(cache=True)
-def _link_free_points(points, free, link_mm, first_factor):
+def _link_free_points(points: np.ndarray, free: np.ndarray, link_mm: float, first_factor: float
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The frame-to-frame linking of :func:`free_fragments` over ``free (F,P)`` samples of ``points (F,P,3)``:
     each open fragment, in order, takes the :func:`_continuation` of its last samples among the frame's free
     points unless an earlier fragment took that point; a point no fragment took starts one. Returns the
