@@ -766,7 +766,7 @@ def window_cost(track: Track, positions: np.ndarray, frame: int, labels: np.ndar
     trial = _Run([track], positions[frame:stop], settings)
     trial.scheduled[0] = [(0, labels, state)]
     limit = bound * frames
-    partial = [0.0]
+    partial = 0.0
 
     def frame_cost(rows: slice) -> np.ndarray:
         labelled = trial.assignment[rows] >= 0
@@ -774,14 +774,15 @@ def window_cost(track: Track, positions: np.ndarray, frame: int, labels: np.ndar
         return residuals + settings.alpha * (~labelled).sum(axis=1)
 
     def check(tracked: int) -> None:
-        partial[0] += float(frame_cost(slice(tracked, tracked + 1))[0])
-        if partial[0] > limit:
+        nonlocal partial
+        partial += float(frame_cost(slice(tracked, tracked + 1))[0])
+        if partial > limit:
             raise _WindowDone
 
     try:
         trial.forward(0, frames, lambda _frame: None, check if np.isfinite(limit) else None)
     except _WindowDone:
-        return partial[0] / frames
+        return partial / frames
     return float(frame_cost(slice(None)).mean())
 
 
