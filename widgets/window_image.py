@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from PySide6.QtGui import QImage, QPainter
@@ -12,10 +13,13 @@ from PySide6.QtWidgets import QWidget
 
 from handmocap.core.errors import InputError
 from handmocap.core.io.durable import durable_path
-from handmocap.widgets.viewport import HandViewport
+
+if TYPE_CHECKING:
+    from handmocap.widgets.deferred_viewport import DeferredViewport
+    from handmocap.widgets.viewport import HandViewport
 
 
-def window_image(window: QWidget, views: Iterable[HandViewport]) -> QImage:
+def window_image(window: QWidget, views: Iterable[HandViewport | DeferredViewport]) -> QImage:
     """``window`` as an image with each visible 3D view in ``views`` drawn in (without an OpenGL
     context, e.g. on the offscreen platform, the views stay as Qt grabbed them)."""
     image = window.grab().toImage()

@@ -52,8 +52,8 @@ from handmocap.core.review.events import ReviewChanged
 from handmocap.core.session import Session
 from handmocap.core.session.cameras import TakeCamera, add_camera, save_take_camera, take_cameras
 from handmocap.widgets.camera_view import CameraView
+from handmocap.widgets.deferred_viewport import DeferredViewport
 from handmocap.widgets.dialog_buttons import ok_cancel_buttons
-from handmocap.widgets.viewport import HandViewport
 
 RAW_COLOUR = (0.55, 0.80, 1.00)          # points of a take without labels (the 3D view's marker colour)
 FRUSTUM_DEPTH_MM = 150.0                 # how far the frustum reaches when the take has no markers in front
@@ -154,7 +154,7 @@ class CameraController(QObject):
     error_raised = Signal(str, str)
     cameras_loaded = Signal(int)           # the shown take's cameras were read: how many it has
 
-    def __init__(self, app: Application, host: QWidget, viewport: HandViewport) -> None:
+    def __init__(self, app: Application, host: QWidget, viewport: DeferredViewport) -> None:
         super().__init__(host)
         self.app, self.host, self.viewport = app, host, viewport
         self.view = CameraView(host)

@@ -60,6 +60,7 @@ from handmocap.core.ik import METHODS
 from handmocap.core.io import READ_SUFFIXES, TAKE_FILE_FILTER, FrameRateMissingError, Take, load_take
 from handmocap.core.model import layout_names, skin_vertices
 from handmocap.core.review.events import ReviewChanged
+from handmocap.widgets.deferred_viewport import DeferredViewport
 from handmocap.widgets.elided_combo import ElidedComboBox
 from handmocap.widgets.frame_rate_dialog import FrameRatePrompt
 from handmocap.widgets.marker_panel import MarkerPanel
@@ -67,7 +68,6 @@ from handmocap.widgets.message_panel import MessagePanel, PanelLogHandler
 from handmocap.widgets.shortcuts import bind
 from handmocap.widgets.shortcuts_dialog import ShortcutsDialog
 from handmocap.widgets.timeline import TimelineWidget
-from handmocap.widgets.viewport import HandViewport
 from handmocap.widgets.window_image import save_screenshot, window_image
 
 HAND_SIDES = ("right", "left", "both")
@@ -141,7 +141,7 @@ class MainWindow(QMainWindow):
         self.loader.failed.connect(lambda message: self.show_error("Cannot open", message))
         self.loader.busy_changed.connect(self._loader_busy_changed)
 
-        self.viewport = HandViewport(self, off_screen=off_screen)
+        self.viewport = DeferredViewport(self, off_screen=off_screen)   # the 3D view, built once the window shows
         self.viewport.marker_clicked.connect(self._marker_clicked)
         self.setCentralWidget(self.viewport)
         self.timeline = TimelineWidget(self)

@@ -83,7 +83,7 @@ def test_dock_shows_the_camera_frame_at_the_timeline_time(window, qtbot, filmed,
     assert np.nanmedian(np.linalg.norm(pixels - truth, axis=1)) < 2.0
     assert controller.view.canvas.paint_count > 0
     # the camera is drawn as a frustum in the 3D view
-    assert window.viewport._frustum_actor.visibility and window.viewport._frustum_lines.GetNumberOfCells() == 8
+    assert window.viewport.view()._frustum_actor.visibility and window.viewport.view()._frustum_lines.GetNumberOfCells() == 8
 
 
 def test_clicking_a_marker_in_the_video_selects_it(window, qtbot, filmed, tmp_path):
@@ -278,7 +278,7 @@ def test_wizard_registers_an_unregistered_camera_from_the_takes_markers(window, 
     assert np.linalg.norm(camera.centre - truth.centre) < 5.0
     assert rotation_angle_deg(camera.rotation, truth.rotation) < 0.5
     assert wizard.save() and window.cameras.camera.camera.registered
-    assert window.viewport._frustum_actor.visibility            # registered: the frustum is shown
+    assert window.viewport.view()._frustum_actor.visibility            # registered: the frustum is shown
     wizard.close()
 
 

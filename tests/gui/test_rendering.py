@@ -23,7 +23,7 @@ def shown(window, qtbot):
 
 
 def test_many_frame_changes_give_one_render_of_the_last_frame(shown, qtbot):
-    view = shown.viewport
+    view = shown.viewport.view()
     view._idle_timer.setInterval(60_000)        # only the render of the frame changes is counted here
     before = view.render_count
     for frame in range(10, 30):
@@ -47,7 +47,7 @@ def test_the_still_view_is_redrawn_anti_aliased(shown, qtbot):
 
 
 def test_frames_move_the_existing_points_and_actors(shown, qtbot):
-    view = shown.viewport
+    view = shown.viewport.view()
     shown.review.select_label(0)
     renderer = view.plotter.renderer
     actors = renderer.GetActors().GetNumberOfItems()

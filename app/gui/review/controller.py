@@ -34,8 +34,8 @@ from handmocap.app.gui.review.selection import ReviewSelection
 from handmocap.app.gui.review.take_events import TakeEvents
 from handmocap.app.gui.review.views import ReviewViews
 from handmocap.core.review import ReviewTake
+from handmocap.widgets.deferred_viewport import DeferredViewport
 from handmocap.widgets.timeline import TimelineWidget
-from handmocap.widgets.viewport import HandViewport
 
 
 class ReviewController(QObject, ReviewViews, FrameDrawing, ReviewActions, ReviewSelection, LabelEdits, TakeEvents,
@@ -52,7 +52,7 @@ class ReviewController(QObject, ReviewViews, FrameDrawing, ReviewActions, Review
     auto_label_applied = Signal(object, object, object)  # document, hand models and marker sets it calibrated
     exported = Signal(object, str, str)           # document, kind (an export format name: "c3d", "angles-csv"...), path
 
-    def __init__(self, app: Application, host: QWidget, viewport: HandViewport, timeline: TimelineWidget) -> None:
+    def __init__(self, app: Application, host: QWidget, viewport: DeferredViewport, timeline: TimelineWidget) -> None:
         super().__init__(host)
         self.app, self.host, self.viewport, self.timeline = app, host, viewport, timeline
         self.auto_settings = AutoLabelSettings()

@@ -18,12 +18,12 @@ from handmocap.app.gui.review.dialogs import AutoLabelSettings
 from handmocap.app.gui.workers import TaskRunner
 from handmocap.core.review import Command, FrameSpan, ReviewTake
 from handmocap.core.workflows import AutoLabelOutcome
+from handmocap.widgets.deferred_viewport import DeferredViewport
 from handmocap.widgets.fill_preview import FillPreview
 from handmocap.widgets.gap_list import GapList
 from handmocap.widgets.marker_lanes import MarkerLanes
 from handmocap.widgets.review_table import ReviewTable
 from handmocap.widgets.timeline import TimelineWidget
-from handmocap.widgets.viewport import HandViewport
 
 
 class ReviewPart:
@@ -32,7 +32,7 @@ class ReviewPart:
     # the controller's (controller.py)
     app: Application
     host: QWidget
-    viewport: HandViewport
+    viewport: DeferredViewport
     timeline: TimelineWidget
     auto_settings: AutoLabelSettings
     status_message: SignalInstance
