@@ -11,12 +11,6 @@ command line does not pay for it.
 """
 
 from importlib import import_module
-from importlib.metadata import PackageNotFoundError, version
-
-try:
-    __version__ = version("handmocap")
-except PackageNotFoundError:  # the sources without an installation (e.g. a frozen bundle's metadata missing)
-    __version__ = "0+unknown"
 
 __all__ = ["__version__", "CancelledError", "FilledGap", "FillResult", "InputError", "LabTemplate", "LabelResult",
            "SolvedHand", "Take", "evaluate_labelling", "export", "fill", "label", "learn_template", "read_take",
@@ -26,10 +20,23 @@ API = frozenset(__all__) - {"__version__"}
 
 
 def __getattr__(name: str) -> object:
-    """The API's names, imported from :mod:`handmocap.core.api` on first use (PEP 562)."""
+    """The API's names, imported from :mod:`handmocap.core.api` on first use, and ``__version__``, read from
+    the installed distribution's metadata when first asked for (reading it costs a tenth of a second at every
+    start) (PEP 562)."""
+    if name == "__version__":
+        return _installed_version()
     if name in API:
         return getattr(import_module("handmocap.core.api"), name)
     raise AttributeError(f"module 'handmocap' has no attribute '{name}'")
+
+
+def _installed_version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("handmocap")
+    except PackageNotFoundError:  # the sources without an installation (e.g. a frozen bundle's metadata missing)
+        return "0+unknown"
 
 
 def __dir__() -> list[str]:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt
+from PySide6.QtGui import QShowEvent
 from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
 from handmocap.core.gaps import fill_method, menu_fill_methods
@@ -37,10 +38,24 @@ class FillPreview(QWidget):
         self.legend_label.setContentsMargins(6, 0, 6, 2)
         for label in (self.title_label, self.legend_label):
             label.setStyleSheet(f"background: {css(BACKGROUND)}; color: #cdd2da;")
+        self.graphics: pg.GraphicsLayoutWidget | None = None    # the plots: built when first shown or drawn to
+        self.plots: list[pg.PlotItem] = []
+        self._regions: list[pg.LinearRegionItem] = []
+        self._measured: list[pg.PlotDataItem] = []
+        self._layout = QVBoxLayout(self)
+        self._layout.setContentsMargins(0, 0, 0, 0)
+        self._layout.setSpacing(0)
+        self._layout.addWidget(self.title_label)
+        self._layout.addWidget(self.legend_label)
+        self.clear()
+
+    def _build_plots(self) -> None:
+        """The three plots (pyqtgraph: a tenth of a second or more), built when first shown or drawn to."""
+        if self.graphics is not None:
+            return
         self.graphics = pg.GraphicsLayoutWidget(self)
         self.graphics.setBackground(BACKGROUND)
         self.graphics.ci.setSpacing(0)
-        self.plots: list[pg.PlotItem] = []
         for row, axis in enumerate(AXES):
             # the axis name level, not rotated: three rotated labels overlap when the dock is short
             self.graphics.addLabel(f"{axis}<br>mm", row=row, col=0, color="#cdd2da", size="8pt")
@@ -63,16 +78,15 @@ class FillPreview(QWidget):
                                           symbolPen=None, symbolBrush=MEASURED_PEN, connect="finite")
                           for _ in AXES]
         for plot, region, measured in zip(self.plots, self._regions, self._measured, strict=True):
+            region.hide()                        # until a gap is shown
             plot.addItem(region)
             plot.addItem(measured)
         self.graphics.setMinimumSize(220, 110)   # beside the gap list in the Gaps dock, even at 1366×768
-        layout = QVBoxLayout(self)
-        layout.setContentsMargins(0, 0, 0, 0)
-        layout.setSpacing(0)
-        layout.addWidget(self.title_label)
-        layout.addWidget(self.legend_label)
-        layout.addWidget(self.graphics, 1)
-        self.clear()
+        self._layout.addWidget(self.graphics, 1)
+
+    def showEvent(self, event: QShowEvent) -> None:
+        self._build_plots()
+        super().showEvent(event)
 
     # ------------------------------------------------------------------------------------- public
     def clear(self) -> None:
@@ -95,6 +109,7 @@ class FillPreview(QWidget):
         ``selected``: the method drawn bold; ``errors_mm``: fill-check error per method, shown in the
         legend; ``first_frame``: the file's number of frame 0.
         """
+        self._build_plots()
         trajectory = np.asarray(trajectory, dtype=float)
         if trajectory.ndim != 2 or trajectory.shape[1] != 3:
             raise ValueError(f"trajectory must be (frames, 3), got shape {trajectory.shape}")

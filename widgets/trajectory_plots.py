@@ -174,6 +174,8 @@ class TrajectoryPlots(QWidget):
         self._frame_rate = 100.0
         self._traces: list[Trace] = []
         self._items: list[tuple[pg.PlotItem, pg.GraphicsObject]] = []   # what set_traces drew
+        self._frame = 0
+        self._range: tuple[int | None, int | None] = (None, None)
         self._build()
 
     # ------------------------------------------------------------------------------------ building
@@ -203,12 +205,24 @@ class TrajectoryPlots(QWidget):
                                      f"{MAD_TO_SIGMA} × MAD (its own data).\nSwap suspects: the review's problem "
                                      "list. Click: go to the frame; drag: mark the range (like I and O).")
 
-        self.canvas = pg.GraphicsLayoutWidget(self)
-        self.canvas.setBackground(BACKGROUND)
-        self.canvas.ci.layout.setVerticalSpacing(2)
+        self.canvas: pg.GraphicsLayoutWidget | None = None     # the plots: built when first shown or drawn to
         self.plots: dict[str, pg.PlotItem] = {}
         self.cursors: dict[str, pg.InfiniteLine] = {}
         self.regions: dict[str, pg.LinearRegionItem] = {}
+        self._layout = QVBoxLayout(self)
+        self._layout.setContentsMargins(0, 0, 0, 0)
+        self._layout.setSpacing(0)
+        self._layout.addLayout(header)
+        self._layout.addWidget(self.legend_label)
+
+    def _build_canvas(self) -> None:
+        """The plots (pyqtgraph: a tenth of a second or more), built when first shown or drawn to; they take
+        the take, frame and range set before."""
+        if self.canvas is not None:
+            return
+        self.canvas = pg.GraphicsLayoutWidget(self)
+        self.canvas.setBackground(BACKGROUND)
+        self.canvas.ci.layout.setVerticalSpacing(2)
         for row, (key, title, unit) in enumerate(QUANTITIES):
             plot = self.canvas.addPlot(row=row, col=0, viewBox=_FrameBox(self))
             plot.hideButtons()
@@ -240,13 +254,10 @@ class TrajectoryPlots(QWidget):
             plot.addItem(region, ignoreBounds=True)
             self.plots[key], self.cursors[key], self.regions[key] = plot, cursor, region
         self._show_rows()
-
-        layout = QVBoxLayout(self)
-        layout.setContentsMargins(0, 0, 0, 0)
-        layout.setSpacing(0)
-        layout.addLayout(header)
-        layout.addWidget(self.legend_label)
-        layout.addWidget(self.canvas, 1)
+        self._layout.addWidget(self.canvas, 1)
+        self._show_take()
+        self.set_frame(self._frame)
+        self.set_range(*self._range)
 
     @staticmethod
     def _legend() -> str:
@@ -258,6 +269,8 @@ class TrajectoryPlots(QWidget):
 
     def _show_rows(self) -> None:
         """Show the plots of the checked quantities; frame numbers under the lowest one shown."""
+        if self.canvas is None:
+            return
         shown = [key for key, box in self.quantity_boxes.items() if box.isChecked()]
         self.canvas.setMinimumHeight(ROW_MIN_PX * max(len(shown), 1) + 30)
         for key, plot in self.plots.items():
@@ -276,10 +289,17 @@ class TrajectoryPlots(QWidget):
         self._n_frames, self._first_frame, self._frame_rate = n_frames, first_frame, frame_rate
         self.set_traces([])
         self.set_range(None, None)
-        self.plots["x"].setXRange(first_frame - 0.5, first_frame + max(n_frames, 1) - 0.5, padding=0.01)
+        self._show_take()
+
+    def _show_take(self) -> None:
+        if self.canvas is not None:
+            self.plots["x"].setXRange(self._first_frame - 0.5, self._first_frame + max(self._n_frames, 1) - 0.5,
+                                      padding=0.01)
 
     def set_traces(self, traces: list[Trace]) -> None:
         """Draw ``traces`` (replacing those drawn); the frame range in view stays."""
+        if traces:
+            self._build_canvas()
         for plot, item in self._items:
             plot.removeItem(item)
         self._items = []
@@ -310,11 +330,13 @@ class TrajectoryPlots(QWidget):
 
     def set_frame(self, frame: int) -> None:
         """Move the cursor to 0-based ``frame`` (a line moves; nothing else is redrawn)."""
+        self._frame = frame
         for cursor in self.cursors.values():
             cursor.setValue(self._first_frame + frame)
 
     def set_range(self, first: int | None, last: int | None) -> None:
         """Show the marked frame range (0-based, inclusive; hidden unless both ends are marked)."""
+        self._range = (first, last)
         for region in self.regions.values():
             if first is None or last is None:
                 region.hide()
@@ -376,5 +398,6 @@ class TrajectoryPlots(QWidget):
                                            for trace in self._traces))
 
     def showEvent(self, event: QShowEvent) -> None:
+        self._build_canvas()
         super().showEvent(event)
         self.shown.emit()

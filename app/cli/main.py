@@ -43,13 +43,18 @@ SUBCOMMAND_MODULES = (layout_commands, review_commands, calibrate_commands, came
 EXIT_ERROR = 2
 
 
-def _version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
+class _VersionAction(argparse.Action):
+    """``--version``: the installed version, read only when asked for (reading it costs a tenth of a second)."""
 
-    try:
-        return version("handmocap")
-    except PackageNotFoundError:
-        return "0+unknown"
+    def __init__(self, option_strings: list[str], dest: str = argparse.SUPPRESS, **_: object) -> None:
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS,
+                         help="show the program's version and exit")
+
+    def __call__(self, parser: argparse.ArgumentParser, *_: object) -> None:
+        import handmocap
+
+        print(f"handmocap {handmocap.__version__}")
+        parser.exit()
 
 
 def command_gui(args: argparse.Namespace) -> int:
@@ -201,7 +206,7 @@ def build_parser() -> argparse.ArgumentParser:  # noqa: PLR0915 - a statement pe
     """The ``handmocap`` argument parser with every subcommand."""
     parser = argparse.ArgumentParser(prog="handmocap", description="Hand Mocap Studio: optical hand motion "
                                      "capture review, labelling, gap filling and calibration.")
-    parser.add_argument("--version", action="version", version=f"handmocap {_version()}")
+    parser.add_argument("--version", action=_VersionAction)
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")
 
     gui = commands.add_parser("gui", help="start the application (demo session when no file is given)")

@@ -8,13 +8,14 @@ import sys
 from pathlib import Path
 from typing import cast
 
-from PySide6.QtCore import QElapsedTimer, Qt, QTimer
+from PySide6.QtCore import QElapsedTimer, QTimer
 from PySide6.QtGui import QColor, QIcon, QPainter, QPixmap
-from PySide6.QtWidgets import QApplication, QSplashScreen
+from PySide6.QtWidgets import QApplication
 
 from handmocap.app.gui.palette import apply_dark_palette
 from handmocap.core.errors import InputError
 from handmocap.core.io.resources import resource_path
+from handmocap.widgets.start_splash import StartSplash
 
 SCREENSHOT_TIMEOUT_MS = 120_000
 ICONS = resource_path("icons")
@@ -48,9 +49,9 @@ def run_gui(files: list[str], screenshot: str | None = None, frame: int | None =
     app = cast(QApplication, QApplication.instance()) or QApplication(sys.argv[:1])    # (a QApplication if any)
     icon = application_icon()
     app.setWindowIcon(icon)
-    splash = QSplashScreen(_splash_picture(icon))
-    splash.show()
-    _tell(splash, "Starting Hand Mocap Studio…")
+    splash = StartSplash(_splash_picture(icon))
+    splash.show_now()
+    splash.tell("Starting Hand Mocap Studio…")
 
     from handmocap.app.gui.main_window import APP_NAME, MainWindow
 
@@ -61,7 +62,7 @@ def run_gui(files: list[str], screenshot: str | None = None, frame: int | None =
         _prepare_kernels(splash)
     window = MainWindow()
     window.show()
-    splash.finish(window)
+    splash.close()
     app.processEvents()
     if requested is not None:          # after showing: before, the unfinished layout makes Qt grow it
         window.resize(*requested)
@@ -132,13 +133,7 @@ def _splash_picture(icon: QIcon) -> QPixmap:
     return picture
 
 
-def _tell(splash: QSplashScreen, message: str) -> None:
-    """Show ``message`` on the splash now (the event loop is not running yet)."""
-    splash.showMessage(message, Qt.AlignmentFlag.AlignBottom | Qt.AlignmentFlag.AlignHCenter, Qt.GlobalColor.white)
-    QApplication.processEvents()
-
-
-def _prepare_kernels(splash: QSplashScreen) -> None:
+def _prepare_kernels(splash: StartSplash) -> None:
     """At the first start of a frozen bundle, compile (or load the bundle's warmed cache of) every numba
     kernel under the splash, so that no operator action waits for the compiler; later starts skip it.
 
@@ -153,8 +148,8 @@ def _prepare_kernels(splash: QSplashScreen) -> None:
     stamp = cache / f"kernels-ready-{key}"
     if stamp.exists():
         return
-    _tell(splash, "First start: preparing the computing kernels (once, up to a minute)…")
-    seconds = warm_up(report=lambda line: _tell(splash, f"First start: {line}…"))
+    splash.tell("First start: preparing the computing kernels (once, up to a minute)…")
+    seconds = warm_up(report=lambda line: splash.tell(f"First start: {line}…"))
     try:
         cache.mkdir(parents=True, exist_ok=True)
         write_text_atomic(stamp, f"{executable}\nkernels ready in {seconds:.1f} s\n")
