@@ -3,7 +3,7 @@
 VTK, pyvista and pyvistaqt take about two seconds to import and the window a fraction of that, so the window
 shows first with this stand-in in the 3D view's place: a panel paints the view's background with a line
 saying the view is being prepared, and the :class:`~handmocap.widgets.viewport.HandViewport` is built
-(importing its stack) on the event-loop turn after that first paint. The panel draws through OpenGL, as the
+(importing its stack) a moment after that first paint. The panel draws through OpenGL, as the
 view does: a window shown without an OpenGL child is re-created when it gets one (it flickers and loses the
 keyboard).
 
@@ -29,6 +29,8 @@ if TYPE_CHECKING:
 BACKGROUND_TOP = QColor.fromRgbF(0.24, 0.26, 0.30)
 BACKGROUND_BOTTOM = QColor.fromRgbF(0.07, 0.08, 0.09)
 MAX_PENDING = 256        # calls kept at most; a window driven while hidden (scripts, tests) builds its view then
+BUILD_DELAY_MS = 100     # after the first paint: the window system shows that frame before the build holds the
+                         # event loop (about two seconds)
 
 DRAWING_CALLS = frozenset({
     "set_markers", "set_marker_names", "set_marker_colours", "update_markers", "set_selected_marker",
@@ -108,7 +110,7 @@ class DeferredViewport(QWidget):
     def _panel_painted(self) -> None:
         if not self._build_scheduled:
             self._build_scheduled = True
-            QTimer.singleShot(0, self, self.view)
+            QTimer.singleShot(BUILD_DELAY_MS, self, self.view)
 
 
 class PreparingPanel(QOpenGLWidget):

@@ -25,7 +25,6 @@ from PySide6.QtWidgets import (
     QLineEdit,
     QListWidget,
     QListWidgetItem,
-    QProgressBar,
     QPushButton,
     QSlider,
     QSplitter,
@@ -57,6 +56,7 @@ from handmocap.core.errors import HandMocapError, InputError
 from handmocap.core.model import HandModel
 from handmocap.core.model.template_mesh import LANDMARK_DESCRIPTIONS, LANDMARK_NAMES
 from handmocap.widgets.file_row import browse_row
+from handmocap.widgets.progress_bar import ProgressBar
 from handmocap.widgets.wizard_scene import CalibrationScene
 
 REMOVED_COLOUR = np.array([220, 40, 40], dtype=np.uint8)
@@ -440,7 +440,7 @@ class _RunPage(QWizardPage):
         self.scene = CalibrationScene(self, title.lower())
         layout.addWidget(self.scene, 1)
         row = QHBoxLayout()
-        self.progress = QProgressBar()
+        self.progress = ProgressBar()
         self.progress.setRange(0, 1000)
         self.run_button = QPushButton("Run again")
         self.cancel_button = QPushButton("Cancel")

@@ -28,7 +28,6 @@ from PySide6.QtWidgets import (
     QHBoxLayout,
     QLabel,
     QLineEdit,
-    QProgressBar,
     QPushButton,
     QSpinBox,
     QTableWidget,
@@ -61,6 +60,7 @@ from handmocap.core.io.documents import read_document
 from handmocap.core.io.input_schemas import BOARD_MARKERS
 from handmocap.core.session.cameras import TakeCamera
 from handmocap.widgets.file_row import browse_row
+from handmocap.widgets.progress_bar import ProgressBar
 
 
 class CameraHost(Protocol):
@@ -203,7 +203,7 @@ def offset_task(camera: Camera, media: Path, positions: np.ndarray, mocap_rate: 
 class CameraWizard(QDialog):
     """The wizard (module docstring); ``controller`` gives the shown take and camera and keeps the result."""
 
-    progress_bar: QProgressBar     # (made with the pages, after the worker that reports to it)
+    progress_bar: ProgressBar     # (made with the pages, after the worker that reports to it)
 
     def __init__(self, parent: QWidget, controller: CameraHost) -> None:
         super().__init__(parent)
@@ -230,7 +230,7 @@ class CameraWizard(QDialog):
         self.camera_label.setWordWrap(True)
         self.status_label = QLabel("", self)
         self.status_label.setWordWrap(True)
-        self.progress_bar = QProgressBar(self)
+        self.progress_bar = ProgressBar(self)
         self.progress_bar.setRange(0, 100)
         self.cancel_button = QPushButton("Cancel", self)
         self.cancel_button.clicked.connect(self.runner.cancel)

@@ -28,7 +28,6 @@ from PySide6.QtWidgets import (
     QLabel,
     QLineEdit,
     QMessageBox,
-    QProgressBar,
     QPushButton,
     QSizePolicy,
     QVBoxLayout,
@@ -39,6 +38,7 @@ from handmocap.app.gui.workers import TaskRunner, one_line
 from handmocap.core.errors import HandMocapError
 from handmocap.core.fusion.depth_fit import DepthFit
 from handmocap.widgets.file_row import browse_row
+from handmocap.widgets.progress_bar import ProgressBar
 
 #: the SR305's values (``../shared/data/rgbd``), a starting point the operator edits
 DEFAULT_INTRINSICS = (476.007, 476.007, 313.683, 242.755)
@@ -159,7 +159,7 @@ class DepthFitDialog(QDialog):
 
     def _buttons(self) -> QHBoxLayout:
         """The progress bar and the Fit, Cancel and Save buttons."""
-        self.progress_bar = QProgressBar(self)
+        self.progress_bar = ProgressBar(self)
         self.progress_bar.setRange(0, 100)
         self.progress_bar.setFormat("%p %")
         self.fit_button = QPushButton("Fit", self)

@@ -31,7 +31,6 @@ from PySide6.QtWidgets import (
     QListWidgetItem,
     QMainWindow,
     QMessageBox,
-    QProgressBar,
     QPushButton,
     QSpinBox,
     QSplitter,
@@ -59,6 +58,7 @@ from handmocap.core.session import Session
 from handmocap.widgets.layout_compare import MAX_VIEWS, LayoutCompareView
 from handmocap.widgets.layout_plots import EnergyPlot, ErrorPlot, LayoutMetricsTable
 from handmocap.widgets.placement_sheet import save_placement_sheet
+from handmocap.widgets.progress_bar import ProgressBar
 from handmocap.widgets.window_image import save_screenshot, window_image
 
 MOTION_CHOICES = (("Grasps (Cutkosky taxonomy)", "grasps"), ("Gestures", "gestures"), ("All motions", "all"),
@@ -137,7 +137,7 @@ class LayoutWindow(QMainWindow):
         splitter.setSizes([330, 270, 900])
         self.setCentralWidget(splitter)
         self.status = QLabel("Ready", self)
-        self.progress = QProgressBar(self)
+        self.progress = ProgressBar(self)
         self.progress.setRange(0, 1000)
         self.progress.setMaximumWidth(260)
         self.progress.setVisible(False)

@@ -32,7 +32,6 @@ from PySide6.QtWidgets import (
     QListWidget,
     QListWidgetItem,
     QMessageBox,
-    QProgressBar,
     QPushButton,
     QTableWidget,
     QTableWidgetItem,
@@ -50,6 +49,7 @@ from handmocap.core.model.lab_template import LabTemplate, TemplateHand, layout_
 from handmocap.core.model.markers import LAYOUT_DIR, MarkerSpec
 from handmocap.core.model.skeleton import DIGITS
 from handmocap.widgets.frame_rate_dialog import FrameRatePrompt
+from handmocap.widgets.progress_bar import ProgressBar
 
 LOAD_SHARE = 0.25                 # share of the progress bar for reading the take files
 NAME_PATTERN = re.compile(r"^[A-Za-z0-9](?:[A-Za-z0-9._-]*[A-Za-z0-9-])?$")   # a session keeps it as <name>.json
@@ -253,7 +253,7 @@ class LearnTemplateDialog(QDialog):
         return settings
 
     def _run_row(self) -> QHBoxLayout:
-        self.progress_bar = QProgressBar(self)
+        self.progress_bar = ProgressBar(self)
         self.progress_bar.setRange(0, 100)
         self.progress_bar.setFormat("%p %")
         self.learn_button = QPushButton("Learn", self)

@@ -24,7 +24,6 @@ from PySide6.QtWidgets import (
     QLabel,
     QMainWindow,
     QMessageBox,
-    QProgressBar,
     QStyle,
     QToolBar,
     QToolButton,
@@ -65,6 +64,7 @@ from handmocap.widgets.elided_combo import ElidedComboBox
 from handmocap.widgets.frame_rate_dialog import FrameRatePrompt
 from handmocap.widgets.marker_panel import MarkerPanel
 from handmocap.widgets.message_panel import MessagePanel, PanelLogHandler
+from handmocap.widgets.progress_bar import ProgressBar
 from handmocap.widgets.shortcuts import bind
 from handmocap.widgets.shortcuts_dialog import ShortcutsDialog
 from handmocap.widgets.timeline import TimelineWidget
@@ -295,7 +295,7 @@ class MainWindow(QMainWindow):
         status.addPermanentWidget(self.info_label)
         self.opening_label = QLabel("Opening…", self)
         status.addPermanentWidget(self.opening_label)
-        self.progress_bar = QProgressBar(self)
+        self.progress_bar = ProgressBar(self)
         self.progress_bar.setRange(0, 100)
         self.progress_bar.setFixedWidth(220)
         self.progress_bar.setFormat("Solving… %p %")
