@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 from handmocap.app.cli.progress import ProgressLine
@@ -15,6 +16,35 @@ from handmocap.core.io.durable import check_target
 
 OVERWRITE_HELP = "replace output files that already exist (without it the command stops before any work)"
 """The one meaning of ``--overwrite`` in every command."""
+
+
+class DeferredHelpFormatter(argparse.HelpFormatter):
+    """Help and descriptions that may be given as functions, called only when the help is shown: a text read
+    from a registry (fill methods, export formats) costs the import of what fills the registry (numba's
+    kernels among them, half a second), which no other call should pay for."""
+
+    def _format_text(self, text: str | Callable[[], str]) -> str:
+        return super()._format_text(text() if callable(text) else text)
+
+    def _format_action(self, action: argparse.Action) -> str:
+        if callable(action.help):
+            action = copy.copy(action)
+            action.help = action.help()
+        return super()._format_action(action)
+
+
+class DeferredChoices:
+    """The values an option allows, read from a registry only when the option is given or its error shown
+    (see :class:`DeferredHelpFormatter`); give the option a ``metavar``, as the usage line lists no choices."""
+
+    def __init__(self, names: Callable[[], Iterable[str]]) -> None:
+        self._names = names
+
+    def __contains__(self, value: object) -> bool:
+        return value in tuple(self._names())
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(tuple(self._names()))
 
 
 def add_outputs(parser: argparse.ArgumentParser, *options: str) -> None:

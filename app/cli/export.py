@@ -12,12 +12,20 @@ hands give one BVH file per hand (``OUT_right.bvh``, ``OUT_left.bvh``) and one g
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from contextlib import ExitStack
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from handmocap.app.cli.common import add_outputs, add_rate_argument, progress_printer
+from handmocap.app.cli.common import (
+    DeferredChoices,
+    DeferredHelpFormatter,
+    add_outputs,
+    add_rate_argument,
+    progress_printer,
+)
 from handmocap.core.errors import InputError
 
 
@@ -106,39 +114,51 @@ def _check_hand_outputs(review, out: str, overwrite: bool) -> None:
             check_output(per_hand_path(out, hand.side), overwrite)
 
 
-def register(commands, bench_commands, evaluate_commands) -> None:
-    """Add ``export`` to the ``handmocap`` parser."""
-    import handmocap.core.review  # noqa: F401  (registers the built-in export formats)
-    from handmocap.core.review.export_formats import export_format_names, export_formats
+def _formats() -> tuple:
+    """The registered export formats (importing :mod:`core.review` registers the built-in ones)."""
+    import handmocap.core.review  # noqa: F401
+    from handmocap.core.review.export_formats import export_formats
 
-    def names(test) -> str:
-        return ", ".join(chosen.name for chosen in export_formats() if test(chosen))
+    return export_formats()
 
-    export = commands.add_parser(
-        "export", help=f"export a labelled take or a session's take as {', '.join(export_format_names())}",
-        description="Formats: " + "; ".join(
-            f"{chosen.name} ({chosen.label}, {' or '.join(chosen.suffixes)}"
-            + (")" if chosen.axes else f"; always {chosen.units}, {chosen.up.upper()} up)")
-            for chosen in export_formats())
+
+def _names(test: Callable[[Any], bool]) -> str:
+    """The names of the registered export formats that pass ``test``, comma-separated."""
+    return ", ".join(chosen.name for chosen in _formats() if test(chosen))
+
+
+def _description() -> str:
+    return ("Formats: " + "; ".join(
+        f"{chosen.name} ({chosen.label}, {' or '.join(chosen.suffixes)}"
+        + (")" if chosen.axes else f"; always {chosen.units}, {chosen.up.upper()} up)") for chosen in _formats())
         + ". OpenSim: --units m --up y; Blender: --units m --up y; MotionBuilder: --units cm --up y.")
+
+
+def register(commands, bench_commands, evaluate_commands) -> None:
+    """Add ``export`` to the ``handmocap`` parser. Its texts name the registered formats and are read when the
+    help is shown (:class:`DeferredHelpFormatter`), its formats when ``--format`` is given."""
+    export = commands.add_parser(
+        "export", help=lambda: f"export a labelled take or a session's take as {_names(lambda chosen: True)}",
+        description=_description, formatter_class=DeferredHelpFormatter)
     export.add_argument("take", metavar="TAKE", help="labelled take file, or SESSION_FOLDER:TAKE (id or name), or "
                         "SESSION_FOLDER with --take")
     add_rate_argument(export)
     export.add_argument("--take", dest="take_name", metavar="NAME", help="the take (id or name) of the session")
-    export.add_argument("--format", required=True, choices=export_format_names(),
-                        help=f"{names(lambda chosen: not chosen.joint_angles)}: labelled points; "
-                        f"{names(lambda chosen: chosen.joint_angles)}: the solved hands")
+    export.add_argument("--format", required=True, metavar="FORMAT",
+                        choices=DeferredChoices(lambda: [chosen.name for chosen in _formats()]),
+                        help=lambda: f"{_names(lambda chosen: not chosen.joint_angles)}: labelled points; "
+                        f"{_names(lambda chosen: chosen.joint_angles)}: the solved hands")
     export.add_argument("--out", required=True, metavar="FILE", help="the file to write")
     export.add_argument("--units", choices=["mm", "cm", "m"],
-                        help=f"{names(lambda chosen: chosen.axes)} lengths (default mm)")
+                        help=lambda: f"{_names(lambda chosen: chosen.axes)} lengths (default mm)")
     export.add_argument("--up", choices=["y", "z"],
-                        help=f"{names(lambda chosen: chosen.axes)} up axis (default z, the lab frame)")
+                        help=lambda: f"{_names(lambda chosen: chosen.axes)} up axis (default z, the lab frame)")
     export.add_argument("--hand", choices=["right", "left"],
-                        help=f"{names(lambda chosen: chosen.joint_angles)}: that hand only (default: every hand: "
-                        f"with two, a file per hand for {names(lambda chosen: chosen.per_hand)} (FILE_right.bvh and "
-                        "FILE_left.bvh), one file with both for the others)")
+                        help=lambda: f"{_names(lambda chosen: chosen.joint_angles)}: that hand only (default: every "
+                        f"hand: with two, a file per hand for {_names(lambda chosen: chosen.per_hand)} (FILE_right.bvh "
+                        "and FILE_left.bvh), one file with both for the others)")
     export.add_argument("--no-fills", action="store_true",
-                        help=f"{names(lambda chosen: not chosen.joint_angles)}: leave filled samples out")
+                        help=lambda: f"{_names(lambda chosen: not chosen.joint_angles)}: leave filled samples out")
     export.add_argument("--quiet", action="store_true", help="no progress output")
     add_outputs(export, "out")
     export.set_defaults(handler=command_export)

@@ -22,6 +22,7 @@ from handmocap.app.cli import layout as layout_commands
 from handmocap.app.cli import live as live_commands
 from handmocap.app.cli import review as review_commands
 from handmocap.app.cli.common import (
+    DeferredHelpFormatter,
     add_frames_command,
     add_outputs,
     add_rate_argument,
@@ -78,7 +79,7 @@ def command_info(args: argparse.Namespace) -> int:
         "markers": take.n_markers, "missing_share": round(float(missing), 4),
         "marker_names": list(take.marker_names),
     }
-    from handmocap.core.live.recorder import SYSTEM_GROUP, system_labels_summary
+    from handmocap.core.io.system_labels import SYSTEM_GROUP, system_labels_summary
 
     system = system_labels_summary(take.parameters.get(SYSTEM_GROUP))
     if system:
@@ -205,7 +206,8 @@ def command_prior(args: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:  # noqa: PLR0915 - a statement per option of each command
     """The ``handmocap`` argument parser with every subcommand."""
     parser = argparse.ArgumentParser(prog="handmocap", description="Hand Mocap Studio: optical hand motion "
-                                     "capture review, labelling, gap filling and calibration.")
+                                     "capture review, labelling, gap filling and calibration.",
+                                     formatter_class=DeferredHelpFormatter)
     parser.add_argument("--version", action=_VersionAction)
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")
 

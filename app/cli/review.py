@@ -8,6 +8,8 @@ import sys
 from pathlib import Path
 
 from handmocap.app.cli.common import (
+    DeferredChoices,
+    DeferredHelpFormatter,
     add_frames_command,
     add_json_flag,
     add_outputs,
@@ -286,10 +288,22 @@ def command_evaluate_gaps(args: argparse.Namespace) -> int:
     return 0
 
 
+def _fill_choices() -> tuple[str, ...]:
+    from handmocap.core.gaps import fill_choices
+
+    return fill_choices()
+
+
+def _fill_method_help() -> str:
+    """The help of ``fill --method``: auto and every registered fill method."""
+    from handmocap.core.gaps import fill_methods
+
+    return ("auto (default): per gap, the first method of its fill check that applies; "
+            + "; ".join(f"{method.name}: {method.description}" for method in fill_methods()))
+
+
 def register(commands, bench_commands, evaluate_commands) -> None:
     """Add ``label``, ``fill`` and ``bench label`` to the ``handmocap`` parser."""
-    from handmocap.core.gaps import AUTO, fill_choices, fill_methods
-
     label = commands.add_parser("label", help="automatically label the raw points of a take (hands and objects)")
     label.add_argument("raw", help="raw take: C3D with unlabelled points or fragments, Qualisys TSV, TRC, the CSV "
                        "exports of Vicon Nexus, Motive or NOKOV")
@@ -310,14 +324,14 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     add_outputs(label, "out", "report")
     label.set_defaults(handler=command_label)
 
-    fill = commands.add_parser("fill", help="fill the short gaps of a labelled take")
+    fill = commands.add_parser("fill", help="fill the short gaps of a labelled take",
+                               formatter_class=DeferredHelpFormatter)
     add_rate_argument(fill)
     fill.add_argument("labelled", metavar="LABELLED.c3d", help="labelled take (our labelled C3D, or any "
                       "labelled C3D/TSV/TRC/CSV)")
     fill.add_argument("--max-gap", type=int, required=True, metavar="FRAMES", help="longest gap to fill")
-    fill.add_argument("--method", choices=fill_choices(), default=AUTO,
-                      help="auto: per gap, the first method of its fill check that applies; "
-                      + "; ".join(f"{method.name}: {method.description}" for method in fill_methods()))
+    fill.add_argument("--method", default="auto", metavar="METHOD", choices=DeferredChoices(_fill_choices),
+                      help=_fill_method_help)
     fill.add_argument("--out", required=True, metavar="FILLED.c3d", help="the filled take to write (labelled C3D)")
     fill.add_argument("--quiet", action="store_true", help="no progress output")
     add_outputs(fill, "out")

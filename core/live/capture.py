@@ -34,10 +34,10 @@ import numpy as np
 from handmocap.core.errors import InputError
 from handmocap.core.io import Take
 from handmocap.core.io.c3d_writer import write_c3d
+from handmocap.core.io.system_labels import SYSTEM_GROUP
 from handmocap.core.labelling.online import LabelledFrame, OnlineLabeller
 from handmocap.core.labelling.result import SceneLabelling
 from handmocap.core.live.recorder import (
-    SYSTEM_GROUP,
     FrameJournal,
     RecordingError,
     SystemLabels,

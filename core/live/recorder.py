@@ -40,6 +40,7 @@ import numpy as np
 from handmocap.core.errors import InputError
 from handmocap.core.io import Take
 from handmocap.core.io.durable import write_atomic
+from handmocap.core.io.system_labels import SYSTEM_GROUP
 from handmocap.core.session.files import make_folder, open_append, refuse_links, write_file
 
 JOURNAL_FORMAT = "handmocap-live-journal"
@@ -51,7 +52,6 @@ _NAME = struct.Struct("<4sII")          # magic, label index, UTF-8 bytes
 _MAX_POINTS = 100_000
 _MAX_NAME = 4096
 SYSTEM_LABELS_FORMAT = "handmocap-system-labels"
-SYSTEM_GROUP = "SYSTEM_LABELS"
 _C3D_NAMES = 255            # labels per C3D parameter (its dimensions are bytes)
 _C3D_NAME_BYTES = 120       # 255 names of 120 bytes fit one C3D parameter (<= 32767 bytes)
 
@@ -145,31 +145,6 @@ class SystemLabels:
         if file and len(file.encode("utf-8")) <= 255:
             group["FILE"] = file
         return group
-
-
-def system_labels_summary(group: object) -> dict | None:
-    """What a take's ``SYSTEM_LABELS`` parameter group (a live recording: the capture system's own labels)
-    says: ``source``, ``labels`` (count), ``labelled_share`` (of the points) and the sidecar ``file`` holding
-    them per point; None without the group or when its values are not what a recording writes."""
-    if not isinstance(group, dict):
-        return None
-
-    def text(value: object) -> str:
-        items = value if isinstance(value, list | tuple) else [value]
-        return str(items[0]).strip() if items and isinstance(items[0], str) else ""
-
-    def number(value: object) -> float | None:
-        try:
-            values = np.asarray(value, dtype=float).ravel()
-        except (TypeError, ValueError):
-            return None
-        return float(values[0]) if values.size and np.isfinite(values[0]) else None
-
-    share, count = number(group.get("SHARE")), number(group.get("COUNT"))
-    if share is None or count is None:
-        return None
-    return {"source": text(group.get("SOURCE")) or "the capture system", "labels": int(count),
-            "labelled_share": round(share, 4), "file": text(group.get("FILE"))}
 
 
 def system_labels(source: str, names: list[str], codes: list[np.ndarray | None], points: list[int],

@@ -106,3 +106,24 @@ def test_layout_optimize_and_evaluate(tmp_path, capsys):
     assert figures["markers"] == 4 and 0 < figures["mean_mm"] <= figures["max_mm"]
     assert main(["layout", "optimize", "--markers", "100000", "--out", str(out), "--overwrite"]) == 2
     assert "cannot place 100000 markers" in capsys.readouterr().err
+
+
+def test_version_and_info_load_no_compiled_kernels_nor_qt(tmp_path):
+    """The fixed cost of a call (issue 25: ≤ 0.5 s): the parser reads the fill methods and export formats only
+    when they are asked for, so ``--version`` and ``info`` import neither numba (half a second) nor Qt."""
+    from handmocap.core.io import save_take
+    from handmocap.core.simulate import simulate_take
+
+    path = tmp_path / "small.c3d"
+    save_take(simulate_take(layout="grasp-6", n_frames=20, seed=1).take, path)
+    probe = ("import sys; from handmocap.app.cli.main import main\n"
+             "for args in (['--version'], ['info', sys.argv[1]]):\n"
+             "    try:\n"
+             "        main(args)\n"
+             "    except SystemExit:\n"
+             "        pass\n"
+             "print(sorted({name.split('.')[0] for name in sys.modules} & {'numba', 'PySide6', 'scipy', 'cv2'}))")
+    completed = subprocess.run([sys.executable, "-c", probe, str(path)], capture_output=True, text=True, timeout=120)
+    assert completed.returncode == 0, completed.stderr
+    assert completed.stdout.strip().splitlines()[-1] == "[]"
+    assert "20 frames" in completed.stdout

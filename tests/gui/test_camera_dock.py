@@ -83,7 +83,8 @@ def test_dock_shows_the_camera_frame_at_the_timeline_time(window, qtbot, filmed,
     assert np.nanmedian(np.linalg.norm(pixels - truth, axis=1)) < 2.0
     assert controller.view.canvas.paint_count > 0
     # the camera is drawn as a frustum in the 3D view
-    assert window.viewport.view()._frustum_actor.visibility and window.viewport.view()._frustum_lines.GetNumberOfCells() == 8
+    view = window.viewport.view()
+    assert view._frustum_actor.visibility and view._frustum_lines.GetNumberOfCells() == 8
 
 
 def test_clicking_a_marker_in_the_video_selects_it(window, qtbot, filmed, tmp_path):

@@ -19,11 +19,12 @@ import pytest
 
 from handmocap.core.errors import InputError
 from handmocap.core.io import load_take
+from handmocap.core.io.system_labels import system_labels_summary
 from handmocap.core.labelling.online import OnlineLabeller
 from handmocap.core.labelling.scene import label_scene
 from handmocap.core.live import recorder
 from handmocap.core.live.capture import LiveCapture
-from handmocap.core.live.recorder import FrameJournal, read_journal, read_system_labels, system_labels_summary
+from handmocap.core.live.recorder import FrameJournal, read_journal, read_system_labels
 from handmocap.core.live.server import StandInServer, make_replay
 from handmocap.core.live.sources import SourceError, parse_address
 from handmocap.core.live.supervision import Supervisor
