@@ -2,7 +2,8 @@
 demo session showing its first take, and to every demo take opened, labelled and solved.
 
 Each figure is measured in a fresh process (interpreter start and imports included), on a new demo
-session folder ("first start") and then on the same folder again ("next start").
+session folder ("first start") and then on the same folder again ("next start"). "window" is the main window
+drawn; its 3D view is built 0.1 s after that (``widgets/deferred_viewport.py``), before "demo".
 
 Run (needs a display or runs offscreen): python tests/bench/bench_startup.py [runs]
 
