@@ -15,6 +15,7 @@ builds it at once.
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import partial
 from typing import TYPE_CHECKING, Any
 
 from PySide6.QtCore import Qt, QTimer, Signal
@@ -88,24 +89,22 @@ class DeferredViewport(QWidget):
             self._view.close_viewport()
 
     def __getattr__(self, name: str) -> Any:
-        """The view's attribute ``name``: a drawing call is kept while the view does not exist; anything
-        else builds the view first. (Python asks here only for names this widget does not have.)"""
+        """The view's attribute ``name`` (once built, the view's own: nothing stands between); before, a
+        drawing call is kept, anything else builds the view first. (Python asks here only for names this
+        widget does not have.)"""
         if name.startswith("_"):
             raise AttributeError(name)
-        if name in DRAWING_CALLS:
-            return self._drawing_call(name)
+        if self._view is None and name in DRAWING_CALLS:
+            return partial(self._keep, name)
         return getattr(self.view(), name)
 
-    def _drawing_call(self, name: str) -> Callable[..., None]:
-        def call(*arguments: Any, **keywords: Any) -> None:
-            if self._view is not None:
-                getattr(self._view, name)(*arguments, **keywords)
-            elif len(self._pending) >= MAX_PENDING:
-                self.view()
-                getattr(self._view, name)(*arguments, **keywords)
-            else:
-                self._pending.append((name, arguments, keywords))
-        return call
+    def _keep(self, name: str, *arguments: Any, **keywords: Any) -> None:
+        """Keep drawing call ``name`` until the view exists (a call bound before it was built, e.g. to an
+        action, lands here later too: it is then done at once)."""
+        if self._view is None and len(self._pending) < MAX_PENDING:
+            self._pending.append((name, arguments, keywords))
+        else:
+            getattr(self.view(), name)(*arguments, **keywords)
 
     def _panel_painted(self) -> None:
         if not self._build_scheduled:

@@ -115,11 +115,19 @@ def _check_hand_outputs(review, out: str, overwrite: bool) -> None:
 
 
 def _formats() -> tuple:
-    """The registered export formats (importing :mod:`core.review` registers the built-in ones)."""
-    import handmocap.core.review  # noqa: F401
+    """The registered export formats."""
+    import handmocap.core.review  # noqa: F401  (registers the built-in export formats)
     from handmocap.core.review.export_formats import export_formats
 
     return export_formats()
+
+
+def _format_names() -> tuple[str, ...]:
+    """The names of the registered export formats."""
+    import handmocap.core.review  # noqa: F401  (registers the built-in export formats)
+    from handmocap.core.review.export_formats import export_format_names
+
+    return export_format_names()
 
 
 def _names(test: Callable[[Any], bool]) -> str:
@@ -145,7 +153,7 @@ def register(commands, bench_commands, evaluate_commands) -> None:
     add_rate_argument(export)
     export.add_argument("--take", dest="take_name", metavar="NAME", help="the take (id or name) of the session")
     export.add_argument("--format", required=True, metavar="FORMAT",
-                        choices=DeferredChoices(lambda: [chosen.name for chosen in _formats()]),
+                        choices=DeferredChoices(_format_names),
                         help=lambda: f"{_names(lambda chosen: not chosen.joint_angles)}: labelled points; "
                         f"{_names(lambda chosen: chosen.joint_angles)}: the solved hands")
     export.add_argument("--out", required=True, metavar="FILE", help="the file to write")
