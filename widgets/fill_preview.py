@@ -7,8 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import Qt
-from PySide6.QtGui import QShowEvent
+from PySide6.QtCore import QEvent, QObject, Qt, QTimer
 from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
 from handmocap.core.gaps import fill_method, menu_fill_methods
@@ -38,24 +37,33 @@ class FillPreview(QWidget):
         self.legend_label.setContentsMargins(6, 0, 6, 2)
         for label in (self.title_label, self.legend_label):
             label.setStyleSheet(f"background: {css(BACKGROUND)}; color: #cdd2da;")
-        self.graphics: pg.GraphicsLayoutWidget | None = None    # the plots: built when first shown or drawn to
-        self.plots: list[pg.PlotItem] = []
-        self._regions: list[pg.LinearRegionItem] = []
-        self._measured: list[pg.PlotDataItem] = []
-        self._layout = QVBoxLayout(self)
-        self._layout.setContentsMargins(0, 0, 0, 0)
-        self._layout.setSpacing(0)
-        self._layout.addWidget(self.title_label)
-        self._layout.addWidget(self.legend_label)
-        self.clear()
-
-    def _build_plots(self) -> None:
-        """The three plots (pyqtgraph: a tenth of a second or more), built when first shown or drawn to."""
-        if self.graphics is not None:
-            return
         self.graphics = pg.GraphicsLayoutWidget(self)
         self.graphics.setBackground(BACKGROUND)
         self.graphics.ci.setSpacing(0)
+        self.graphics.setMinimumSize(220, 110)   # beside the gap list in the Gaps dock, even at 1366×768
+        self.graphics.viewport().installEventFilter(self)      # its first paint builds the plots
+        self.plots: list[pg.PlotItem] = []       # built when first painted or drawn to (_build_plots)
+        self._regions: list[pg.LinearRegionItem] = []
+        self._measured: list[pg.PlotDataItem] = []
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.setSpacing(0)
+        layout.addWidget(self.title_label)
+        layout.addWidget(self.legend_label)
+        layout.addWidget(self.graphics, 1)
+        self.clear()
+
+    def eventFilter(self, watched: QObject, event: QEvent) -> bool:
+        """The plots are built on the event-loop turn after the first paint of their area: a tab behind
+        another in its dock counts as shown but is never painted."""
+        if event.type() == QEvent.Type.Paint and not self.plots:
+            QTimer.singleShot(0, self, self._build_plots)
+        return False
+
+    def _build_plots(self) -> None:
+        """The three plots (pyqtgraph: a tenth of a second or more)."""
+        if self.plots:
+            return
         for row, axis in enumerate(AXES):
             # the axis name level, not rotated: three rotated labels overlap when the dock is short
             self.graphics.addLabel(f"{axis}<br>mm", row=row, col=0, color="#cdd2da", size="8pt")
@@ -81,12 +89,6 @@ class FillPreview(QWidget):
             region.hide()                        # until a gap is shown
             plot.addItem(region)
             plot.addItem(measured)
-        self.graphics.setMinimumSize(220, 110)   # beside the gap list in the Gaps dock, even at 1366×768
-        self._layout.addWidget(self.graphics, 1)
-
-    def showEvent(self, event: QShowEvent) -> None:
-        self._build_plots()
-        super().showEvent(event)
 
     # ------------------------------------------------------------------------------------- public
     def clear(self) -> None:
